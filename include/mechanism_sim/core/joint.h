@@ -1,0 +1,103 @@
+// A joint: constraint equations between body i and body j, each given a joint frame
+// (point B and axes bx, by, bz fixed in the body), plus the joint's own coordinates
+// along its free directions.
+#pragma once
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "mechanism_sim/core/constraint.h"
+
+namespace mechanism_sim {
+
+// Joint frame in body components: origin sp_B and axes Rp = [bxp byp bzp].
+struct JointFrame {
+  Vector3d sp_B = Vector3d::Zero();
+  Matrix3d Rp = Matrix3d::Identity();
+};
+
+// What a joint type may need beyond its frames.
+struct JointParams {
+  double alpha = 0.0;  // screw: lead per radian (m/rad), right-handed positive
+  double phi0 = 0.0;   // screw: relative angle at which B_i and B_j coincide
+};
+
+// The joint frames' axes and the gap d_ij in one evaluation.
+struct JointGeometry {
+  FixedVector bx_i, by_i, bz_i, bx_j, by_j, bz_j;
+  Gap d;
+};
+
+class Joint : public Constraint {
+ public:
+  Joint(std::string name, int body_i, const JointFrame& frame_i, int body_j,
+        const JointFrame& frame_j)
+      : Constraint(std::move(name), {body_i, body_j}), frame_i_(frame_i), frame_j_(frame_j) {}
+
+  int bodyI() const { return bodies()[0]; }
+  int bodyJ() const { return bodies()[1]; }
+  const JointFrame& frameI() const { return frame_i_; }
+  const JointFrame& frameJ() const { return frame_j_; }
+
+  // Degrees of freedom and their names ("" for a one-dof joint).
+  virtual int dof() const = 0;
+  virtual std::string dofName(int /*k*/) const { return ""; }
+  // Whether q_dot = G v is the time derivative of q (false for a spherical joint,
+  // whose rates are the relative angular velocity in frame i).
+  virtual bool holonomicCoordinates() const { return true; }
+  // The tracked-angle slot (Constraint::tracked) behind coordinate k, or -1: assembly seeds
+  // it so that a target of, say, 5 rad means 5 rad and not 5 - 2 pi.
+  virtual int trackedSlot(int /*k*/) const { return -1; }
+  // Joint coordinates: out[k] (k < dof) holds q_k (Phi), its rate (Phi_dot), the row G_k
+  // (J) with q_dot_k = G_k v, and gamma_k. A generalized effort tau_k along coordinate k
+  // acts on the bodies as G_k^T tau_k.
+  virtual void coordinates(const BodyKin& ki, const BodyKin& kj, Row* out) const = 0;
+
+  void evaluate(const BodyKin* const* kin, Eigen::Ref<Eigen::VectorXd> Phi,
+                Eigen::Ref<Eigen::MatrixXd> J, Eigen::Ref<Eigen::VectorXd> gamma) const final {
+    RowWriter out(Phi, J, gamma);
+    equations(geometry(*kin[0], *kin[1]), *kin[0], *kin[1], out);
+  }
+  void accept(const BodyKin* const* kin) override { acceptAngles(*kin[0], *kin[1]); }
+
+  JointGeometry geometry(const BodyKin& ki, const BodyKin& kj) const;
+
+ protected:
+  virtual void equations(const JointGeometry& g, const BodyKin& ki, const BodyKin& kj,
+                         RowWriter& out) const = 0;
+  // Joints holding tracked angles move their references here.
+  virtual void acceptAngles(const BodyKin& /*ki*/, const BodyKin& /*kj*/) {}
+
+  // C(p1)(bz_i, bz_j) = tilde(bz_i) bz_j = 0 (A8.1): of its three rows the one along bz_i
+  // vanishes identically; its components along by_i and -bx_i are the two independent
+  // rows bx_i^T bz_j = 0 and by_i^T bz_j = 0, each a C(n1) (8.11).
+  static void putParallelAxes(const JointGeometry& g, RowWriter& out) {
+    out.put(Cn1(g.bx_i, g.bz_j));
+    out.put(Cn1(g.by_i, g.bz_j));
+  }
+  // C(p2)(bz_i, d_ij) = tilde(bz_i) d_ij = 0 (A8.2), reduced the same way to
+  // bx_i^T d_ij = 0 and by_i^T d_ij = 0, each a C(n2) (8.13).
+  static void putOnAxis(const JointGeometry& g, RowWriter& out) {
+    out.put(Cn2(g.bx_i, g.d));
+    out.put(Cn2(g.by_i, g.d));
+  }
+  // Point coincidence d_ij = 0.
+  static void putPoint(const JointGeometry& g, RowWriter& out);
+
+ private:
+  JointFrame frame_i_, frame_j_;
+};
+
+using JointFactory = std::unique_ptr<Joint> (*)(const std::string& name, int body_i,
+                                                const JointFrame& frame_i, int body_j,
+                                                const JointFrame& frame_j,
+                                                const JointParams& params);
+
+// Joint types by name ("revolute", "screw", ...); throws std::invalid_argument on an
+// unknown type or parameters the type cannot take.
+std::unique_ptr<Joint> makeJoint(const std::string& type, const std::string& name, int body_i,
+                                 const JointFrame& frame_i, int body_j,
+                                 const JointFrame& frame_j, const JointParams& params = {});
+std::vector<std::string> jointTypes();
+
+}  // namespace mechanism_sim

@@ -1,0 +1,27 @@
+#pragma once
+#include "mechanism_sim/core/joint.h"
+
+namespace mechanism_sim {
+
+// Cylindrical joint (seed table A8.1 (a)): bz_i || bz_j and bz_i || d_ij (2 + 2
+// equations). Coordinates: "rotation" (as the revolute) and "translation" bz_i^T d_ij.
+class CylindricalJoint : public Joint {
+ public:
+  using Joint::Joint;
+  static std::unique_ptr<Joint> make(const std::string& name, int bi, const JointFrame& fi,
+                                     int bj, const JointFrame& fj, const JointParams& params);
+  std::string type() const override { return "cylindrical"; }
+  int size() const override { return 4; }
+  int trackedSlot(int k) const override { return k == 0 ? 0 : -1; }
+  int dof() const override { return 2; }
+  std::string dofName(int k) const override { return k == 0 ? "rotation" : "translation"; }
+  void coordinates(const BodyKin& ki, const BodyKin& kj, Row* out) const override;
+
+ protected:
+  void equations(const JointGeometry& g, const BodyKin& ki, const BodyKin& kj,
+                 RowWriter& out) const override;
+  void acceptAngles(const BodyKin& ki, const BodyKin& kj) override;
+
+};
+
+}  // namespace mechanism_sim

@@ -1,0 +1,22 @@
+#pragma once
+#include "mechanism_sim/core/joint.h"
+
+namespace mechanism_sim {
+
+// Fixed joint: B_i = B_j, bz_i || bz_j and C(n1)(by_i, bx_j) = 0 (3 + 2 + 1 equations).
+class FixedJoint : public Joint {
+ public:
+  using Joint::Joint;
+  static std::unique_ptr<Joint> make(const std::string& name, int bi, const JointFrame& fi,
+                                     int bj, const JointFrame& fj, const JointParams& params);
+  std::string type() const override { return "fixed"; }
+  int size() const override { return 6; }
+  int dof() const override { return 0; }
+  void coordinates(const BodyKin&, const BodyKin&, Row*) const override {}
+
+ protected:
+  void equations(const JointGeometry& g, const BodyKin& ki, const BodyKin& kj,
+                 RowWriter& out) const override;
+};
+
+}  // namespace mechanism_sim

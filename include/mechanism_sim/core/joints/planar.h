@@ -1,0 +1,28 @@
+#pragma once
+#include "mechanism_sim/core/joint.h"
+
+namespace mechanism_sim {
+
+// Planar joint: B_j stays in the plane through B_i normal to bz_i, C(n2)(bz_i, d_ij) = 0,
+// and bz_i || bz_j (1 + 2 equations). Coordinates "x" = bx_i^T d_ij, "y" = by_i^T d_ij and
+// "rotation" about bz_i.
+class PlanarJoint : public Joint {
+ public:
+  using Joint::Joint;
+  static std::unique_ptr<Joint> make(const std::string& name, int bi, const JointFrame& fi,
+                                     int bj, const JointFrame& fj, const JointParams& params);
+  std::string type() const override { return "planar"; }
+  int size() const override { return 3; }
+  int trackedSlot(int k) const override { return k == 2 ? 0 : -1; }
+  int dof() const override { return 3; }
+  std::string dofName(int k) const override { return k == 0 ? "x" : k == 1 ? "y" : "rotation"; }
+  void coordinates(const BodyKin& ki, const BodyKin& kj, Row* out) const override;
+
+ protected:
+  void equations(const JointGeometry& g, const BodyKin& ki, const BodyKin& kj,
+                 RowWriter& out) const override;
+  void acceptAngles(const BodyKin& ki, const BodyKin& kj) override;
+
+};
+
+}  // namespace mechanism_sim

@@ -1,0 +1,23 @@
+#pragma once
+#include "mechanism_sim/core/joint.h"
+
+namespace mechanism_sim {
+
+// Prismatic (translational) joint (seed table A8.1 (b)): the cylindrical equations and
+// C(n1)(by_i, bx_j) = 0 (5 equations). Coordinate: bz_i^T d_ij.
+class PrismaticJoint : public Joint {
+ public:
+  using Joint::Joint;
+  static std::unique_ptr<Joint> make(const std::string& name, int bi, const JointFrame& fi,
+                                     int bj, const JointFrame& fj, const JointParams& params);
+  std::string type() const override { return "prismatic"; }
+  int size() const override { return 5; }
+  int dof() const override { return 1; }
+  void coordinates(const BodyKin& ki, const BodyKin& kj, Row* out) const override;
+
+ protected:
+  void equations(const JointGeometry& g, const BodyKin& ki, const BodyKin& kj,
+                 RowWriter& out) const override;
+};
+
+}  // namespace mechanism_sim

@@ -1,0 +1,26 @@
+#pragma once
+#include "mechanism_sim/core/joint.h"
+
+namespace mechanism_sim {
+
+// Revolute joint: B_i = B_j and bz_i || bz_j (3 + 2 equations); coordinate: the angle
+// of bx_j from bx_i about bz_i, counted through any number of turns.
+class RevoluteJoint : public Joint {
+ public:
+  using Joint::Joint;
+  static std::unique_ptr<Joint> make(const std::string& name, int bi, const JointFrame& fi,
+                                     int bj, const JointFrame& fj, const JointParams& params);
+  std::string type() const override { return "revolute"; }
+  int size() const override { return 5; }
+  int trackedSlot(int k) const override { return k == 0 ? 0 : -1; }
+  int dof() const override { return 1; }
+  void coordinates(const BodyKin& ki, const BodyKin& kj, Row* out) const override;
+
+ protected:
+  void equations(const JointGeometry& g, const BodyKin& ki, const BodyKin& kj,
+                 RowWriter& out) const override;
+  void acceptAngles(const BodyKin& ki, const BodyKin& kj) override;
+
+};
+
+}  // namespace mechanism_sim

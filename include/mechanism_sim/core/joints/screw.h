@@ -1,0 +1,34 @@
+#pragma once
+#include "mechanism_sim/core/joint.h"
+
+namespace mechanism_sim {
+
+// Screw joint (seed table A8.1 (c)): the cylindrical equations and
+// C(sc) = bz_i^T d_ij - alpha (phi - phi0) = 0 (A8.8), 5 equations. alpha is the lead per
+// radian; phi is tracked through any number of turns. Coordinate: phi.
+class ScrewJoint : public Joint {
+ public:
+  ScrewJoint(const std::string& name, int bi, const JointFrame& fi, int bj,
+             const JointFrame& fj, double alpha, double phi0)
+      : Joint(name, bi, fi, bj, fj), alpha_(alpha), phi0_(phi0) {
+    tracked_[0] = phi0;
+  }
+  static std::unique_ptr<Joint> make(const std::string& name, int bi, const JointFrame& fi,
+                                     int bj, const JointFrame& fj, const JointParams& params);
+  std::string type() const override { return "screw"; }
+  int size() const override { return 5; }
+  int trackedSlot(int k) const override { return k == 0 ? 0 : -1; }
+  int dof() const override { return 1; }
+  double alpha() const { return alpha_; }
+  void coordinates(const BodyKin& ki, const BodyKin& kj, Row* out) const override;
+
+ protected:
+  void equations(const JointGeometry& g, const BodyKin& ki, const BodyKin& kj,
+                 RowWriter& out) const override;
+  void acceptAngles(const BodyKin& ki, const BodyKin& kj) override;
+
+ private:
+  double alpha_, phi0_;
+};
+
+}  // namespace mechanism_sim

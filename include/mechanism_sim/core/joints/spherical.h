@@ -1,0 +1,26 @@
+#pragma once
+#include "mechanism_sim/core/joint.h"
+
+namespace mechanism_sim {
+
+// Spherical joint: B_i and B_j coincide (3 equations). Its three rates are the
+// relative angular velocity of j in frame i; its positions the rotation vector of frame j
+// relative to frame i.
+class SphericalJoint : public Joint {
+ public:
+  using Joint::Joint;
+  static std::unique_ptr<Joint> make(const std::string& name, int bi, const JointFrame& fi,
+                                     int bj, const JointFrame& fj, const JointParams& params);
+  std::string type() const override { return "spherical"; }
+  int size() const override { return 3; }
+  int dof() const override { return 3; }
+  std::string dofName(int k) const override;
+  bool holonomicCoordinates() const override { return false; }
+  void coordinates(const BodyKin& ki, const BodyKin& kj, Row* out) const override;
+
+ protected:
+  void equations(const JointGeometry& g, const BodyKin& ki, const BodyKin& kj,
+                 RowWriter& out) const override;
+};
+
+}  // namespace mechanism_sim

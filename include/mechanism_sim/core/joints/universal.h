@@ -1,0 +1,28 @@
+#pragma once
+#include "mechanism_sim/core/joint.h"
+
+namespace mechanism_sim {
+
+// Universal (Cardan) joint: B_i = B_j and bx_i perpendicular to by_j (3 + 1 equations).
+// Coordinates: "axis1", rotation about bx_i; "axis2", rotation about by_j; so that the
+// relative orientation of the frames is Rx(axis1) Ry(axis2).
+class UniversalJoint : public Joint {
+ public:
+  using Joint::Joint;
+  static std::unique_ptr<Joint> make(const std::string& name, int bi, const JointFrame& fi,
+                                     int bj, const JointFrame& fj, const JointParams& params);
+  std::string type() const override { return "universal"; }
+  int size() const override { return 4; }
+  int trackedSlot(int k) const override { return k; }
+  int dof() const override { return 2; }
+  std::string dofName(int k) const override { return k == 0 ? "axis1" : "axis2"; }
+  void coordinates(const BodyKin& ki, const BodyKin& kj, Row* out) const override;
+
+ protected:
+  void equations(const JointGeometry& g, const BodyKin& ki, const BodyKin& kj,
+                 RowWriter& out) const override;
+  void acceptAngles(const BodyKin& ki, const BodyKin& kj) override;
+
+};
+
+}  // namespace mechanism_sim

@@ -1,0 +1,45 @@
+// Small rotation helpers: skew matrices, Euler parameters, the exponential map.
+#pragma once
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+namespace mechanism_sim {
+
+using Eigen::Matrix3d;
+using Eigen::Vector3d;
+using Eigen::Vector4d;
+using Eigen::Quaterniond;
+using Row12 = Eigen::Matrix<double, 1, 12>;
+
+// tilde(a) b = a x b
+inline Matrix3d tilde(const Vector3d& a) {
+  Matrix3d m;
+  m << 0, -a.z(), a.y(), a.z(), 0, -a.x(), -a.y(), a.x(), 0;
+  return m;
+}
+
+// Rotation exp(tilde(theta)) as a unit quaternion.
+inline Quaterniond expRotation(const Vector3d& theta) {
+  const double angle = theta.norm();
+  if (angle < 1e-12) {
+    Quaterniond q(1.0, 0.5 * theta.x(), 0.5 * theta.y(), 0.5 * theta.z());
+    return q.normalized();
+  }
+  return Quaterniond(Eigen::AngleAxisd(angle, theta / angle));
+}
+
+// Rotation vector of a unit quaternion (inverse of expRotation), angle in [0, pi].
+inline Vector3d logRotation(Quaterniond q) {
+  if (q.w() < 0) q.coeffs() = -q.coeffs();
+  const double s = q.vec().norm();
+  if (s < 1e-12) return 2.0 * q.vec();
+  return 2.0 * std::atan2(s, q.w()) * q.vec() / s;
+}
+
+// Nearest representative of angle to ref (unwrap across turns).
+inline double unwrapNear(double angle, double ref) {
+  constexpr double kTwoPi = 6.283185307179586476925;
+  return angle + kTwoPi * std::round((ref - angle) / kTwoPi);
+}
+
+}  // namespace mechanism_sim

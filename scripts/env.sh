@@ -1,0 +1,31 @@
+# Sourced by the scripts: repository paths, ROS environment, a catkin workspace inside
+# the repository (.catkin_ws, ignored by git) whose src/ links to the package.
+REPO="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+WS="$REPO/.catkin_ws"
+# The ROS Python modules live under /usr/bin/python3, not a pyenv python3 earlier in PATH.
+export PATH="/usr/bin:/bin:/usr/sbin:/sbin:$PATH"
+export ROS_HOME="${ROS_HOME:-$WS/ros_home}"
+export ROS_LOG_DIR="${ROS_LOG_DIR:-$WS/log}"
+export PYTHONNOUSERSITE=1
+unset PYTHONPATH PYENV_VERSION
+
+ws_setup() {
+  mkdir -p "$WS/src"
+  [ -L "$WS/src/mechanism_sim" ] || ln -sfn "$REPO" "$WS/src/mechanism_sim"
+}
+
+ws_source() {
+  # shellcheck disable=SC1091
+  set +u
+  source "$WS/devel/setup.bash"
+  set -u
+}
+
+ws_build() {
+  ws_setup
+  (cd "$WS" && catkin_make -DCMAKE_BUILD_TYPE=Release -j2 "$@" > "$WS/build.log" 2>&1) || {
+    tail -60 "$WS/build.log" >&2
+    echo "build failed (full log: $WS/build.log)" >&2
+    return 1
+  }
+}

@@ -1,0 +1,28 @@
+#include "mechanism_sim/core/joints/planar.h"
+
+namespace mechanism_sim {
+
+std::unique_ptr<Joint> PlanarJoint::make(const std::string& name, int bi, const JointFrame& fi,
+                                         int bj, const JointFrame& fj, const JointParams&) {
+  return std::make_unique<PlanarJoint>(name, bi, fi, bj, fj);
+}
+
+void PlanarJoint::equations(const JointGeometry& g, const BodyKin&, const BodyKin&,
+                            RowWriter& out) const {
+  out.put(Cn2(g.bz_i, g.d));  // C(n2)(bz_i, d_ij) = 0 (8.13)        (1)
+  putParallelAxes(g, out);    // C(p1)(bz_i, bz_j) = 0 (A8.1)        (2)
+}
+
+void PlanarJoint::coordinates(const BodyKin& ki, const BodyKin& kj, Row* out) const {
+  const JointGeometry g = geometry(ki, kj);
+  out[0] = Cn2(g.bx_i, g.d);
+  out[1] = Cn2(g.by_i, g.d);
+  out[2] = relativeAngle(g.bx_i, g.by_i, g.bx_j, tracked_[0]);
+}
+
+void PlanarJoint::acceptAngles(const BodyKin& ki, const BodyKin& kj) {
+  const JointGeometry g = geometry(ki, kj);
+  tracked_[0] = relativeAngle(g.bx_i, g.by_i, g.bx_j, tracked_[0]).Phi;
+}
+
+}  // namespace mechanism_sim

@@ -1,0 +1,26 @@
+#include "mechanism_sim/core/joints/revolute.h"
+
+namespace mechanism_sim {
+
+std::unique_ptr<Joint> RevoluteJoint::make(const std::string& name, int bi, const JointFrame& fi,
+                                           int bj, const JointFrame& fj, const JointParams&) {
+  return std::make_unique<RevoluteJoint>(name, bi, fi, bj, fj);
+}
+
+void RevoluteJoint::equations(const JointGeometry& g, const BodyKin&, const BodyKin&,
+                              RowWriter& out) const {
+  putPoint(g, out);          // d_ij = 0                      (3)
+  putParallelAxes(g, out);   // C(p1)(bz_i, bz_j) = 0 (A8.1)  (2)
+}
+
+void RevoluteJoint::coordinates(const BodyKin& ki, const BodyKin& kj, Row* out) const {
+  const JointGeometry g = geometry(ki, kj);
+  out[0] = relativeAngle(g.bx_i, g.by_i, g.bx_j, tracked_[0]);
+}
+
+void RevoluteJoint::acceptAngles(const BodyKin& ki, const BodyKin& kj) {
+  const JointGeometry g = geometry(ki, kj);
+  tracked_[0] = relativeAngle(g.bx_i, g.by_i, g.bx_j, tracked_[0]).Phi;
+}
+
+}  // namespace mechanism_sim

@@ -1,0 +1,35 @@
+#include "mechanism_sim/core/joints/screw.h"
+
+#include <cmath>
+#include <stdexcept>
+
+namespace mechanism_sim {
+
+std::unique_ptr<Joint> ScrewJoint::make(const std::string& name, int bi, const JointFrame& fi,
+                                        int bj, const JointFrame& fj, const JointParams& params) {
+  if (!std::isfinite(params.alpha) || params.alpha == 0.0)
+    throw std::invalid_argument("screw joint '" + name + "': lead must be finite and non-zero");
+  return std::make_unique<ScrewJoint>(name, bi, fi, bj, fj, params.alpha, params.phi0);
+}
+
+// Seed table A8.1 (c).
+void ScrewJoint::equations(const JointGeometry& g, const BodyKin&, const BodyKin&,
+                           RowWriter& out) const {
+  putParallelAxes(g, out);  // C(p1)(bz_i, bz_j) = 0 (A8.6)  (2)
+  putOnAxis(g, out);        // C(p2)(bz_i, d_ij) = 0 (A8.7)  (2)
+  // C(sc) = bz_i^T d_ij - alpha (phi - phi0) = 0 (A8.8), phi counted through turns,
+  // variation (A8.10) (with (7.38) for delta phi).                                   (1)
+  out.put(Csc(g.bz_i, g.d, relativeAngle(g.bx_i, g.by_i, g.bx_j, tracked_[0]), alpha_, phi0_));
+}
+
+void ScrewJoint::coordinates(const BodyKin& ki, const BodyKin& kj, Row* out) const {
+  const JointGeometry g = geometry(ki, kj);
+  out[0] = relativeAngle(g.bx_i, g.by_i, g.bx_j, tracked_[0]);
+}
+
+void ScrewJoint::acceptAngles(const BodyKin& ki, const BodyKin& kj) {
+  const JointGeometry g = geometry(ki, kj);
+  tracked_[0] = relativeAngle(g.bx_i, g.by_i, g.bx_j, tracked_[0]).Phi;
+}
+
+}  // namespace mechanism_sim

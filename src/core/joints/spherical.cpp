@@ -1,0 +1,37 @@
+#include "mechanism_sim/core/joints/spherical.h"
+
+namespace mechanism_sim {
+
+std::unique_ptr<Joint> SphericalJoint::make(const std::string& name, int bi,
+                                            const JointFrame& fi, int bj, const JointFrame& fj,
+                                            const JointParams&) {
+  return std::make_unique<SphericalJoint>(name, bi, fi, bj, fj);
+}
+
+std::string SphericalJoint::dofName(int k) const { return k == 0 ? "x" : k == 1 ? "y" : "z"; }
+
+void SphericalJoint::equations(const JointGeometry& g, const BodyKin&, const BodyKin&,
+                               RowWriter& out) const {
+  putPoint(g, out);  // d_ij = 0
+}
+
+// Rates: omega_rel = F_i^T (A_Oj w_j - A_Oi w_i), F_i = A_Oi Rp_i the frame-i axes, so
+// G = [0, -Rp_i^T, 0, F_i^T A_Oj]. Positions: rotation vector of F_i^T F_j. gamma is not
+// defined for these rates (they are not derivatives of the positions) and is left zero.
+void SphericalJoint::coordinates(const BodyKin& ki, const BodyKin& kj, Row* out) const {
+  const Matrix3d Fi = ki.A_Oi * frameI().Rp;
+  const Matrix3d Fj = kj.A_Oi * frameJ().Rp;
+  const Vector3d rotvec = logRotation(Quaterniond(Matrix3d(Fi.transpose() * Fj)));
+  const Vector3d rate = Fi.transpose() * (kj.A_Oi * kj.w - ki.A_Oi * ki.w);
+  const Matrix3d Gi = -frameI().Rp.transpose();
+  const Matrix3d Gj = Fi.transpose() * kj.A_Oi;
+  for (int k = 0; k < 3; ++k) {
+    out[k] = Row();
+    out[k].Phi = rotvec(k);
+    out[k].Phi_dot = rate(k);
+    out[k].J.segment<3>(3) = Gi.row(k);
+    out[k].J.segment<3>(9) = Gj.row(k);
+  }
+}
+
+}  // namespace mechanism_sim

@@ -1,0 +1,101 @@
+#include "mechanism_sim/core/sparse_ldlt.h"
+
+#include <cmath>
+
+namespace mechanism_sim {
+
+void SparseLDLT::analyze(int n, const std::vector<int>& Ap, const std::vector<int>& Ai,
+                         const std::vector<int>& perm) {
+  n_ = n;
+  Ap_ = Ap;
+  Ai_ = Ai;
+  P_.resize(n);
+  pinv_.resize(n);
+  for (int k = 0; k < n; ++k) P_[k] = perm.empty() ? k : perm[k];
+  for (int k = 0; k < n; ++k) pinv_[P_[k]] = k;
+  Lp_.assign(n + 1, 0);
+  parent_.assign(n, -1);
+  Lnz_.assign(n, 0);
+  flag_.assign(n, 0);
+  // Elimination tree and column counts of L (ldl_symbolic).
+  for (int k = 0; k < n; ++k) {
+    parent_[k] = -1;
+    flag_[k] = k;
+    const int kk = P_[k];
+    for (int p = Ap_[kk]; p < Ap_[kk + 1]; ++p) {
+      for (int i = pinv_[Ai_[p]]; i < k && flag_[i] != k; i = parent_[i]) {
+        if (parent_[i] == -1) parent_[i] = k;
+        ++Lnz_[i];
+        flag_[i] = k;
+      }
+    }
+  }
+  for (int k = 0; k < n; ++k) Lp_[k + 1] = Lp_[k] + Lnz_[k];
+  Li_.assign(Lp_[n], 0);
+  Lx_.assign(Lp_[n], 0.0);
+  D_.assign(n, 0.0);
+  Y_.assign(n, 0.0);
+  pattern_.assign(n, 0);
+  zero_.assign(n, 0);
+}
+
+int SparseLDLT::factorize(const double* Ax, double pivot_tol, bool skip_zero_pivots) {
+  int zeros = 0;
+  for (int k = 0; k < n_; ++k) {
+    // Row k of L by a sparse triangular solve (ldl_numeric).
+    Y_[k] = 0.0;
+    int top = n_;
+    flag_[k] = k;
+    Lnz_[k] = 0;
+    zero_[k] = 0;
+    const int kk = P_[k];
+    double akk = 0.0;
+    for (int p = Ap_[kk]; p < Ap_[kk + 1]; ++p) {
+      int i = pinv_[Ai_[p]];
+      if (i > k) continue;
+      Y_[i] += Ax[p];
+      if (i == k) akk += Ax[p];
+      int len = 0;
+      for (; flag_[i] != k; i = parent_[i]) {
+        pattern_[len++] = i;
+        flag_[i] = k;
+      }
+      while (len > 0) pattern_[--top] = pattern_[--len];
+    }
+    D_[k] = Y_[k];
+    Y_[k] = 0.0;
+    for (; top < n_; ++top) {
+      const int i = pattern_[top];
+      const double yi = Y_[i];
+      Y_[i] = 0.0;
+      const int p2 = Lp_[i] + Lnz_[i];
+      for (int p = Lp_[i]; p < p2; ++p) Y_[Li_[p]] -= Lx_[p] * yi;
+      const double l_ki = zero_[i] ? 0.0 : yi / D_[i];
+      D_[k] -= l_ki * yi;
+      Li_[p2] = k;
+      Lx_[p2] = l_ki;
+      ++Lnz_[i];
+    }
+    if (!(std::fabs(D_[k]) > pivot_tol * std::fabs(akk)) || D_[k] == 0.0) {
+      ++zeros;
+      zero_[k] = 1;
+      D_[k] = 0.0;
+      if (!skip_zero_pivots) return zeros;
+    }
+  }
+  return zeros;
+}
+
+void SparseLDLT::solve(double* x) const {
+  double* y = Y_.data();
+  for (int k = 0; k < n_; ++k) y[k] = x[P_[k]];
+  for (int j = 0; j < n_; ++j)
+    for (int p = Lp_[j]; p < Lp_[j] + Lnz_[j]; ++p) y[Li_[p]] -= Lx_[p] * y[j];
+  for (int j = 0; j < n_; ++j) y[j] = zero_[j] ? 0.0 : y[j] / D_[j];
+  for (int j = n_ - 1; j >= 0; --j)
+    for (int p = Lp_[j]; p < Lp_[j] + Lnz_[j]; ++p) y[j] -= Lx_[p] * y[Li_[p]];
+  for (int k = 0; k < n_; ++k) x[P_[k]] = y[k];
+  for (int k = 0; k < n_; ++k) y[k] = 0.0;
+}
+
+}  // namespace mechanism_sim
