@@ -67,14 +67,17 @@ inline Eigen::MatrixXd fdJacobian(const Phis& f, const std::vector<BodyKin>& kin
   return J;
 }
 
-// -Phi_ddot along the motion with a = 0, which is gamma (notation.h).
-inline Eigen::VectorXd fdGamma(const Phis& f, const std::vector<BodyKin>& kin, double h = 1e-4) {
+// -Phi_ddot along the motion with a = 0, which is gamma (notation.h); central second
+// differences with one Richardson extrapolation (error O(h^4)).
+inline Eigen::VectorXd fdGamma(const Phis& f, const std::vector<BodyKin>& kin, double h = 2e-4) {
   auto at = [&](double t) {
     std::vector<BodyKin> k = kin;
     for (auto& b : k) b = advance(b, t);
     return f(k);
   };
-  return -(at(h) - 2.0 * at(0.0) + at(-h)) / (h * h);
+  const Eigen::VectorXd f0 = at(0.0);
+  auto second = [&](double s) -> Eigen::VectorXd { return (at(s) - 2.0 * f0 + at(-s)) / (s * s); };
+  return -(4.0 * second(h / 2) - second(h)) / 3.0;
 }
 
 inline Eigen::VectorXd fdRate(const Phis& f, const std::vector<BodyKin>& kin, double h = 1e-6) {

@@ -7,8 +7,10 @@ namespace mechanism_sim {
 
 std::unique_ptr<Joint> ScrewJoint::make(const std::string& name, int bi, const JointFrame& fi,
                                         int bj, const JointFrame& fj, const JointParams& params) {
-  if (!std::isfinite(params.alpha) || params.alpha == 0.0)
-    throw std::invalid_argument("screw joint '" + name + "': lead must be finite and non-zero");
+  // alpha = 0 is a revolute joint written as a screw (allowed here; the URDF loader
+  // rejects a zero lead as a likely mistake).
+  if (!std::isfinite(params.alpha) || !std::isfinite(params.phi0))
+    throw std::invalid_argument("screw joint '" + name + "': lead must be finite");
   return std::make_unique<ScrewJoint>(name, bi, fi, bj, fj, params.alpha, params.phi0);
 }
 

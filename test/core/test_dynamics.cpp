@@ -1,0 +1,353 @@
+// Physics with known answers: each test states its reference and tolerance.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "mechanism_sim/core/models.h"
+
+namespace mechanism_sim {
+namespace {
+
+constexpr double g0 = 9.81;
+
+JointFrame frame(const Vector3d& sp, const Matrix3d& Rp = Matrix3d::Identity()) {
+  JointFrame f;
+  f.sp_B = sp;
+  f.Rp = Rp;
+  return f;
+}
+
+Body body(const std::string& name, double m, const Vector3d& inertia, const Vector3d& r) {
+  Body b;
+  b.name = name;
+  b.m = m;
+  b.Jp = inertia.asDiagonal();
+  b.r = r;
+  return b;
+}
+
+// Runs and checks the violation bound at every step.
+void runChecked(Mechanism& m, int steps, double h, double bound = 1e-10) {
+  for (int s = 0; s < steps; ++s) {
+    m.step(h);
+    ASSERT_LE(m.positionViolation(), bound) << "t = " << m.time();
+    ASSERT_LE(m.velocityViolation(), bound) << "t = " << m.time();
+  }
+}
+
+// A 1 kg point mass on a massless 1 m rod, released from the horizontal: the period is
+// 4 sqrt(L/g) K(sin(pi/4)) = 2.36784194757624 s for g = 9.81.
+TEST(Dynamics, PendulumReleasedHorizontallyHasTheExactPeriod) {
+  Mechanism m;
+  const int b = m.addBody(body("bob", 1.0, Vector3d::Zero(), Vector3d(1, 0, 0)));
+  m.addJoint(makeJoint("revolute", "pivot", Mechanism::kGround, models::axisY(Vector3d::Zero()), b,
+                       models::axisY(Vector3d(-1, 0, 0))));
+  m.build();
+  m.assemble();
+  const double h = 1e-3;
+  double prev_w = 0, prev_t = 0, prev2_w = 0, prev2_t = 0;
+  std::vector<double> turns;  // times where the angular velocity changes sign
+  for (int s = 0; s < 5000; ++s) {
+    m.step(h);
+    const double w = m.jointVelocity(0, 0);
+    if (s > 2 && ((prev_w < 0) != (w < 0))) {
+      // Root of the parabola through the last three (t, w).
+      const double t0 = prev2_t, t1 = prev_t, t2 = m.time();
+      const double a = ((w - prev_w) / (t2 - t1) - (prev_w - prev2_w) / (t1 - t0)) / (t2 - t0);
+      const double bq = (prev_w - prev2_w) / (t1 - t0) - a * (t0 + t1);
+      const double c = prev2_w - a * t0 * t0 - bq * t0;
+      const double disc = std::sqrt(bq * bq - 4 * a * c);
+      double r1 = (-bq + disc) / (2 * a), r2 = (-bq - disc) / (2 * a);
+      turns.push_back(std::fabs(r1 - 0.5 * (t1 + t2)) < std::fabs(r2 - 0.5 * (t1 + t2)) ? r1 : r2);
+    }
+    prev2_w = prev_w, prev2_t = prev_t, prev_w = w, prev_t = m.time();
+  }
+  ASSERT_GE(turns.size(), 3u);
+  EXPECT_NEAR(turns[1], 2.36784194757624, 1e-7);
+  EXPECT_NEAR(turns[0], 2.36784194757624 / 2, 1e-7);
+  EXPECT_NEAR(turns[2] - turns[0], 2.36784194757624, 1e-7);
+}
+
+// A nut on a vertical screw falls with z'' = -g m alpha^2 / (m alpha^2 + I_zz).
+TEST(Dynamics, NutFallsOnVerticalScrewAtTheAnalyticAcceleration) {
+  const double mass = 2.0, Izz = 0.01, alpha = 0.01;
+  Mechanism m;
+  const int nut = m.addBody(body("nut", mass, Vector3d(0.007, 0.007, Izz), Vector3d(0, 0, 1)));
+  JointParams p;
+  p.alpha = alpha;
+  m.addJoint(makeJoint("screw", "screw", Mechanism::kGround, frame(Vector3d(0, 0, 1)), nut,
+                       frame(Vector3d::Zero()), p));
+  m.build();
+  m.assemble();
+  runChecked(m, 1000, 1e-3);
+  const double a = -g0 * mass * alpha * alpha / (mass * alpha * alpha + Izz);
+  // 1e-10: the accelerations are solved to 1e-11 relative, integrated over 1000 steps.
+  EXPECT_NEAR(m.position(nut).z() - 1.0, 0.5 * a * 1.0, 1e-10);
+  EXPECT_NEAR(m.jointPosition(0, 0), 0.5 * a / alpha, 1e-9);  // phi = z / alpha
+  EXPECT_NEAR(m.jointVelocity(0, 0), a / alpha, 1e-9);
+}
+
+// A body on a frictionless incline (30 degrees) slides with s'' = g sin 30; the joint
+// point and the body's centre of mass differ, and the body is rotated.
+TEST(Dynamics, BodySlidesOnInclinedPrismaticJoint) {
+  const double beta = M_PI / 6;
+  // Prismatic axis z_i down the slope: in the x-z plane, descending along +x.
+  const Matrix3d Rp = Eigen::AngleAxisd(M_PI / 2 + beta, Vector3d::UnitY()).toRotationMatrix();
+  Mechanism m;
+  Body b = body("block", 3.0, Vector3d(0.1, 0.2, 0.3), Vector3d(0.2, 0.1, 0.5));
+  b.p = Quaterniond(Eigen::AngleAxisd(0.4, Vector3d(1, 2, 3).normalized()));
+  const int blk = m.addBody(b);
+  const Matrix3d A = b.p.toRotationMatrix();
+  const Vector3d sp_j(0.05, -0.1, 0.02);
+  m.addJoint(makeJoint("prismatic", "slide", Mechanism::kGround,
+                       frame(b.r + A * sp_j, Rp), blk, frame(sp_j, A.transpose() * Rp)));
+  m.build();
+  m.assemble();
+  runChecked(m, 2000, 1e-3);
+  EXPECT_NEAR(m.jointPosition(0, 0), 0.5 * g0 * std::sin(beta) * 4.0, 1e-10);
+  EXPECT_NEAR(m.jointVelocity(0, 0), g0 * std::sin(beta) * 2.0, 1e-10);
+}
+
+// A body symmetric about a vertical cylindrical joint: spin and slide decouple; it falls
+// freely and spins at its initial rate.
+TEST(Dynamics, CylindricalJointSpinAndSlideDecouple) {
+  Mechanism m;
+  const int rotor = m.addBody(body("rotor", 1.5, Vector3d(0.02, 0.02, 0.03), Vector3d(0, 0, 2)));
+  m.addJoint(makeJoint("cylindrical", "cyl", Mechanism::kGround, frame(Vector3d(0, 0, 2)), rotor,
+                       frame(Vector3d::Zero())));
+  m.build();
+  m.assemble({}, {CoordinateTarget{0, 0, 7.0}, CoordinateTarget{0, 1, 0.5}});
+  runChecked(m, 1500, 1e-3);
+  const double t = 1.5;
+  EXPECT_NEAR(m.jointPosition(0, 0), 7.0 * t, 1e-9);
+  EXPECT_NEAR(m.jointVelocity(0, 0), 7.0, 1e-9);
+  EXPECT_NEAR(m.jointPosition(0, 1), 0.5 * t - 0.5 * g0 * t * t, 1e-9);
+}
+
+// A compound pendulum with a screw of zero lead moves exactly as with a revolute.
+TEST(Dynamics, ScrewOfZeroPitchMovesAsRevolute) {
+  auto make = [](const char* type) {
+    auto m = std::make_unique<Mechanism>();
+    Body b = body("arm", 1.2, Vector3d(0.01, 0.05, 0.04), Vector3d(0.3, 0.1, 0.0));
+    const int arm = m->addBody(b);
+    const Matrix3d Rp = Eigen::AngleAxisd(-M_PI / 2, Vector3d::UnitX()).toRotationMatrix();
+    m->addJoint(makeJoint(type, "j", Mechanism::kGround, frame(Vector3d::Zero(), Rp), arm,
+                          frame(-b.r, Rp), JointParams{0.0, 0.0}));
+    m->build();
+    m->assemble();
+    return m;
+  };
+  auto screw = make("screw"), revolute = make("revolute");
+  for (int s = 0; s < 3000; ++s) {
+    screw->step(1e-3);
+    revolute->step(1e-3);
+  }
+  // Same motion, different equations: they agree to the solver tolerances.
+  EXPECT_NEAR(screw->jointPosition(0, 0), revolute->jointPosition(0, 0), 1e-8);
+  EXPECT_LT((screw->position(1) - revolute->position(1)).norm(), 1e-8);
+  EXPECT_GT(std::fabs(revolute->jointPosition(0, 0)), 0.1);  // it did swing
+}
+
+// A planar four-bar of four revolute joints in 3-D: 20 equations of rank 17. The core
+// says three are dependent and that they belong to the joint closing the loop; the
+// mechanism conserves energy to 1e-6 of its peak kinetic energy over 10 s at 1 ms.
+TEST(Dynamics, FourBarWithDependentEquationsConservesEnergy) {
+  Mechanism m;
+  models::fourBarChain(m, 1, 0.4, 1.0, 1.2);
+  m.build();
+  m.assemble();
+  EXPECT_EQ(m.numEquations(), 20);
+  EXPECT_EQ(m.dependencies().dependent, 3);
+  ASSERT_EQ(m.dependencies().by_constraint.size(), 1u);
+  EXPECT_EQ(m.dependencies().by_constraint[0].first, "pin0b");
+  const double E0 = m.kineticEnergy() + m.potentialEnergy();
+  double peak = 0, worst = 0;
+  for (int s = 0; s < 10000; ++s) {
+    m.step(1e-3);
+    ASSERT_LE(m.positionViolation(), 1e-10);
+    ASSERT_LE(m.velocityViolation(), 1e-10);
+    peak = std::max(peak, m.kineticEnergy());
+    worst = std::max(worst, std::fabs(m.kineticEnergy() + m.potentialEnergy() - E0));
+  }
+  EXPECT_GT(peak, 0.1);
+  EXPECT_LT(worst, 1e-6 * peak) << "energy error " << worst << " peak KE " << peak;
+}
+
+// A parallelogram linkage turning through its flat positions stays a parallelogram
+// (the physical branch): both cranks keep the same angle.
+TEST(Dynamics, ParallelogramPassesFlatPositionsOnThePhysicalBranch) {
+  Mechanism m;
+  models::fourBarChain(m, 1, 0.4, 1.0, 0.7);
+  m.setGravity(Vector3d::Zero());
+  m.build();
+  m.assemble({}, {CoordinateTarget{0, 0, 6.0}});
+  const double E0 = m.kineticEnergy();
+  for (int s = 0; s < 5000; ++s) {  // 5 s at 6 rad/s: nearly ten flat positions
+    m.step(1e-3);
+    ASSERT_LE(m.positionViolation(), 1e-10) << m.time();
+    ASSERT_NEAR(m.jointPosition(0, 0), m.jointPosition(1, 0), 1e-8) << m.time();
+  }
+  EXPECT_NEAR(m.jointPosition(0, 0), 6.0 * 5.0, 1e-6);  // joint angles start at 0
+  EXPECT_NEAR(m.kineticEnergy(), E0, 1e-8 * E0);
+}
+
+// 100 000 steps of a chaotic triple pendulum: the violation bound holds at every step.
+TEST(Dynamics, ViolationStaysBoundedOver100000Steps) {
+  Mechanism m;
+  models::pendulumChain(m, 3, 0.5, 1.0, 0.2);
+  m.build();
+  m.assemble();
+  const double E0 = m.kineticEnergy() + m.potentialEnergy();
+  runChecked(m, 100000, 1e-3);
+  EXPECT_LT(std::fabs(m.kineticEnergy() + m.potentialEnergy() - E0), 1e-5 * std::fabs(E0));
+}
+
+// Universal joint made of two revolutes with a massless cross: allowed (the cross never
+// moves without moving the shaft) and identical in motion to the universal joint.
+TEST(Dynamics, MasslessCrossMovesAsUniversalJoint) {
+  const Matrix3d Rx = Eigen::AngleAxisd(M_PI / 2, Vector3d::UnitY()).toRotationMatrix();  // z -> x
+  const Matrix3d Ry = Eigen::AngleAxisd(-M_PI / 2, Vector3d::UnitX()).toRotationMatrix(); // z -> y
+  Body shaft = body("shaft", 1.0, Vector3d(0.02, 0.03, 0.01), Vector3d(0.1, 0.2, -0.5));
+  auto make = [&](bool with_cross) {
+    auto m = std::make_unique<Mechanism>();
+    const int s = m->addBody(shaft);
+    if (with_cross) {
+      const int c = m->addBody(body("cross", 0.0, Vector3d::Zero(), Vector3d::Zero()));
+      m->addJoint(makeJoint("revolute", "a", Mechanism::kGround, frame(Vector3d::Zero(), Rx), c, frame(Vector3d::Zero(), Rx)));
+      m->addJoint(makeJoint("revolute", "b", c, frame(Vector3d::Zero(), Ry), s, frame(-shaft.r, Ry)));
+    } else {
+      m->addJoint(makeJoint("universal", "u", Mechanism::kGround, frame(Vector3d::Zero()), s, frame(-shaft.r)));
+    }
+    m->build();
+    m->assemble();
+    return m;
+  };
+  auto a = make(true), b = make(false);
+  for (int k = 0; k < 2000; ++k) a->step(1e-3), b->step(1e-3);
+  EXPECT_LT((a->position(1) - b->position(1)).norm(), 1e-9);
+  EXPECT_NEAR(a->jointPosition(0, 0), b->jointPosition(0, 0), 1e-9);
+  EXPECT_NEAR(a->jointPosition(1, 0), b->jointPosition(0, 1), 1e-9);
+}
+
+TEST(Dynamics, MasslessBodyThatNothingMovesIsAnErrorNamingIt) {
+  Mechanism m;
+  const int a = m.addBody(body("arm", 1.0, Vector3d(0.01, 0.01, 0.01), Vector3d(0.5, 0, 0)));
+  const int w = m.addBody(body("wheel", 0.0, Vector3d::Zero(), Vector3d(1, 0, 0)));
+  m.addJoint(makeJoint("revolute", "shoulder", Mechanism::kGround, frame(Vector3d::Zero()), a, frame(Vector3d(-0.5, 0, 0))));
+  m.addJoint(makeJoint("revolute", "spin", a, frame(Vector3d(0.5, 0, 0)), w, frame(Vector3d::Zero())));
+  m.build();
+  try {
+    m.assemble();
+    FAIL() << "expected an error";
+  } catch (const ModelError& e) {
+    EXPECT_NE(std::string(e.what()).find("'wheel'"), std::string::npos) << e.what();
+    EXPECT_EQ(std::string(e.what()).find("'arm'"), std::string::npos) << e.what();
+  }
+}
+
+// Assembly from rough positions closes the loop while holding the driven crank angle.
+TEST(Assembly, ClosesALoopFromRoughPositionsHoldingATarget) {
+  Mechanism m;
+  models::fourBarChain(m, 1, 0.4, 1.0, 1.0);
+  for (int b = 1; b < m.numBodies(); ++b) {  // spoil the positions
+    Body& body = const_cast<Body&>(m.body(b));
+    body.r += Vector3d(0.05 * b, 0.02, -0.03 * b);
+    body.p = body.p * Quaterniond(Eigen::AngleAxisd(0.1 * b, Vector3d(1, 1, 0).normalized()));
+  }
+  m.build();
+  const AssemblyReport r = m.assemble({CoordinateTarget{0, 0, 1.3}});
+  EXPECT_LE(r.position_residual, 1e-12);
+  EXPECT_LE(m.positionViolation(), 1e-12);
+  EXPECT_NEAR(m.jointPosition(0, 0), 1.3, 1e-12);
+}
+
+TEST(Assembly, ALoopThatCannotCloseNamesItsJoints) {
+  Mechanism m;
+  models::fourBarChain(m, 1, 0.4, 1.0, 1.0);
+  const_cast<Body&>(m.body(3)).r.x() += 2.0;  // move the coupler away...
+  m.build();
+  // ...and ask for an impossible crank angle difference: the cranks are coupled 1:1.
+  try {
+    m.assemble({CoordinateTarget{0, 0, 0.5}, CoordinateTarget{1, 0, 1.5}});
+    FAIL() << "expected an error";
+  } catch (const ModelError& e) {
+    const std::string msg = e.what();
+    EXPECT_NE(msg.find("does not close"), std::string::npos) << msg;
+    EXPECT_NE(msg.find("'pin0"), std::string::npos) << msg;
+  }
+}
+
+// A hanging point-mass pendulum at rest: the pivot carries m g; a torque equal to the
+// gravity torque holds an arm level (joint effort along the free direction).
+TEST(Reactions, HangingMassAndHeldArm) {
+  Mechanism m;
+  const int bob = m.addBody(body("bob", 2.0, Vector3d::Zero(), Vector3d(0, 0, -1)));
+  m.addJoint(makeJoint("revolute", "pivot", Mechanism::kGround, models::axisY(Vector3d::Zero()), bob,
+                       models::axisY(Vector3d(0, 0, 1))));
+  m.build();
+  m.assemble();
+  m.step(1e-3);
+  const Reaction r = m.reaction(0);
+  EXPECT_LT((r.force - Vector3d(0, 0, 2.0 * g0)).norm(), 1e-9);
+
+  Mechanism arm;
+  const int a = arm.addBody(body("arm", 2.0, Vector3d(0.01, 0.1, 0.1), Vector3d(0.5, 0, 0)));
+  arm.addJoint(makeJoint("revolute", "shoulder", Mechanism::kGround, models::axisY(Vector3d::Zero()), a,
+                         models::axisY(Vector3d(-0.5, 0, 0))));
+  arm.build();
+  arm.assemble();
+  // Gravity pulls the arm down (-z); about +y that is a positive torque m g 0.5.
+  arm.setJointEffort(0, 0, -2.0 * g0 * 0.5);
+  for (int k = 0; k < 1000; ++k) arm.step(1e-3);
+  EXPECT_NEAR(arm.jointPosition(0, 0), 0.0, 1e-10);
+  EXPECT_NEAR(arm.jointEffort(0, 0), -2.0 * g0 * 0.5, 1e-12);
+}
+
+// A mass on a vertical spring along a prismatic joint: period 2 pi sqrt(m/k), energy kept.
+TEST(ForceElements, SpringMassOscillatesAtItsNaturalPeriod) {
+  const double mass = 0.5, k = 200.0;
+  Mechanism m;
+  const int b = m.addBody(body("mass", mass, Vector3d(0.01, 0.01, 0.01), Vector3d(0, 0, -0.3)));
+  m.addJoint(makeJoint("prismatic", "slide", Mechanism::kGround, frame(Vector3d(0, 0, -0.3)), b, frame(Vector3d::Zero())));
+  SpringDamper s;
+  s.name = "spring";
+  s.body_i = Mechanism::kGround;
+  s.body_j = b;
+  s.k = k;
+  s.L0 = 0.3 - mass * g0 / k + 0.05;  // 0.05 m from equilibrium
+  m.addSpring(s);
+  m.build();
+  m.assemble();
+  const double E0 = m.kineticEnergy() + m.potentialEnergy();
+  const double T = 2 * M_PI * std::sqrt(mass / k);
+  const int steps = static_cast<int>(std::round(3 * T / 1e-4));
+  for (int i = 0; i < steps; ++i) m.step(1e-4);
+  // After three periods (up to the step rounding) the mass is back at its start.
+  EXPECT_NEAR(m.jointPosition(0, 0), 0.0, 1e-4 * std::fabs(3 * T - steps * 1e-4) / 1e-4 + 1e-7);
+  EXPECT_NEAR(m.kineticEnergy() + m.potentialEnergy(), E0, 1e-9);
+}
+
+// A limit holds a pendulum: it never passes the stop by more than the bound.
+TEST(Limits, PendulumStopsAtItsLimit) {
+  Mechanism m;
+  const int b = m.addBody(body("bob", 1.0, Vector3d(0.001, 0.001, 0.001), Vector3d(1, 0, 0)));
+  m.addJoint(makeJoint("revolute", "pivot", Mechanism::kGround, models::axisY(Vector3d::Zero()), b,
+                       models::axisY(Vector3d(-1, 0, 0))));
+  m.setJointLimits(0, 0, -0.5, 0.5);  // released at 0, falls towards +angle (down, about +y)
+  m.build();
+  m.assemble();
+  double most = 0;
+  for (int s = 0; s < 3000; ++s) {
+    m.step(1e-3);
+    most = std::max(most, m.jointPosition(0, 0));
+    ASSERT_LE(m.positionViolation(), 1e-10);
+  }
+  EXPECT_LE(most, 0.5 + 1e-10);
+  EXPECT_NEAR(m.jointPosition(0, 0), 0.5, 1e-9);  // resting on the stop
+  EXPECT_NEAR(m.jointVelocity(0, 0), 0.0, 1e-9);
+  // Resting on the stop, the limit carries the gravity torque m g L cos(0.5).
+  EXPECT_NEAR(std::fabs(m.jointEffort(0, 0)), g0 * std::cos(0.5), 1e-6);
+}
+
+}  // namespace
+}  // namespace mechanism_sim
