@@ -59,10 +59,10 @@ void Mechanism::computeForces() {
 }
 
 // Augmented Lagrangian iteration for M a + Phi_q^T lambda = Q, Phi_q a = gamma with H
-// factored. Stops when max |Phi_q a - gamma| <= 1e-11 (1 + max |gamma|); at a singular
-// configuration the inconsistent part of gamma cannot vanish and the count bounds it.
+// factored, warm-started from the last multipliers. Stops when
+// max |Phi_q a - gamma| <= 1e-11 (1 + max |gamma|); at a singular configuration the
+// inconsistent part of gamma cannot vanish and the count bounds it.
 void Mechanism::solveAccelerations() {
-  lambda_.setZero();
   const double tol = 1e-11 * (1.0 + maxAbs(gamma_, m_));
   for (int it = 0; it < 20; ++it) {
     acc_ = Q_;
@@ -88,6 +88,11 @@ void Mechanism::rates(const double* x, const double* u, double* xdot, double* ud
   assembleH(alpha_, 0.0, true);
   factorH("stage");
   solveAccelerations();
+  positionRates(x, u, xdot);
+  std::copy(acc_.data(), acc_.data() + n_, udot);
+}
+
+void Mechanism::positionRates(const double* x, const double* u, double* xdot) const {
   for (int b = 0; b < numBodies() - 1; ++b) {
     const double* p = x + 7 * b + 3;
     const double* w = u + 6 * b + 3;
@@ -98,7 +103,6 @@ void Mechanism::rates(const double* x, const double* u, double* xdot, double* ud
     xd[5] = 0.5 * (p[0] * w[1] + p[3] * w[0] - p[1] * w[2]);
     xd[6] = 0.5 * (p[0] * w[2] + p[1] * w[1] - p[2] * w[0]);
   }
-  std::copy(acc_.data(), acc_.data() + n_, udot);
 }
 
 void Mechanism::step(double h) {
@@ -108,7 +112,8 @@ void Mechanism::step(double h) {
   u0_ = u_;
   // Stage 1 at the accepted state, whose accelerations finishStep() left in acc_.
   if (!acc_valid_) finishStep(false);
-  rates(x0_.data(), u0_.data(), kx_[0].data(), ku_[0].data());
+  positionRates(x0_.data(), u0_.data(), kx_[0].data());
+  ku_[0] = acc_;
   auto stage = [&](int s, double c, int from) {
     xs_ = x0_ + (c * h) * kx_[from];
     us_ = u0_ + (c * h) * ku_[from];

@@ -78,21 +78,27 @@ void Mechanism::setJointDamping(int joint, int k, double c) {
   if (!(c >= 0) || !std::isfinite(c))
     throw ModelError("joint '" + joints_.at(joint)->name() + "': damping must be finite and >= 0");
   joint_damping_.at(joint).at(k) = c;
+  acc_valid_ = false;
 }
 
 void Mechanism::setJointEffort(int joint, int k, double tau) {
   if (joint < 0 || joint >= numJoints() || k < 0 || k >= joints_[joint]->dof())
     throw std::out_of_range("no such joint coordinate");
   if (!std::isfinite(tau)) throw std::invalid_argument("effort must be finite");
+  if (joint_effort_[joint][k] != tau) acc_valid_ = false;  // stage 1 must see it
   joint_effort_[joint][k] = tau;
 }
 
 void Mechanism::setBodyWrench(int body, const Vector3d& force, const Vector3d& torque_body) {
   body_force_.at(body) = force;
   body_torque_.at(body) = torque_body;
+  acc_valid_ = false;
 }
 
-void Mechanism::setSpringActuation(int spring, double f_act) { springs_.at(spring).f_act = f_act; }
+void Mechanism::setSpringActuation(int spring, double f_act) {
+  springs_.at(spring).f_act = f_act;
+  acc_valid_ = false;
+}
 
 void Mechanism::setJointLimits(int joint, int k, double lower, double upper) {
   const Joint& j = *joints_.at(joint);
@@ -302,19 +308,21 @@ void Mechanism::assembleH(double alpha, double shift, bool mass) {
       blk[(3 + k) * st + 3 + k] += shift;
     }
   }
+  using Block = Eigen::Matrix<double, 6, 6>;
   for (const ConstraintData& cd : cdata_) {
     const int nbc = static_cast<int>(cd.cols.size());
     for (int k1 = 0; k1 < nbc; ++k1)
-      for (int k2 = 0; k2 < nbc; ++k2) {
+      for (int k2 = k1; k2 < nbc; ++k2) {
         const int base = cd.base[k1 * nbc + k2];
         if (base < 0) continue;
+        const Block B = alpha * cd.J.middleCols<6>(6 * k1).transpose().lazyProduct(cd.J.middleCols<6>(6 * k2));
         const int st = cd.stride[k1 * nbc + k2];
         for (int c = 0; c < 6; ++c)
-          for (int r = 0; r < 6; ++r) {
-            double s = 0;
-            for (int e = 0; e < cd.size; ++e) s += cd.J(e, 6 * k1 + r) * cd.J(e, 6 * k2 + c);
-            Hx_[base + c * st + r] += alpha * s;
-          }
+          for (int r = 0; r < 6; ++r) Hx_[base + c * st + r] += B(r, c);
+        if (k2 == k1) continue;
+        const int base_t = cd.base[k2 * nbc + k1], st_t = cd.stride[k2 * nbc + k1];
+        for (int c = 0; c < 6; ++c)
+          for (int r = 0; r < 6; ++r) Hx_[base_t + c * st_t + r] += B(c, r);
       }
   }
 }

@@ -96,7 +96,10 @@ class Mechanism {
   int addCoupler(const std::string& name, int joint_a, int k_a, int joint_b, int k_b,
                  double multiplier, double offset);
   int addSpring(const SpringDamper& spring);
-  void setGravity(const Vector3d& g) { gravity_ = g; }
+  void setGravity(const Vector3d& g) {
+    gravity_ = g;
+    acc_valid_ = false;
+  }
   void setJointDamping(int joint, int k, double c);
   // Position limits of a one-dof coordinate: unilateral, activated on contact with no
   // rebound, released when the joint pulls away.
@@ -178,6 +181,7 @@ class Mechanism {
   void factorH(const char* where);
   void solveAccelerations();
   void rates(const double* x, const double* u, double* xdot, double* udot);
+  void positionRates(const double* x, const double* u, double* xdot) const;
   void projectPositions();
   void projectVelocities();
   void finishStep(bool project);
