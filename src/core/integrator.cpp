@@ -44,13 +44,14 @@ void Mechanism::computeForces() {
     const auto& c = joint_damping_[j];
     const int dof = joints_[j]->dof();
     bool any = false;
-    for (int k = 0; k < dof; ++k) any = any || tau[k] != 0.0 || c[k] != 0.0;
+    const auto& fr = friction_effort_[j];
+    for (int k = 0; k < dof; ++k) any = any || tau[k] != 0.0 || c[k] != 0.0 || fr[k] != 0.0;
     if (!any) continue;
     std::array<Row, 3> rows;
     jointRows(j, rows);
     const int bs[2] = {joints_[j]->bodyI(), joints_[j]->bodyJ()};
     for (int k = 0; k < dof; ++k) {
-      const double effort = tau[k] - c[k] * rows[k].Phi_dot;  // generalized effort along q_k
+      const double effort = tau[k] - c[k] * rows[k].Phi_dot + fr[k];  // along q_k
       for (int s = 0; s < 2; ++s)
         if (bs[s] != kGround)
           Q_.segment<6>(6 * (bs[s] - 1)) += rows[k].J.segment<6>(6 * s).transpose() * effort;
@@ -132,6 +133,7 @@ void Mechanism::step(double h) {
   }
   t_ += h;
   ++steps_;
+  last_h_ = h;
   finishStep(true);
 }
 
@@ -146,7 +148,8 @@ void Mechanism::finishStep(bool project) {
   assembleH(alpha_, 0.0, true);
   factorH("projection");
   if (project) projectVelocities();
-  for (int pass = 0; pass < 2; ++pass) {
+  for (auto& fe : friction_effort_) fe = {0.0, 0.0, 0.0};  // pass 0 solves without friction
+  for (int pass = 0; pass < 3; ++pass) {
     evaluateConstraints();
     computeForces();
     solveAccelerations();
@@ -162,13 +165,57 @@ void Mechanism::finishStep(bool project) {
         released = true;
       }
     }
-    if (!released) break;
-    evaluateConstraints();
-    assembleH(alpha_, 0.0, true);
-    factorH("limit release");
+    if (released) {
+      evaluateConstraints();
+      assembleH(alpha_, 0.0, true);
+      factorH("limit release");
+      continue;
+    }
+    if (pass == 0 && updateFriction()) continue;  // re-solve with friction
+    break;
   }
   // Rows of released limits stay zero; the accelerations above are those of the next stage 1.
   acc_valid_ = true;
+}
+
+// Friction for the coming step, from the accepted state with H factored there and the
+// friction-free accelerations in acc_. The effective inertia along coordinate k is
+// I = 1 / (G H^{-1} G^T) (H^{-1} is the constrained inverse mass up to 1/alpha); the
+// effort that leaves q_dot = 0 after one step h is I (q_dot / h + q_ddot_free), and
+// friction supplies it up to f. Returns whether any friction acts.
+bool Mechanism::updateFriction() {
+  bool acting = false;
+  for (int j = 0; j < numJoints(); ++j) {
+    const auto& f = joint_friction_[j];
+    auto& out = friction_effort_[j];
+    const int dof = joints_[j]->dof();
+    bool any = false;
+    for (int k = 0; k < dof; ++k) any = any || f[k] > 0.0;
+    if (!any) continue;
+    std::array<Row, 3> rows;
+    jointRows(j, rows);
+    const int bs[2] = {joints_[j]->bodyI(), joints_[j]->bodyJ()};
+    for (int k = 0; k < dof; ++k) {
+      out[k] = 0.0;
+      if (f[k] <= 0.0) continue;
+      work_n_.setZero();
+      double qddot = 0;
+      for (int s = 0; s < 2; ++s)
+        if (bs[s] != kGround) {
+          work_n_.segment<6>(6 * (bs[s] - 1)) = rows[k].J.segment<6>(6 * s).transpose();
+          qddot += rows[k].J.segment<6>(6 * s).dot(acc_.segment<6>(6 * (bs[s] - 1)));
+        }
+      ldlt_.solve(work_n_.data());
+      double gHg = 0;
+      for (int s = 0; s < 2; ++s)
+        if (bs[s] != kGround) gHg += rows[k].J.segment<6>(6 * s).dot(work_n_.segment<6>(6 * (bs[s] - 1)));
+      if (!(gHg > 0)) continue;
+      const double needed = (rows[k].Phi_dot / last_h_ + qddot) / gHg;
+      out[k] = -std::max(-f[k], std::min(f[k], needed));
+      acting = acting || out[k] != 0.0;
+    }
+  }
+  return acting;
 }
 
 // Activates a limit whose coordinate has passed its bound.

@@ -38,6 +38,8 @@ int Mechanism::addJoint(std::unique_ptr<Joint> joint) {
   joints_.push_back(joint.get());
   joint_constraint_.push_back(numConstraints());
   joint_damping_.push_back({0, 0, 0});
+  joint_friction_.push_back({0, 0, 0});
+  friction_effort_.push_back({0, 0, 0});
   joint_effort_.push_back({0, 0, 0});
   constraints_.push_back(std::move(joint));
   built_ = false;
@@ -78,6 +80,13 @@ void Mechanism::setJointDamping(int joint, int k, double c) {
   if (!(c >= 0) || !std::isfinite(c))
     throw ModelError("joint '" + joints_.at(joint)->name() + "': damping must be finite and >= 0");
   joint_damping_.at(joint).at(k) = c;
+  acc_valid_ = false;
+}
+
+void Mechanism::setJointFriction(int joint, int k, double f) {
+  if (!(f >= 0) || !std::isfinite(f))
+    throw ModelError("joint '" + joints_.at(joint)->name() + "': friction must be finite and >= 0");
+  joint_friction_.at(joint).at(k) = f;
   acc_valid_ = false;
 }
 
@@ -384,7 +393,8 @@ double Mechanism::jointVelocity(int joint, int k) const {
 }
 
 double Mechanism::jointEffort(int joint, int k) const {
-  double tau = joint_effort_.at(joint).at(k) - joint_damping_[joint][k] * jointVelocity(joint, k);
+  double tau = joint_effort_.at(joint).at(k) - joint_damping_[joint][k] * jointVelocity(joint, k) +
+               friction_effort_[joint][k];
   for (size_t l = 0; l < limits_.size(); ++l)
     if (limits_[l].joint == joint && limits_[l].k == k && limits_[l].active)
       tau -= lambda_[cdata_[limit_constraint_[l]].row];

@@ -327,6 +327,30 @@ TEST(ForceElements, SpringMassOscillatesAtItsNaturalPeriod) {
   EXPECT_NEAR(m.kineticEnergy() + m.potentialEnergy(), E0, 1e-9);
 }
 
+// A block on a 30 degree incline with Coulomb friction f along the slide: with
+// f > m g sin(30) it stays put; with less it slides at a = g sin(30) - f / m.
+TEST(Friction, BlockOnInclineSticksOrSlidesAtTheCoulombRate) {
+  const double beta = M_PI / 6, mass = 2.0;
+  const Matrix3d Rp = Eigen::AngleAxisd(M_PI / 2 + beta, Vector3d::UnitY()).toRotationMatrix();
+  for (double f : {1.2 * mass * g0 * 0.5, 0.4 * mass * g0 * 0.5}) {
+    Mechanism m;
+    const int b = m.addBody(body("block", mass, Vector3d(0.1, 0.1, 0.1), Vector3d::Zero()));
+    m.addJoint(makeJoint("prismatic", "slide", Mechanism::kGround, frame(Vector3d::Zero(), Rp), b,
+                         frame(Vector3d::Zero(), Rp)));
+    m.setJointFriction(0, 0, f);
+    m.build();
+    m.assemble();
+    for (int s = 0; s < 1000; ++s) m.step(1e-3);
+    const double a = std::max(0.0, g0 * std::sin(beta) - f / mass);
+    if (a == 0.0) {
+      EXPECT_NEAR(m.jointPosition(0, 0), 0.0, 1e-4) << "sticks";
+    } else {
+      EXPECT_NEAR(m.jointVelocity(0, 0), a * 1.0, 2e-2 * a) << "slides";
+      EXPECT_NEAR(m.jointEffort(0, 0), -f, 1e-9);
+    }
+  }
+}
+
 // A limit holds a pendulum: it never passes the stop by more than the bound.
 TEST(Limits, PendulumStopsAtItsLimit) {
   Mechanism m;

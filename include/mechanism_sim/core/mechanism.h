@@ -101,6 +101,10 @@ class Mechanism {
     acc_valid_ = false;
   }
   void setJointDamping(int joint, int k, double c);
+  // Coulomb friction f >= 0 along coordinate k: opposes the motion with at most f, and at
+  // most the effort that stops the joint within one step (so a joint pushed by less than
+  // f stays still). Held constant over a step: never stiff.
+  void setJointFriction(int joint, int k, double f);
   // Position limits of a one-dof coordinate: unilateral, activated on contact with no
   // rebound, released when the joint pulls away.
   void setJointLimits(int joint, int k, double lower, double upper);
@@ -203,7 +207,9 @@ class Mechanism {
   std::vector<int> joint_constraint_;
   std::vector<SpringDamper> springs_;
   std::vector<LimitData> limits_;
-  std::vector<std::array<double, 3>> joint_damping_, joint_effort_;
+  std::vector<std::array<double, 3>> joint_damping_, joint_effort_, joint_friction_, friction_effort_;
+  double last_h_ = 1e-3;
+  bool updateFriction();
   std::vector<Vector3d> body_force_, body_torque_;
   Vector3d gravity_ = Vector3d(0, 0, -9.81);
   IntegratorOptions options_;
