@@ -1,6 +1,7 @@
 // Mechanism: forces, accelerations, time stepping and projection onto the constraints.
 #include <algorithm>
 #include <cmath>
+#include <sstream>
 
 #include "mechanism_sim/core/couplers.h"
 #include "mechanism_sim/core/mechanism.h"
@@ -141,8 +142,8 @@ void Mechanism::step(double h) {
 void Mechanism::finishStep(bool project) {
   for (int b = 0; b < numBodies() - 1; ++b) x_.segment<4>(7 * b + 3).normalize();
   loadKinematics(x_.data(), u_.data());
-  updateLimits();
-  if (project) projectPositions();
+  const bool limits_changed = updateLimits();
+  if (project) projectPositions(limits_changed);
   for (size_t ci = 0; ci < constraints_.size(); ++ci) constraints_[ci]->accept(cdata_[ci].kin.data());
   evaluateConstraints();
   assembleH(alpha_, 0.0, true);
@@ -218,8 +219,9 @@ bool Mechanism::updateFriction() {
   return acting;
 }
 
-// Activates a limit whose coordinate has passed its bound.
-void Mechanism::updateLimits() {
+// Activates a limit whose coordinate has passed its bound; returns whether any did.
+bool Mechanism::updateLimits() {
+  bool changed = false;
   for (size_t l = 0; l < limits_.size(); ++l) {
     LimitData& L = limits_[l];
     if (L.active) continue;
@@ -229,7 +231,9 @@ void Mechanism::updateLimits() {
     L.active = side;
     static_cast<LimitConstraint&>(*constraints_[limit_constraint_[l]])
         .setActive(true, side < 0 ? L.lower : L.upper);
+    changed = true;
   }
+  return changed;
 }
 
 // r += dr, p <- p (x) exp(dtheta'/2): a displacement in variation coordinates.
@@ -248,14 +252,16 @@ void Mechanism::applyDisplacement(const double* dq) {
 // Mass-orthogonal projection of positions: Newton steps
 //   dq = -(M + alpha Phi_q^T Phi_q)^{-1} alpha Phi_q^T Phi,
 // the least-squares step for dependent equations too. The factorization of the last stage
-// serves the first iterations (simplified Newton); it is renewed when progress is slow.
-void Mechanism::projectPositions() {
-  double previous = 0;
+// serves the first iterations (simplified Newton) unless the set of rows changed (a limit
+// became active); it is renewed when progress is slow. A projection that cannot reach
+// 1e-6 means the step left the constraint manifold: an error, not a result.
+void Mechanism::projectPositions(bool refactor) {
+  double previous = 0, err = 0;
   for (int it = 0; it < 40; ++it) {
     evaluateConstraints();
-    const double err = maxAbs(Phi_, m_);
+    err = maxAbs(Phi_, m_);
     if (err <= options_.position_tol) return;
-    if (it > 0 && err > 0.1 * previous) {
+    if ((it == 0 && refactor) || (it > 0 && err > 0.1 * previous)) {
       assembleH(alpha_, 0.0, true);
       factorH("position projection");
     }
@@ -265,6 +271,19 @@ void Mechanism::projectPositions() {
     addJtx(work_m_.data(), work_n_.data());
     ldlt_.solve(work_n_.data());
     applyDisplacement(work_n_.data());
+  }
+  evaluateConstraints();
+  err = maxAbs(Phi_, m_);
+  if (err > 1e-6) {
+    int worst = 0;
+    for (size_t ci = 0; ci < cdata_.size(); ++ci)
+      if (maxAbs(Phi_.segment(cdata_[ci].row, cdata_[ci].size), cdata_[ci].size) >
+          maxAbs(Phi_.segment(cdata_[worst].row, cdata_[worst].size), cdata_[worst].size))
+        worst = static_cast<int>(ci);
+    std::ostringstream os;
+    os << "at t = " << t_ << " s: the step left the constraints (residual " << err << " at '"
+       << constraints_[worst]->name() << "'); try a smaller step";
+    throw std::runtime_error(os.str());
   }
 }
 

@@ -186,10 +186,10 @@ class Mechanism {
   void solveAccelerations();
   void rates(const double* x, const double* u, double* xdot, double* udot);
   void positionRates(const double* x, const double* u, double* xdot) const;
-  void projectPositions();
+  void projectPositions(bool refactor);
   void projectVelocities();
   void finishStep(bool project);
-  void updateLimits();
+  bool updateLimits();
   void addJtx(const double* x, double* out) const;   // out += Phi_q^T x
   void mulJ(const double* v, double* out) const;      // out = Phi_q v
   void applyDisplacement(const double* dq);

@@ -1,0 +1,31 @@
+# The URDF loader (urdfdom + tinyxml2, no roscpp), the batch simulator and the node.
+add_library(mechanism_sim_urdf
+  src/urdf/xml_input.cpp
+  src/urdf/loader.cpp
+  src/urdf/model.cpp
+)
+target_include_directories(mechanism_sim_urdf PUBLIC include ${urdfdom_INCLUDE_DIRS})
+target_link_libraries(mechanism_sim_urdf mechanism_sim_core ${urdfdom_LIBRARIES} ${TINYXML2_TARGET} console_bridge)
+
+add_executable(simulate src/cli/simulate.cpp src/cli/csv_writer.cpp)
+target_link_libraries(simulate mechanism_sim_urdf)
+
+if(EXISTS ${PROJECT_SOURCE_DIR}/src/node/main.cpp)
+  add_executable(mechanism_sim_node src/node/main.cpp src/node/sim_node.cpp)
+  target_include_directories(mechanism_sim_node PRIVATE ${catkin_INCLUDE_DIRS})
+  target_link_libraries(mechanism_sim_node mechanism_sim_urdf ${catkin_LIBRARIES})
+  add_dependencies(mechanism_sim_node ${catkin_EXPORTED_TARGETS})
+
+  add_executable(constraint_monitor src/node/constraint_monitor.cpp)
+  target_include_directories(constraint_monitor PRIVATE ${catkin_INCLUDE_DIRS})
+  target_link_libraries(constraint_monitor ${catkin_LIBRARIES} gtest)
+  add_dependencies(constraint_monitor ${catkin_EXPORTED_TARGETS})
+  install(TARGETS mechanism_sim_node constraint_monitor RUNTIME DESTINATION ${CATKIN_PACKAGE_BIN_DESTINATION})
+endif()
+
+install(TARGETS simulate RUNTIME DESTINATION ${CATKIN_PACKAGE_BIN_DESTINATION})
+install(TARGETS mechanism_sim_core mechanism_sim_urdf
+  ARCHIVE DESTINATION ${CATKIN_PACKAGE_LIB_DESTINATION}
+  LIBRARY DESTINATION ${CATKIN_PACKAGE_LIB_DESTINATION})
+install(DIRECTORY include/ DESTINATION ${CATKIN_GLOBAL_INCLUDE_DESTINATION})
+install(DIRECTORY launch urdf config DESTINATION ${CATKIN_PACKAGE_SHARE_DESTINATION})

@@ -1,0 +1,40 @@
+#include "csv_writer.h"
+
+#include <iomanip>
+
+namespace mechanism_sim {
+
+CsvWriter::CsvWriter(std::ostream& out, const MechanismModel& model, bool poses)
+    : out_(out), model_(model), poses_(poses) {
+  out_ << std::setprecision(12);
+}
+
+void CsvWriter::header() {
+  out_ << "time";
+  for (const Dof& d : model_.dofs()) out_ << ',' << d.name << ".position," << d.name << ".velocity," << d.name << ".effort";
+  out_ << ",constraint.position,constraint.velocity";
+  if (poses_)
+    for (const Link& l : model_.links())
+      for (const char* c : {"x", "y", "z", "qw", "qx", "qy", "qz"}) out_ << ',' << l.name << '.' << c;
+  out_ << '\n';
+}
+
+void CsvWriter::row() {
+  const Mechanism& m = model_.mechanism();
+  out_ << m.time();
+  for (size_t d = 0; d < model_.dofs().size(); ++d) {
+    const int i = static_cast<int>(d);
+    out_ << ',' << model_.position(i) << ',' << model_.velocity(i) << ',' << model_.effort(i);
+  }
+  out_ << ',' << m.positionViolation() << ',' << m.velocityViolation();
+  if (poses_)
+    for (size_t l = 0; l < model_.links().size(); ++l) {
+      const Eigen::Isometry3d T = model_.linkPose(static_cast<int>(l));
+      const Eigen::Quaterniond q(T.linear());
+      const Eigen::Vector3d& p = T.translation();
+      out_ << ',' << p.x() << ',' << p.y() << ',' << p.z() << ',' << q.w() << ',' << q.x() << ',' << q.y() << ',' << q.z();
+    }
+  out_ << '\n';
+}
+
+}  // namespace mechanism_sim

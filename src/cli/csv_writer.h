@@ -1,0 +1,22 @@
+// CSV rows of a running model: time, each dof's position/velocity/effort, the largest
+// constraint violations, and (optionally) each link's world pose.
+#pragma once
+#include <ostream>
+
+#include "mechanism_sim/urdf/model.h"
+
+namespace mechanism_sim {
+
+class CsvWriter {
+ public:
+  CsvWriter(std::ostream& out, const MechanismModel& model, bool poses);
+  void header();
+  void row();
+
+ private:
+  std::ostream& out_;
+  const MechanismModel& model_;
+  bool poses_;
+};
+
+}  // namespace mechanism_sim

@@ -1,0 +1,158 @@
+// simulate: runs a URDF mechanism without ROS and writes CSV (README "Batch simulator").
+#include <unistd.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <iostream>
+#include <memory>
+#include <string>
+
+#include "csv_writer.h"
+#include "mechanism_sim/urdf/model.h"
+
+using namespace mechanism_sim;
+
+namespace {
+
+const char* kUsage =
+    "usage: simulate MODEL.urdf [--duration S] [--dt S] [--output-every N]\n"
+    "                [--csv FILE] [--poses] [--integrator rk4|rk2]\n"
+    "                [--set JOINT=POSITION]... [--velocity JOINT=VALUE]...\n"
+    "                [--effort JOINT=VALUE]... [--quiet]\n";
+
+struct UsageError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+double parseNumber(const std::string& text, const std::string& what) {
+  char* end = nullptr;
+  const double x = std::strtod(text.c_str(), &end);
+  if (text.empty() || *end != '\0' || !std::isfinite(x)) throw UsageError(what + " needs a finite number, not '" + text + "'");
+  return x;
+}
+
+std::pair<std::string, double> parseAssignment(const std::string& text, const std::string& flag) {
+  const size_t eq = text.find('=');
+  if (eq == std::string::npos || eq == 0) throw UsageError(flag + " needs JOINT=VALUE, not '" + text + "'");
+  return {text.substr(0, eq), parseNumber(text.substr(eq + 1), flag + " " + text.substr(0, eq))};
+}
+
+struct Args {
+  std::string model, csv, integrator;
+  double duration = 10.0, dt = 1e-3;
+  long every = 10;
+  bool poses = false, quiet = false;
+  LoadOptions load;
+  std::vector<std::pair<std::string, double>> efforts;
+};
+
+Args parse(int argc, char** argv) {
+  Args a;
+  for (int i = 1; i < argc; ++i) {
+    const std::string arg = argv[i];
+    auto value = [&]() -> std::string {
+      if (i + 1 >= argc) throw UsageError(arg + " needs a value");
+      return argv[++i];
+    };
+    if (arg == "--duration") a.duration = parseNumber(value(), arg);
+    else if (arg == "--dt") a.dt = parseNumber(value(), arg);
+    else if (arg == "--output-every") a.every = static_cast<long>(parseNumber(value(), arg));
+    else if (arg == "--csv") a.csv = value();
+    else if (arg == "--poses") a.poses = true;
+    else if (arg == "--integrator") a.load.integrator = value();
+    else if (arg == "--set") a.load.positions.push_back(parseAssignment(value(), arg));
+    else if (arg == "--velocity") a.load.velocities.push_back(parseAssignment(value(), arg));
+    else if (arg == "--effort") a.efforts.push_back(parseAssignment(value(), arg));
+    else if (arg == "--quiet") a.quiet = true;
+    else if (arg == "-h" || arg == "--help") { std::cout << kUsage; std::exit(0); }
+    else if (!arg.empty() && arg[0] == '-') throw UsageError("unknown option '" + arg + "'");
+    else if (a.model.empty()) a.model = arg;
+    else throw UsageError("more than one model file given");
+  }
+  if (a.model.empty()) throw UsageError("no model file given");
+  if (!(a.duration >= 0) || a.duration > 1e7) throw UsageError("--duration must be between 0 and 1e7 s");
+  if (!(a.dt > 0) || a.dt > 1.0) throw UsageError("--dt must be in (0, 1] s");
+  if (a.every < 1) throw UsageError("--output-every must be at least 1");
+  if (a.duration / a.dt > 1e10) throw UsageError("--duration / --dt is more than 1e10 steps");
+  return a;
+}
+
+void progress(double fraction, double elapsed) {
+  const int width = 40, filled = static_cast<int>(fraction * width);
+  std::fprintf(stderr, "\r[%.*s%*s] %5.1f%%  %.1f s", filled, "========================================",
+               width - filled, "", 100.0 * fraction, elapsed);
+  std::fflush(stderr);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Args args;
+  try {
+    args = parse(argc, argv);
+  } catch (const UsageError& e) {
+    std::cerr << "simulate: " << e.what() << "\n" << kUsage;
+    return 2;
+  }
+  std::unique_ptr<MechanismModel> model;
+  try {
+    model = loadModelFile(args.model, args.load);
+    for (const auto& e : args.efforts) {
+      const int d = model->dofIndex(e.first);
+      if (d < 0) throw LoadError(args.model + ": --effort names no joint degree of freedom '" + e.first + "'");
+      model->setEffort(d, e.second);
+    }
+  } catch (const std::exception& e) {
+    std::cerr << "simulate: " << e.what() << "\n";
+    return 1;
+  }
+  std::ofstream file;
+  std::ostream* out = &std::cout;
+  if (!args.csv.empty()) {
+    file.open(args.csv);
+    if (!file) {
+      std::cerr << "simulate: cannot write '" << args.csv << "'\n";
+      return 1;
+    }
+    out = &file;
+  }
+  CsvWriter csv(*out, *model, args.poses);
+  const bool write = !args.csv.empty() || !isatty(STDOUT_FILENO) || !args.quiet;
+  if (write) csv.header(), csv.row();
+  const long steps = std::lround(args.duration / args.dt);
+  const auto start = std::chrono::steady_clock::now();
+  auto elapsed = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(); };
+  const bool bar = !args.quiet && isatty(STDERR_FILENO);
+  double worst_p = model->mechanism().positionViolation(), worst_v = model->mechanism().velocityViolation();
+  double last_bar = 0;
+  try {
+    for (long s = 1; s <= steps; ++s) {
+      model->step(args.dt);
+      worst_p = std::max(worst_p, model->mechanism().positionViolation());
+      worst_v = std::max(worst_v, model->mechanism().velocityViolation());
+      if (write && (s % args.every == 0 || s == steps)) csv.row();
+      if (bar && (s & 63) == 0 && elapsed() > 1.0 && elapsed() - last_bar > 0.1) {
+        last_bar = elapsed();
+        progress(static_cast<double>(s) / steps, last_bar);
+      }
+    }
+  } catch (const std::exception& e) {
+    std::cerr << "\nsimulate: " << args.model << ": at t = " << model->mechanism().time() << " s: " << e.what() << "\n";
+    return 1;
+  }
+  out->flush();
+  const double wall = elapsed();
+  if (bar && last_bar > 0) progress(1.0, wall), std::fputc('\n', stderr);
+  if (!args.quiet) {
+    const Mechanism& m = model->mechanism();
+    std::fprintf(stderr,
+                 "%s: %ld steps of %g s in %.3f s wall (real-time factor %.1f); largest violation "
+                 "%.2e (position), %.2e (velocity); %s\n",
+                 args.model.c_str(), steps, args.dt, wall, wall > 0 ? steps * args.dt / wall : 0.0, worst_p,
+                 worst_v, m.dependencies().describe().c_str());
+  }
+  return 0;
+}

@@ -1,0 +1,67 @@
+#include <cmath>
+
+#include "mechanism_sim/urdf/model.h"
+
+namespace mechanism_sim {
+
+int MechanismModel::dofIndex(const std::string& name) const {
+  for (size_t i = 0; i < dofs_.size(); ++i)
+    if (dofs_[i].name == name) return static_cast<int>(i);
+  return -1;
+}
+
+int MechanismModel::linkIndex(const std::string& name) const {
+  for (size_t i = 0; i < links_.size(); ++i)
+    if (links_[i].name == name) return static_cast<int>(i);
+  return -1;
+}
+
+Eigen::Isometry3d MechanismModel::linkPose(int link) const {
+  const Link& l = links_.at(link);
+  Eigen::Isometry3d W_B = Eigen::Isometry3d::Identity();
+  if (l.body != Mechanism::kGround) {
+    W_B.linear() = mechanism_->rotation(l.body);
+    W_B.translation() = mechanism_->position(l.body);
+  }
+  return W_B * l.body_T_link;
+}
+
+double MechanismModel::position(int dof) const {
+  return mechanism_->jointPosition(dofs_.at(dof).joint_index, dofs_[dof].k);
+}
+double MechanismModel::velocity(int dof) const {
+  return mechanism_->jointVelocity(dofs_.at(dof).joint_index, dofs_[dof].k);
+}
+double MechanismModel::effort(int dof) const {
+  return mechanism_->jointEffort(dofs_.at(dof).joint_index, dofs_[dof].k);
+}
+
+void MechanismModel::setEffort(int dof, double tau) {
+  if (dof < 0 || dof >= static_cast<int>(dofs_.size())) throw std::out_of_range("no such degree of freedom");
+  if (!std::isfinite(tau)) throw std::invalid_argument("effort for '" + dofs_[dof].name + "' is not finite");
+  const double limit = dofs_[dof].effort_limit;
+  command_[dof] = limit > 0 ? std::max(-limit, std::min(limit, tau)) : tau;
+}
+
+// A velocity limit acts like a motor's top speed: the command is cut while it pushes the
+// joint faster than the limit in the direction of motion.
+void MechanismModel::step(double h) {
+  for (size_t d = 0; d < dofs_.size(); ++d) {
+    double tau = command_[d];
+    const double vmax = dofs_[d].velocity_limit;
+    if (vmax > 0 && tau != 0.0) {
+      const double v = velocity(static_cast<int>(d));
+      if (std::fabs(v) >= vmax && tau * v > 0) tau = 0.0;
+    }
+    mechanism_->setJointEffort(dofs_[d].joint_index, dofs_[d].k, tau);
+  }
+  mechanism_->step(h);
+}
+
+void MechanismModel::reset() {
+  mechanism_->restore(initial_);
+  std::fill(command_.begin(), command_.end(), 0.0);
+  for (const Dof& d : dofs_) mechanism_->setJointEffort(d.joint_index, d.k, 0.0);
+}
+
+}  // namespace mechanism_sim

@@ -1,0 +1,393 @@
+#include "xml_input.h"
+
+#include <cmath>
+#include <cstring>
+#include <map>
+#include <set>
+#include <sstream>
+
+#include <Eigen/Eigenvalues>
+
+#include "mechanism_sim/urdf/model.h"
+
+namespace mechanism_sim {
+namespace urdf_input {
+
+using tinyxml2::XMLElement;
+
+namespace {
+constexpr const char* kPrefix = "mechanism_sim:";
+const std::set<std::string> kUrdfTypes = {"fixed", "revolute", "continuous", "prismatic", "floating", "planar"};
+}  // namespace
+
+std::string XmlReader::describe(const XMLElement* e) const {
+  std::string s = e->Name();
+  if (const char* n = e->Attribute("name")) s += std::string(" '") + n + "'";
+  return s;
+}
+
+void XmlReader::fail(const XMLElement* e, const std::string& what) const {
+  std::ostringstream os;
+  os << file;
+  if (e) os << ":" << e->GetLineNum() << ": " << describe(e);
+  os << ": " << what;
+  throw LoadError(os.str());
+}
+
+double XmlReader::number(const XMLElement* e, const char* attr, std::optional<double> def,
+                         double absurd) const {
+  const char* s = e->Attribute(attr);
+  if (!s) {
+    if (def) return *def;
+    fail(e, std::string("missing attribute '") + attr + "'");
+  }
+  std::istringstream is(s);
+  double x;
+  std::string rest;
+  if (!(is >> x) || (is >> rest)) fail(e, std::string("attribute '") + attr + "' is not a number: '" + s + "'");
+  if (!std::isfinite(x)) fail(e, std::string("attribute '") + attr + "' is not finite");
+  if (std::fabs(x) > absurd)
+    fail(e, std::string("attribute '") + attr + "' = " + s + " is absurdly large (limit " +
+                std::to_string(absurd) + ")");
+  return x;
+}
+
+std::vector<double> XmlReader::numbers(const XMLElement* e, const char* attr, size_t count,
+                                       double absurd) const {
+  const char* s = e->Attribute(attr);
+  if (!s) fail(e, std::string("missing attribute '") + attr + "'");
+  std::istringstream is(s);
+  std::vector<double> out;
+  std::string tok;
+  while (is >> tok) {
+    char* end = nullptr;
+    const double x = std::strtod(tok.c_str(), &end);
+    if (*end != '\0') fail(e, std::string("attribute '") + attr + "' is not numbers: '" + s + "'");
+    if (!std::isfinite(x)) fail(e, std::string("attribute '") + attr + "' is not finite: '" + s + "'");
+    if (std::fabs(x) > absurd) fail(e, std::string("attribute '") + attr + "' is absurdly large: '" + s + "'");
+    out.push_back(x);
+  }
+  if (count && out.size() != count)
+    fail(e, std::string("attribute '") + attr + "' needs " + std::to_string(count) + " numbers: '" + s + "'");
+  return out;
+}
+
+Vector3d XmlReader::vec3(const XMLElement* e, const char* attr, const Vector3d& def, double absurd) const {
+  if (!e->Attribute(attr)) return def;
+  const auto v = numbers(e, attr, 3, absurd);
+  return Vector3d(v[0], v[1], v[2]);
+}
+
+Isometry3d poseFromXyzRpy(const Vector3d& xyz, const Vector3d& rpy) {
+  Isometry3d T = Isometry3d::Identity();
+  T.linear() = (Eigen::AngleAxisd(rpy.z(), Vector3d::UnitZ()) * Eigen::AngleAxisd(rpy.y(), Vector3d::UnitY()) *
+                Eigen::AngleAxisd(rpy.x(), Vector3d::UnitX())).toRotationMatrix();
+  T.translation() = xyz;
+  return T;
+}
+
+Isometry3d XmlReader::origin(const XMLElement* e, const char* child) const {
+  const XMLElement* o = e->FirstChildElement(child);
+  if (!o) return Isometry3d::Identity();
+  return poseFromXyzRpy(vec3(o, "xyz", Vector3d::Zero()), vec3(o, "rpy", Vector3d::Zero(), 1e3));
+}
+
+Vector3d XmlReader::direction(const XMLElement* e, const char* child, const Vector3d& def) const {
+  const XMLElement* a = e->FirstChildElement(child);
+  if (!a) return def;
+  const Vector3d v = vec3(a, "xyz", def);
+  if (v.norm() < 1e-12) fail(a, "axis is zero");
+  return v.normalized();
+}
+
+std::string XmlReader::text(const XMLElement* e, const char* child) const {
+  const XMLElement* c = e->FirstChildElement(child);
+  if (!c || !c->GetText()) fail(e, std::string("missing <") + child + ">");
+  std::string s = c->GetText();
+  s.erase(0, s.find_first_not_of(" \t\n\r"));
+  s.erase(s.find_last_not_of(" \t\n\r") + 1);
+  return s;
+}
+
+void XmlReader::onlyAttributes(const XMLElement* e, std::initializer_list<const char*> allowed) const {
+  for (const tinyxml2::XMLAttribute* a = e->FirstAttribute(); a; a = a->Next()) {
+    bool ok = false;
+    for (const char* name : allowed) ok = ok || std::strcmp(name, a->Name()) == 0;
+    if (!ok) fail(e, std::string("unknown attribute '") + a->Name() + "'");
+  }
+}
+
+// ---- standard URDF
+
+namespace {
+
+void checkInertial(const XMLElement* link, const XmlReader& r) {
+  const XMLElement* in = link->FirstChildElement("inertial");
+  if (!in) return;
+  r.origin(in);
+  const XMLElement* mass = in->FirstChildElement("mass");
+  if (!mass) r.fail(in, "missing <mass>");
+  const double m = r.number(mass, "value", std::nullopt, 1e8);
+  if (m < 0) r.fail(mass, "mass is negative");
+  const XMLElement* I = in->FirstChildElement("inertia");
+  if (!I) r.fail(in, "missing <inertia>");
+  Eigen::Matrix3d J;
+  const double xx = r.number(I, "ixx", 0.0, 1e10), yy = r.number(I, "iyy", 0.0, 1e10),
+               zz = r.number(I, "izz", 0.0, 1e10), xy = r.number(I, "ixy", 0.0, 1e10),
+               xz = r.number(I, "ixz", 0.0, 1e10), yz = r.number(I, "iyz", 0.0, 1e10);
+  J << xx, xy, xz, xy, yy, yz, xz, yz, zz;
+  const Eigen::Vector3d ev = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(J).eigenvalues();
+  const double tol = 1e-9 * std::max(1e-12, J.cwiseAbs().maxCoeff());
+  if (ev(0) < -tol) r.fail(I, "inertia has a negative principal moment");
+  if (ev(2) > ev(0) + ev(1) + tol)
+    r.fail(I, "inertia violates the triangle inequality (a principal moment exceeds the sum of the other two)");
+}
+
+}  // namespace
+
+void validateStandard(const XMLElement* robot, const XmlReader& r) {
+  std::map<std::string, const XMLElement*> links, joints;
+  std::map<std::string, std::string> parent_of;  // child link -> joint
+  for (const XMLElement* e = robot->FirstChildElement(); e; e = e->NextSiblingElement()) {
+    const std::string tag = e->Name();
+    if (tag == "link") {
+      const char* name = e->Attribute("name");
+      if (!name || !*name) r.fail(e, "link without a name");
+      if (links.count(name)) r.fail(e, "duplicate link (first on line " + std::to_string(links[name]->GetLineNum()) + ")");
+      links[name] = e;
+      checkInertial(e, r);
+    }
+  }
+  if (links.empty()) r.fail(robot, "the robot has no <link>");
+  if (links.size() > 100000) r.fail(robot, "absurd number of links");
+  for (const XMLElement* e = robot->FirstChildElement("joint"); e; e = e->NextSiblingElement("joint")) {
+    const char* name = e->Attribute("name");
+    if (!name || !*name) r.fail(e, "joint without a name");
+    if (joints.count(name)) r.fail(e, "duplicate joint (first on line " + std::to_string(joints[name]->GetLineNum()) + ")");
+    joints[name] = e;
+    const char* type = e->Attribute("type");
+    if (!type) r.fail(e, "missing attribute 'type'");
+    if (!kUrdfTypes.count(type))
+      r.fail(e, std::string("unknown joint type '") + type +
+                    "' (URDF: fixed, revolute, continuous, prismatic, floating, planar; others go in <mechanism_sim:joint>)");
+    const XMLElement* p = e->FirstChildElement("parent");
+    const XMLElement* c = e->FirstChildElement("child");
+    if (!p || !p->Attribute("link")) r.fail(e, "missing <parent link=...>");
+    if (!c || !c->Attribute("link")) r.fail(e, "missing <child link=...>");
+    const std::string pl = p->Attribute("link"), cl = c->Attribute("link");
+    if (!links.count(pl)) r.fail(p, "parent link '" + pl + "' does not exist");
+    if (!links.count(cl)) r.fail(c, "child link '" + cl + "' does not exist");
+    if (pl == cl) r.fail(e, "joint's parent is its child ('" + pl + "')");
+    if (parent_of.count(cl)) r.fail(e, "link '" + cl + "' already has parent joint '" + parent_of[cl] + "' (close loops with <mechanism_sim:joint>)");
+    parent_of[cl] = name;
+    r.origin(e);
+    const std::string t = type;
+    if (t == "revolute" || t == "continuous" || t == "prismatic" || t == "planar") r.direction(e, "axis", Vector3d::UnitX());
+    if (const XMLElement* lim = e->FirstChildElement("limit")) {
+      const double lo = r.number(lim, "lower", 0.0), hi = r.number(lim, "upper", 0.0);
+      if (lo > hi) r.fail(lim, "lower limit exceeds upper limit");
+      if (r.number(lim, "effort", 0.0, 1e9) < 0) r.fail(lim, "effort limit is negative");
+      if (r.number(lim, "velocity", 0.0, 1e9) < 0) r.fail(lim, "velocity limit is negative");
+    } else if (t == "revolute" || t == "prismatic") {
+      r.fail(e, "a " + t + " joint needs <limit> (use 'continuous' for an unlimited revolute)");
+    }
+    if (const XMLElement* dyn = e->FirstChildElement("dynamics")) {
+      if (r.number(dyn, "damping", 0.0, 1e9) < 0) r.fail(dyn, "damping is negative");
+      if (r.number(dyn, "friction", 0.0, 1e9) < 0) r.fail(dyn, "friction is negative");
+    }
+  }
+  for (const XMLElement* e = robot->FirstChildElement("joint"); e; e = e->NextSiblingElement("joint"))
+    if (const XMLElement* mimic = e->FirstChildElement("mimic")) {
+      const char* j = mimic->Attribute("joint");
+      if (!j || !joints.count(j)) r.fail(mimic, std::string("mimics unknown joint '") + (j ? j : "") + "'");
+      if (std::string(j) == e->Attribute("name")) r.fail(mimic, "a joint cannot mimic itself");
+      r.number(mimic, "multiplier", 1.0);
+      r.number(mimic, "offset", 0.0);
+    }
+  // Exactly one root, and every link reachable from it (no cycles).
+  std::vector<std::string> roots;
+  for (const auto& l : links)
+    if (!parent_of.count(l.first)) roots.push_back(l.first);
+  if (roots.empty()) r.fail(robot, "the joints form a cycle: no root link");
+  if (roots.size() > 1)
+    r.fail(robot, "several root links ('" + roots[0] + "', '" + roots[1] + "'): connect them with joints");
+  for (const auto& l : links) {
+    std::string at = l.first;
+    size_t hops = 0;
+    while (parent_of.count(at) && hops++ <= links.size())
+      at = joints[parent_of[at]]->FirstChildElement("parent")->Attribute("link");
+    if (hops > links.size()) r.fail(links[l.first], "link is on a cycle of joints");
+  }
+}
+
+// ---- extension
+
+namespace {
+
+ExtJoint readExtJoint(const XMLElement* e, const XmlReader& r) {
+  r.onlyAttributes(e, {"name", "type", "lead"});
+  ExtJoint j;
+  j.element = e;
+  if (!e->Attribute("name")) r.fail(e, "missing attribute 'name'");
+  if (!e->Attribute("type")) r.fail(e, "missing attribute 'type'");
+  j.name = e->Attribute("name");
+  j.type = e->Attribute("type");
+  static const std::set<std::string> types = {"revolute", "continuous", "prismatic", "cylindrical", "screw",
+                                              "universal", "spherical", "planar", "fixed"};
+  if (!types.count(j.type)) r.fail(e, "unknown joint type '" + j.type + "'");
+  if (j.type == "screw") {
+    const double lead = r.number(e, "lead", std::nullopt, 1e3);
+    if (lead == 0.0) r.fail(e, "screw lead is zero (a screw of zero lead is a revolute joint)");
+    j.alpha = lead / (2.0 * M_PI);
+  } else if (e->Attribute("lead")) {
+    r.fail(e, "attribute 'lead' belongs to screw joints");
+  }
+  for (const XMLElement* c = e->FirstChildElement(); c; c = c->NextSiblingElement()) {
+    const std::string tag = c->Name();
+    if (tag == "parent" || tag == "child") {
+      r.onlyAttributes(c, {"link"});
+      if (!c->Attribute("link")) r.fail(c, "missing attribute 'link'");
+      (tag == "parent" ? j.parent : j.child) = c->Attribute("link");
+    } else if (tag == "origin" || tag == "child_origin") {
+      r.onlyAttributes(c, {"xyz", "rpy"});
+    } else if (tag == "axis" || tag == "axis2") {
+      r.onlyAttributes(c, {"xyz"});
+    } else if (tag == "dynamics") {
+      r.onlyAttributes(c, {"damping", "friction"});
+      j.damping = r.number(c, "damping", 0.0, 1e9);
+      j.friction = r.number(c, "friction", 0.0, 1e9);
+      if (j.damping < 0 || j.friction < 0) r.fail(c, "damping and friction must be >= 0");
+    } else {
+      r.fail(c, "unknown element in <mechanism_sim:joint>");
+    }
+  }
+  j.loop = !j.parent.empty() || !j.child.empty();
+  if (j.loop && (j.parent.empty() || j.child.empty())) r.fail(e, "a loop-closure joint needs both <parent> and <child>");
+  j.origin = r.origin(e, "origin");
+  j.child_origin = r.origin(e, "child_origin");
+  j.axis = r.direction(e, "axis", Vector3d::UnitZ());
+  j.has_axis2 = e->FirstChildElement("axis2") != nullptr;
+  j.axis2 = r.direction(e, "axis2", Vector3d::UnitY());
+  if (j.type == "universal" && !j.has_axis2) r.fail(e, "a universal joint needs <axis2>");
+  return j;
+}
+
+// <gazebo><joint name type><pose>..</pose><parent>..</parent><child>..</child><axis><xyz>..
+ExtJoint readSdfJoint(const XMLElement* e, const XmlReader& r) {
+  ExtJoint j;
+  j.element = e;
+  j.sdf = true;
+  j.loop = true;
+  if (!e->Attribute("name")) r.fail(e, "missing attribute 'name'");
+  if (!e->Attribute("type")) r.fail(e, "missing attribute 'type'");
+  j.name = e->Attribute("name");
+  const std::string type = e->Attribute("type");
+  static const std::map<std::string, std::string> types = {
+      {"revolute", "revolute"}, {"prismatic", "prismatic"}, {"ball", "spherical"},
+      {"universal", "universal"}, {"screw", "screw"}, {"fixed", "fixed"}};
+  if (!types.count(type)) r.fail(e, "unsupported SDF joint type '" + type + "' (revolute, prismatic, ball, universal, screw, fixed)");
+  j.type = types.at(type);
+  j.parent = r.text(e, "parent");
+  j.child = r.text(e, "child");
+  if (const XMLElement* pose = e->FirstChildElement("pose")) {
+    std::istringstream is(pose->GetText() ? pose->GetText() : "");
+    double v[6];
+    for (double& x : v)
+      if (!(is >> x) || !std::isfinite(x) || std::fabs(x) > 1e6) r.fail(pose, "pose needs six finite numbers");
+    j.child_origin = poseFromXyzRpy(Vector3d(v[0], v[1], v[2]), Vector3d(v[3], v[4], v[5]));
+  }
+  auto sdfAxis = [&](const char* tag, Vector3d* out) {
+    const XMLElement* a = e->FirstChildElement(tag);
+    if (!a) return false;
+    const XMLElement* xyz = a->FirstChildElement("xyz");
+    if (!xyz || !xyz->GetText()) r.fail(a, "missing <xyz>");
+    std::istringstream is(xyz->GetText());
+    Vector3d v;
+    if (!(is >> v.x() >> v.y() >> v.z()) || !v.allFinite()) r.fail(xyz, "axis needs three finite numbers");
+    if (v.norm() < 1e-12) r.fail(xyz, "axis is zero");
+    *out = v.normalized();
+    const char* in = xyz->Attribute("expressed_in");
+    const XMLElement* upm = a->FirstChildElement("use_parent_model_frame");
+    if ((in && std::string(in) == "__model__") ||
+        (upm && upm->GetText() && std::string(upm->GetText()).find("true") != std::string::npos))
+      j.axis_in_model = true;
+    return true;
+  };
+  if (!sdfAxis("axis", &j.axis) && j.type != "spherical" && j.type != "fixed") r.fail(e, "missing <axis>");
+  j.has_axis2 = sdfAxis("axis2", &j.axis2);
+  if (j.type == "universal" && !j.has_axis2) r.fail(e, "a universal joint needs <axis2>");
+  if (j.type == "screw") {
+    // SDF 1.10 screw_thread_pitch: metres per revolution, right-handed positive.
+    // Gazebo classic thread_pitch: radians per metre, positive = left-handed.
+    if (const XMLElement* p = e->FirstChildElement("screw_thread_pitch")) {
+      const double lead = std::atof(p->GetText() ? p->GetText() : "0");
+      if (lead == 0.0 || !std::isfinite(lead)) r.fail(p, "screw_thread_pitch must be finite and non-zero");
+      j.alpha = lead / (2.0 * M_PI);
+    } else if (const XMLElement* p2 = e->FirstChildElement("thread_pitch")) {
+      const double tp = std::atof(p2->GetText() ? p2->GetText() : "0");
+      if (tp == 0.0 || !std::isfinite(tp)) r.fail(p2, "thread_pitch must be finite and non-zero");
+      j.alpha = -1.0 / tp;
+    } else {
+      r.fail(e, "a screw joint needs <screw_thread_pitch> or <thread_pitch>");
+    }
+  }
+  return j;
+}
+
+}  // namespace
+
+Extension readExtension(const XMLElement* robot, const XmlReader& r) {
+  Extension ext;
+  for (const XMLElement* e = robot->FirstChildElement(); e; e = e->NextSiblingElement()) {
+    const std::string tag = e->Name();
+    if (tag == "gazebo") {
+      for (const XMLElement* j = e->FirstChildElement("joint"); j; j = j->NextSiblingElement("joint"))
+        ext.joints.push_back(readSdfJoint(j, r));
+      continue;
+    }
+    if (tag.rfind(kPrefix, 0) != 0) continue;
+    const std::string what = tag.substr(std::strlen(kPrefix));
+    if (what == "joint") {
+      ext.joints.push_back(readExtJoint(e, r));
+    } else if (what == "spring") {
+      r.onlyAttributes(e, {"name", "stiffness", "damping", "rest_length", "force"});
+      ExtSpring s;
+      s.element = e;
+      s.name = e->Attribute("name") ? e->Attribute("name") : "";
+      if (s.name.empty()) r.fail(e, "missing attribute 'name'");
+      s.k = r.number(e, "stiffness", 0.0, 1e12);
+      s.c = r.number(e, "damping", 0.0, 1e12);
+      s.force = r.number(e, "force", 0.0, 1e12);
+      if (e->Attribute("rest_length")) s.rest_length = r.number(e, "rest_length", std::nullopt);
+      if (s.k < 0 || s.c < 0 || (s.rest_length && *s.rest_length < 0)) r.fail(e, "stiffness, damping and rest_length must be >= 0");
+      for (const XMLElement* c = e->FirstChildElement(); c; c = c->NextSiblingElement()) {
+        const std::string ct = c->Name();
+        if (ct != "from" && ct != "to") r.fail(c, "unknown element in <mechanism_sim:spring> (from, to)");
+        r.onlyAttributes(c, {"link", "xyz"});
+        if (!c->Attribute("link")) r.fail(c, "missing attribute 'link'");
+        (ct == "from" ? s.link1 : s.link2) = c->Attribute("link");
+        (ct == "from" ? s.p1 : s.p2) = r.vec3(c, "xyz", Vector3d::Zero());
+      }
+      if (s.link1.empty() || s.link2.empty()) r.fail(e, "a spring needs <from link=...> and <to link=...>");
+      ext.springs.push_back(s);
+    } else if (what == "initial") {
+      r.onlyAttributes(e, {"joint", "position", "velocity"});
+      ExtInitial in;
+      in.element = e;
+      if (!e->Attribute("joint")) r.fail(e, "missing attribute 'joint'");
+      in.dof = e->Attribute("joint");
+      if (e->Attribute("position")) in.position = r.number(e, "position", std::nullopt);
+      if (e->Attribute("velocity")) in.velocity = r.number(e, "velocity", std::nullopt);
+      ext.initial.push_back(in);
+    } else if (what == "gravity") {
+      r.onlyAttributes(e, {"xyz"});
+      ext.gravity = r.vec3(e, "xyz", Vector3d(0, 0, -9.81), 1e4);
+    } else {
+      r.fail(e, "unknown extension element (joint, spring, initial, gravity)");
+    }
+  }
+  return ext;
+}
+
+}  // namespace urdf_input
+}  // namespace mechanism_sim

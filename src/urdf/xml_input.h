@@ -1,0 +1,82 @@
+// Reading a URDF file's XML with line numbers: validation of the standard elements and
+// the mechanism_sim extension / Gazebo loop joints. Internal to the loader.
+#pragma once
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Geometry>
+#include <tinyxml2.h>
+
+namespace mechanism_sim {
+namespace urdf_input {
+
+using Eigen::Isometry3d;
+using Eigen::Vector3d;
+
+// Error location and formatting: "FILE:LINE: element 'name': what".
+struct XmlReader {
+  std::string file;
+  [[noreturn]] void fail(const tinyxml2::XMLElement* e, const std::string& what) const;
+  std::string describe(const tinyxml2::XMLElement* e) const;
+  // Attribute as a number; required or default. Rejects NaN, infinity and absurd sizes.
+  double number(const tinyxml2::XMLElement* e, const char* attr, std::optional<double> def,
+                double absurd = 1e6) const;
+  std::vector<double> numbers(const tinyxml2::XMLElement* e, const char* attr, size_t count,
+                              double absurd = 1e6) const;
+  Vector3d vec3(const tinyxml2::XMLElement* e, const char* attr, const Vector3d& def,
+                double absurd = 1e6) const;
+  // <origin xyz rpy> child of e (identity if absent).
+  Isometry3d origin(const tinyxml2::XMLElement* e, const char* child = "origin") const;
+  // Non-zero finite direction from <child xyz>, normalized.
+  Vector3d direction(const tinyxml2::XMLElement* e, const char* child, const Vector3d& def) const;
+  std::string text(const tinyxml2::XMLElement* e, const char* child) const;  // required child text
+  // Only these attributes are allowed on e.
+  void onlyAttributes(const tinyxml2::XMLElement* e, std::initializer_list<const char*> allowed) const;
+};
+
+Isometry3d poseFromXyzRpy(const Vector3d& xyz, const Vector3d& rpy);
+
+struct ExtJoint {
+  const tinyxml2::XMLElement* element = nullptr;
+  std::string name, type;
+  bool loop = false;          // a loop closure between two links (else: overrides a URDF joint)
+  bool sdf = false;           // from <gazebo><joint>: SDF pose and axis conventions
+  bool axis_in_model = false; // SDF use_parent_model_frame / expressed_in="__model__"
+  std::string parent, child;
+  Isometry3d origin = Isometry3d::Identity();        // joint frame in the parent link (extension)
+  Isometry3d child_origin = Isometry3d::Identity();  // joint frame in the child link
+  Vector3d axis = Vector3d::UnitZ(), axis2 = Vector3d::UnitY();
+  bool has_axis2 = false;
+  double alpha = 0.0;  // screw lead per radian
+  double damping = 0.0, friction = 0.0;
+};
+
+struct ExtSpring {
+  const tinyxml2::XMLElement* element = nullptr;
+  std::string name, link1, link2;
+  Vector3d p1 = Vector3d::Zero(), p2 = Vector3d::Zero();
+  double k = 0, c = 0, force = 0;
+  std::optional<double> rest_length;
+};
+
+struct ExtInitial {
+  const tinyxml2::XMLElement* element = nullptr;
+  std::string dof;
+  std::optional<double> position, velocity;
+};
+
+struct Extension {
+  std::vector<ExtJoint> joints;
+  std::vector<ExtSpring> springs;
+  std::vector<ExtInitial> initial;
+  std::optional<Vector3d> gravity;
+};
+
+// Checks the standard URDF elements the loader relies on, with line numbers.
+void validateStandard(const tinyxml2::XMLElement* robot, const XmlReader& reader);
+// Reads <mechanism_sim:*> elements and <gazebo><joint> loop closures.
+Extension readExtension(const tinyxml2::XMLElement* robot, const XmlReader& reader);
+
+}  // namespace urdf_input
+}  // namespace mechanism_sim
