@@ -145,7 +145,13 @@ s = base_link()
 s += rod_link("crank", [0, 0, 0], [r, 0, 0], 0.4)
 s += rod_link("rod", [0, 0, 0], [Xs - r, 0, e], 0.5, "0.2 0.8 0.3 1")
 s += box_link("slider", [0.06, 0.04, 0.03], 0.8)
+s += '''  <link name="flywheel">
+    <inertial><mass value="3.0"/><inertia ixx="0.0075" iyy="0.015" izz="0.0075" ixy="0" ixz="0" iyz="0"/></inertial>
+    <visual><origin rpy="1.5707963 0 0"/><geometry><cylinder radius="0.1" length="0.01"/></geometry><material name="steel"><color rgba="0.7 0.7 0.75 1"/></material></visual>
+  </link>
+'''
 s += joint("crank_joint", "continuous", "base", "crank", [0, 0, 0], [0, -1, 0])
+s += joint("flywheel_mount", "fixed", "crank", "flywheel", [0, -0.02, 0])
 s += joint("rod_joint", "continuous", "crank", "rod", [r, 0, 0], [0, -1, 0])
 s += joint("slider_joint", "prismatic", "base", "slider", [Xs, 0, e], [1, 0, 0], (-0.5, 0.5, 100, 10))
 s += f'''  <mechanism_sim:joint name="wrist_pin" type="revolute">
@@ -153,9 +159,9 @@ s += f'''  <mechanism_sim:joint name="wrist_pin" type="revolute">
     <origin/><child_origin xyz="{v([Xs - r, 0, e])}"/>
     <axis xyz="0 -1 0"/>
   </mechanism_sim:joint>
-  <mechanism_sim:initial joint="crank_joint" velocity="8.0"/>
+  <mechanism_sim:initial joint="crank_joint" velocity="14.0"/>
 '''
-write("slider_crank.urdf", s, f"Offset slider-crank: crank {r} m, rod {l} m, offset {e} m; the slider pin closes the loop.")
+write("slider_crank.urdf", s, f"Offset slider-crank with a flywheel: crank {r} m, rod {l} m, offset {e} m; the slider pin closes the loop.")
 
 # ---- screw jack: the screw turns in the base's nut and lifts a platform kept from turning by a guide.
 lead = 0.005

@@ -143,8 +143,9 @@ class ModelBuilder {
       if (overrides.count(e.name)) fail(e.element, "joint type given twice");
       overrides[e.name] = &e;
     }
-    for (const auto& entry : urdf_->joints_) {
-      const urdf::Joint& j = *entry.second;
+    // Tree joints in file order, then loop closures in file order.
+    for (auto* element = robot->FirstChildElement("joint"); element; element = element->NextSiblingElement("joint")) {
+      const urdf::Joint& j = *urdf_->joints_.at(element->Attribute("name"));
       JointSpec s;
       s.name = j.name;
       s.element = urdfJointElement(robot, j.name);

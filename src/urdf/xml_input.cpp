@@ -41,10 +41,12 @@ double XmlReader::number(const XMLElement* e, const char* attr, std::optional<do
     if (def) return *def;
     fail(e, std::string("missing attribute '") + attr + "'");
   }
-  std::istringstream is(s);
-  double x;
-  std::string rest;
-  if (!(is >> x) || (is >> rest)) fail(e, std::string("attribute '") + attr + "' is not a number: '" + s + "'");
+  std::string text(s);
+  text.erase(0, text.find_first_not_of(" \t\n\r"));
+  text.erase(text.find_last_not_of(" \t\n\r") + 1);
+  char* end = nullptr;
+  const double x = std::strtod(text.c_str(), &end);
+  if (text.empty() || *end != '\0') fail(e, std::string("attribute '") + attr + "' is not a number: '" + s + "'");
   if (!std::isfinite(x)) fail(e, std::string("attribute '") + attr + "' is not finite");
   if (std::fabs(x) > absurd)
     fail(e, std::string("attribute '") + attr + "' = " + s + " is absurdly large (limit " +

@@ -1,0 +1,14 @@
+# gtests of the loader and the simulate CLI; rostests of the node.
+catkin_add_gtest(test_loader test/urdf/test_loader.cpp)
+target_link_libraries(test_loader mechanism_sim_urdf gtest_main)
+target_compile_definitions(test_loader PRIVATE MECHANISM_SIM_SOURCE_DIR="${PROJECT_SOURCE_DIR}")
+
+catkin_add_gtest(test_simulate_cli test/urdf/test_simulate_cli.cpp)
+target_link_libraries(test_simulate_cli gtest_main)
+target_compile_definitions(test_simulate_cli PRIVATE MECHANISM_SIM_SOURCE_DIR="${PROJECT_SOURCE_DIR}"
+  SIMULATE_BIN="$<TARGET_FILE:simulate>")
+add_dependencies(test_simulate_cli simulate)
+
+if(EXISTS ${PROJECT_SOURCE_DIR}/test/rostest/CMakeLists.txt)
+  include(${PROJECT_SOURCE_DIR}/test/rostest/CMakeLists.txt)
+endif()
