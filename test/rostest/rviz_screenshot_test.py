@@ -1,0 +1,56 @@
+#!/usr/bin/env python3
+"""Screenshot of the X display rviz draws on; the slider-crank's green connecting rod and
+orange slider must be on screen (an empty scene has neither colour)."""
+import os
+import subprocess
+import tempfile
+import time
+import unittest
+
+import rospy
+import rostest
+from sensor_msgs.msg import JointState
+
+
+def read_ppm(path):
+    data = open(path, "rb").read()
+    magic, w, h, maxval, pixels = data.split(maxsplit=4)
+    assert magic == b"P6" and maxval == b"255", "unexpected PPM format"
+    return int(w), int(h), pixels
+
+
+def count_colours(pixels):
+    green = orange = 0
+    for i in range(0, len(pixels) - 2, 3):
+        r, g, b = pixels[i], pixels[i + 1], pixels[i + 2]
+        if g > 140 and 20 < r < 130 and b < 140 and g - r > 60:
+            green += 1   # rod: rgba 0.2 0.8 0.3, shaded
+        elif r > 150 and 50 < g < 130 and b < 100 and r - g > 60:
+            orange += 1  # slider: rgba 0.8 0.3 0.2, shaded
+    return green, orange
+
+
+class RvizDrawsTheMechanism(unittest.TestCase):
+    def test_links_are_on_screen(self):
+        self.assertTrue(os.environ.get("DISPLAY"), "no DISPLAY: scripts/test starts Xvfb")
+        rospy.wait_for_message("/joint_states", JointState, 30.0)
+        shot = os.path.join(tempfile.gettempdir(), "mechanism_sim_rviz.png")
+        best = (0, 0)
+        deadline = time.time() + 60
+        while time.time() < deadline:  # rviz takes a while to start under software GL
+            time.sleep(3.0)
+            subprocess.run(["import", "-window", "root", shot], check=True, timeout=30)
+            ppm = shot[:-4] + ".ppm"
+            subprocess.run(["convert", shot, ppm], check=True, timeout=30)
+            w, h, pixels = read_ppm(ppm)
+            best = max(best, count_colours(pixels))
+            if min(best) >= 150:
+                break
+        rospy.loginfo("rviz screenshot %s: %d rod pixels, %d slider pixels", shot, best[0], best[1])
+        self.assertGreaterEqual(best[0], 150, "the connecting rod is not drawn (screenshot: %s)" % shot)
+        self.assertGreaterEqual(best[1], 150, "the slider is not drawn (screenshot: %s)" % shot)
+
+
+if __name__ == "__main__":
+    rospy.init_node("rviz_screenshot_test")
+    rostest.rosrun("mechanism_sim", "rviz_draws_the_mechanism", RvizDrawsTheMechanism)
