@@ -3,6 +3,7 @@
 several instances, and a bad model exiting with its error."""
 import math
 import os
+import signal
 import subprocess
 import time
 import unittest
@@ -89,10 +90,15 @@ class NodeContract(unittest.TestCase):
 
     def test_reset_returns_to_the_initial_state(self):
         time.sleep(0.5)
+        self.assertGreater(abs(joint_states("b").position[0] - 0.5), 0.05)  # it has moved
+        service("b", "pause")()
         service("b", "reset")()
+        time.sleep(0.2)
         msg = joint_states("b")
-        # initial_positions holds crank_joint at 0.5; a publish period later it has barely moved
-        self.assertLess(abs(msg.position[0] - 0.5), 0.2)
+        service("b", "unpause")()
+        # initial_positions holds crank_joint at 0.5; the file gives it 14 rad/s
+        self.assertAlmostEqual(msg.position[0], 0.5, places=9)
+        self.assertAlmostEqual(msg.velocity[0], 14.0, places=9)
 
     def test_effort_commands_bad_ones_rejected_whole(self):
         pub = rospy.Publisher("/b/mechanism_sim/effort_command", JointState, queue_size=10)
@@ -113,6 +119,22 @@ class NodeContract(unittest.TestCase):
         send(["slider_joint", "crank_joint"], [7.0])               # mismatched arrays
         self.assertAlmostEqual(effort_of("slider_joint"), 2.5, places=9)
         send(["slider_joint"], [0.0])
+
+    def test_ctrl_c_shuts_the_node_down_within_a_second(self):
+        model = os.path.join(SRC, "urdf", "four_bar.urdf")
+        proc = subprocess.Popen(["rosrun", PKG, "mechanism_sim_node", "__ns:=probe", "_model_file:=" + model],
+                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        try:
+            joint_states("probe", 20.0)
+            time.sleep(1.0)
+            start = time.time()
+            os.kill(proc.pid, signal.SIGINT)  # rosrun execs the node: this is the node
+            proc.wait(timeout=5)
+            self.assertLess(time.time() - start, 1.0)
+            self.assertEqual(proc.returncode, 0)
+        finally:
+            if proc.poll() is None:
+                proc.kill()
 
     def test_bad_model_ends_the_node_with_the_loader_error(self):
         bad = os.path.join(SRC, "test", "invalid", "negative_mass.urdf")
