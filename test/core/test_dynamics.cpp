@@ -2,6 +2,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 
 #include "mechanism_sim/core/models.h"
 
@@ -171,6 +172,32 @@ TEST(Dynamics, FourBarWithDependentEquationsConservesEnergy) {
   }
   EXPECT_GT(peak, 0.1);
   EXPECT_LT(worst, 1e-6 * peak) << "energy error " << worst << " peak KE " << peak;
+}
+
+// The evidence behind the default: on the same four-bar, over 10 s at 1 ms, RK4 keeps the
+// energy error below 1e-6 of the peak kinetic energy; Heun (rk2), same projections, does not.
+TEST(Dynamics, Rk4MeetsTheEnergyBoundWhereRk2DoesNot) {
+  auto energyError = [](const char* method) {
+    Mechanism m;
+    models::fourBarChain(m, 1, 0.4, 1.0, 1.2);
+    IntegratorOptions o;
+    o.method = method;
+    m.setIntegrator(o);
+    m.build();
+    m.assemble();
+    const double E0 = m.kineticEnergy() + m.potentialEnergy();
+    double peak = 0, worst = 0;
+    for (int s = 0; s < 10000; ++s) {
+      m.step(1e-3);
+      peak = std::max(peak, m.kineticEnergy());
+      worst = std::max(worst, std::fabs(m.kineticEnergy() + m.potentialEnergy() - E0));
+    }
+    return worst / peak;
+  };
+  const double rk4 = energyError("rk4"), rk2 = energyError("rk2");
+  EXPECT_LT(rk4, 1e-6);
+  EXPECT_GT(rk2, 1e-6);
+  std::printf("relative energy error over 10 s: rk4 %.2e, rk2 %.2e\n", rk4, rk2);
 }
 
 // A parallelogram linkage turning through its flat positions stays a parallelogram
