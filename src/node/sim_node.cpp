@@ -95,18 +95,21 @@ void SimNode::restartPacing() {
   pace_sim_ = model_->mechanism().time();
 }
 
+// tf of a URDF tree joint: the child link in the parent link, frames prefixed.
+geometry_msgs::TransformStamped SimNode::treeTransform(const TreeJoint& j, const ros::Time& time) const {
+  geometry_msgs::TransformStamped t;
+  t.header.stamp = time;
+  t.header.frame_id = prefix_ + j.parent;
+  t.child_frame_id = prefix_ + j.child;
+  t.transform = toTransform(model_->linkPose(model_->linkIndex(j.parent)).inverse() *
+                            model_->linkPose(model_->linkIndex(j.child)));
+  return t;
+}
+
 void SimNode::publishStatic() {
   std::vector<geometry_msgs::TransformStamped> fixed;
-  for (const TreeJoint& j : model_->treeJoints()) {
-    if (!j.fixed) continue;
-    geometry_msgs::TransformStamped t;
-    t.header.stamp = stamp();
-    t.header.frame_id = prefix_ + j.parent;
-    t.child_frame_id = prefix_ + j.child;
-    t.transform = toTransform(model_->linkPose(model_->linkIndex(j.parent)).inverse() *
-                              model_->linkPose(model_->linkIndex(j.child)));
-    fixed.push_back(t);
-  }
+  for (const TreeJoint& j : model_->treeJoints())
+    if (j.fixed) fixed.push_back(treeTransform(j, stamp()));
   if (!fixed.empty()) tf_static_.sendTransform(fixed);
 }
 
@@ -125,16 +128,8 @@ void SimNode::publish() {
   joint_states_.publish(js);
 
   std::vector<geometry_msgs::TransformStamped> moving;
-  for (const TreeJoint& j : model_->treeJoints()) {
-    if (j.fixed) continue;
-    geometry_msgs::TransformStamped t;
-    t.header.stamp = now;
-    t.header.frame_id = prefix_ + j.parent;
-    t.child_frame_id = prefix_ + j.child;
-    t.transform = toTransform(model_->linkPose(model_->linkIndex(j.parent)).inverse() *
-                              model_->linkPose(model_->linkIndex(j.child)));
-    moving.push_back(t);
-  }
+  for (const TreeJoint& j : model_->treeJoints())
+    if (!j.fixed) moving.push_back(treeTransform(j, now));
   if (!moving.empty()) tf_.sendTransform(moving);
 
   geometry_msgs::Vector3Stamped v;

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include <diagnostic_updater/diagnostic_updater.h>
+#include <geometry_msgs/TransformStamped.h>
 #include <ros/ros.h>
 #include <sensor_msgs/JointState.h>
 #include <std_srvs/Empty.h>
@@ -29,6 +30,7 @@ class SimNode {
  private:
   void publish();
   void publishStatic();
+  geometry_msgs::TransformStamped treeTransform(const TreeJoint& j, const ros::Time& time) const;
   void onEffort(const sensor_msgs::JointState::ConstPtr& msg);
   bool onReset(std_srvs::Empty::Request&, std_srvs::Empty::Response&);
   bool onPause(std_srvs::Empty::Request&, std_srvs::Empty::Response&);
