@@ -378,6 +378,36 @@ TEST(Friction, BlockOnInclineSticksOrSlidesAtTheCoulombRate) {
   }
 }
 
+// Applied wrench on a free body: a = f / m; about a principal axis w_dot = tau / I.
+TEST(ForceElements, BodyWrenchOnAFreeBody) {
+  Mechanism m;
+  const int b = m.addBody(body("free", 2.0, Vector3d(0.1, 0.2, 0.3), Vector3d::Zero()));
+  m.addJoint(makeJoint("planar", "keep_build_happy", Mechanism::kGround, frame(Vector3d::Zero()), b,
+                       frame(Vector3d::Zero())));  // a plane through the body: z stays, x, y, yaw free
+  m.setGravity(Vector3d::Zero());
+  m.build();
+  m.assemble();
+  m.setBodyWrench(b, Vector3d(4.0, -2.0, 0.0), Vector3d(0.0, 0.0, 0.6));
+  for (int s = 0; s < 1000; ++s) m.step(1e-3);
+  EXPECT_NEAR(m.position(b).x(), 0.5 * 2.0 * 1.0, 1e-10);   // a = 4 / 2
+  EXPECT_NEAR(m.position(b).y(), 0.5 * -1.0 * 1.0, 1e-10);  // a = -2 / 2
+  EXPECT_NEAR(m.jointVelocity(0, 2), 0.6 / 0.3 * 1.0, 1e-10);  // w_dot = 0.6 / 0.3
+}
+
+// Viscous damping on a spinning disc: w(t) = w0 exp(-c t / I).
+TEST(ForceElements, JointDampingDecaysExponentially) {
+  const double I = 0.05, c = 0.02, w0 = 10.0;
+  Mechanism m;
+  const int b = m.addBody(body("disc", 1.0, Vector3d(0.025, 0.025, I), Vector3d::Zero()));
+  m.addJoint(makeJoint("revolute", "axle", Mechanism::kGround, frame(Vector3d::Zero()), b, frame(Vector3d::Zero())));
+  m.setJointDamping(0, 0, c);
+  m.build();
+  m.assemble({}, {CoordinateTarget{0, 0, w0}});
+  for (int s = 0; s < 2000; ++s) m.step(1e-3);
+  EXPECT_NEAR(m.jointVelocity(0, 0), w0 * std::exp(-c * 2.0 / I), 1e-9);
+  EXPECT_NEAR(m.jointEffort(0, 0), -c * m.jointVelocity(0, 0), 1e-12);
+}
+
 // A limit holds a pendulum: it never passes the stop by more than the bound.
 TEST(Limits, PendulumStopsAtItsLimit) {
   Mechanism m;

@@ -160,6 +160,38 @@ TEST(Urdf, ScrewJackLiftsByLeadPerTurn) {
   EXPECT_GT(turns, 0.5);
 }
 
+// An inertia given rotated by <origin rpy> equals the same tensor written out: same motion
+// of a tumbling free body (gyroscopic terms make any error show).
+TEST(Urdf, RotatedInertiaEqualsTheTensorWrittenOut) {
+  LoadOptions spin;
+  auto a = load("test/urdf/rotated_inertia_a.urdf"), b = load("test/urdf/rotated_inertia_b.urdf");
+  for (auto* m : {a.get(), b.get()}) {
+    const int body = m->links()[m->linkIndex("body")].body;
+    m->mechanism().setGravity(Vector3d::Zero());
+    m->mechanism().setBodyWrench(body, Vector3d::Zero(), Vector3d(0.02, -0.01, 0.03));
+  }
+  run(*a, 2.0);
+  run(*b, 2.0);
+  const Eigen::Isometry3d Ta = a->linkPose(a->linkIndex("body")), Tb = b->linkPose(b->linkIndex("body"));
+  EXPECT_LT((Ta.linear() - Tb.linear()).norm(), 1e-9);
+  EXPECT_LT((Ta.translation() - Tb.translation()).norm(), 1e-9);
+  EXPECT_GT(Eigen::AngleAxisd(Ta.linear()).angle(), 0.1);  // it did turn
+}
+
+TEST(Urdf, PositionLimitStopsTheGripperSlider) {
+  auto m = load("urdf/parallel_gripper.urdf");
+  run(*m, 1.0);
+  EXPECT_NEAR(m->position(m->dofIndex("slider_joint")), -0.05, 1e-9);  // <limit lower="-0.05">
+  EXPECT_NEAR(m->velocity(m->dofIndex("slider_joint")), 0.0, 1e-9);
+  EXPECT_NEAR(m->position(m->dofIndex("jaw_left_joint")), m->position(m->dofIndex("jaw_right_joint")), 1e-9);
+}
+
+TEST(Urdf, TheReadmeExtensionExampleRuns) {
+  auto m = load("test/urdf/readme_example.urdf");
+  EXPECT_EQ(m->mechanism().joint(m->dofs()[m->dofIndex("spindle")].joint_index).type(), "screw");
+  run(*m, 2.0);
+}
+
 TEST(Urdf, ResetReturnsToTheInitialState) {
   auto m = load("urdf/four_bar.urdf");
   const double q0 = m->position(0), v0 = m->velocity(0);
