@@ -198,11 +198,13 @@ Eigen::Matrix<double, 12, 1> Mechanism::rowVelocity(const CoordinateTarget& t) c
 }
 
 // M + alpha Phi_q^T Phi_q must be positive definite: every motion the joints allow moves
-// some mass. A zero pivot names a body that can move without moving mass.
+// some mass. A zero pivot names a body that can move without moving mass. The check uses
+// alpha = the mean mass (well conditioned), so that a tiny but real inertia (1e-8 of the
+// others) stays far above round-off (1e-16) and is not mistaken for none.
 void Mechanism::checkMassRank() {
   evaluateConstraints();
-  assembleH(alpha_, 0.0, true);
-  if (ldlt_.factorize(Hx_.data(), 1e-13, true) == 0) return;
+  assembleH(alpha_ * 1e-6, 0.0, true);
+  if (ldlt_.factorize(Hx_.data(), 1e-12, true) == 0) return;
   std::ostringstream os;
   os << "bodies that can move without moving any mass:";
   for (int b = 1; b < numBodies(); ++b) {

@@ -337,7 +337,7 @@ void Mechanism::assembleH(double alpha, double shift, bool mass) {
 }
 
 void Mechanism::factorH(const char* where) {
-  if (ldlt_.factorize(Hx_.data(), 1e-13, false) != 0) {
+  if (ldlt_.factorize(Hx_.data(), 0.0, false) != 0) {
     std::ostringstream os;
     os << "at t = " << t_ << " s (" << where
        << "): the constrained mass matrix is singular; some motion moves no mass";

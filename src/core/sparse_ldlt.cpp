@@ -76,7 +76,9 @@ int SparseLDLT::factorize(const double* Ax, double pivot_tol, bool skip_zero_piv
       Lx_[p2] = l_ki;
       ++Lnz_[i];
     }
-    if (!(std::fabs(D_[k]) > pivot_tol * std::fabs(akk)) || D_[k] == 0.0) {
+    // Both matrices factored here are positive (semi-)definite: a pivot that is not
+    // clearly positive is zero (or round-off of zero).
+    if (!(D_[k] > pivot_tol * std::fabs(akk))) {
       ++zeros;
       zero_[k] = 1;
       D_[k] = 0.0;

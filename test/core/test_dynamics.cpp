@@ -256,6 +256,20 @@ TEST(Dynamics, MasslessCrossMovesAsUniversalJoint) {
   EXPECT_NEAR(a->jointPosition(1, 0), b->jointPosition(0, 1), 1e-9);
 }
 
+// A tiny but real body (a sensor link: 1 g, 1e-9 kg m^2) on a spinning joint is not
+// massless: no error, and it runs within the bound.
+TEST(Dynamics, TinyBodyIsNotMistakenForMassless) {
+  Mechanism m;
+  const int a = m.addBody(body("arm", 1.0, Vector3d(0.01, 0.01, 0.01), Vector3d(0.5, 0, 0)));
+  const int s = m.addBody(body("sensor", 1e-3, Vector3d(1e-9, 1e-9, 1e-9), Vector3d(1, 0, 0)));
+  m.addJoint(makeJoint("revolute", "shoulder", Mechanism::kGround, models::axisY(Vector3d::Zero()), a,
+                       models::axisY(Vector3d(-0.5, 0, 0))));
+  m.addJoint(makeJoint("revolute", "spin", a, frame(Vector3d(0.5, 0, 0)), s, frame(Vector3d::Zero())));
+  m.build();
+  m.assemble({}, {CoordinateTarget{1, 0, 3.0}});
+  runChecked(m, 2000, 1e-3);
+}
+
 TEST(Dynamics, MasslessBodyThatNothingMovesIsAnErrorNamingIt) {
   Mechanism m;
   const int a = m.addBody(body("arm", 1.0, Vector3d(0.01, 0.01, 0.01), Vector3d(0.5, 0, 0)));

@@ -14,8 +14,8 @@ class SparseLDLT {
   // index of the k-th pivot (empty: natural order).
   void analyze(int n, const std::vector<int>& Ap, const std::vector<int>& Ai,
                const std::vector<int>& perm);
-  // Numeric factorization of values Ax (aligned with Ai). A pivot with
-  // |D_k| <= pivot_tol * |A_kk| is zero: with skip_zero_pivots its row and column are
+  // Numeric factorization of values Ax (aligned with Ai), for positive (semi-)definite
+  // matrices. A pivot with D_k <= pivot_tol * |A_kk| is zero: with skip_zero_pivots its row and column are
   // dropped (a dependent row of a semi-definite matrix), otherwise factorization stops.
   // Returns the number of zero pivots met (0 on success).
   int factorize(const double* Ax, double pivot_tol, bool skip_zero_pivots);
