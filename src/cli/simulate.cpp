@@ -149,10 +149,10 @@ int main(int argc, char** argv) {
   if (!args.quiet) {
     const Mechanism& m = model->mechanism();
     std::fprintf(stderr,
-                 "%s: %ld steps of %g s in %.3f s wall (real-time factor %.1f); largest violation "
-                 "%.2e (position), %.2e (velocity); %s\n",
-                 args.model.c_str(), steps, args.dt, wall, wall > 0 ? steps * args.dt / wall : 0.0, worst_p,
-                 worst_v, m.dependencies().describe().c_str());
+                 "%s: assembled to %.1e; %ld steps of %g s in %.3f s wall (real-time factor %.1f); largest "
+                 "violation %.2e (position), %.2e (velocity); %s\n",
+                 args.model.c_str(), model->assembly().position_residual, steps, args.dt, wall,
+                 wall > 0 ? steps * args.dt / wall : 0.0, worst_p, worst_v, m.dependencies().describe().c_str());
   }
   return 0;
 }

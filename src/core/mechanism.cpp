@@ -271,7 +271,7 @@ void Mechanism::build() {
     u_.segment<3>(6 * (b - 1) + 3) = B.w;
   }
   loadKinematics(x_.data(), u_.data());
-  for (auto& l : limits_) l.active = 0;
+  deactivateLimits();
   built_ = true;
   acc_valid_ = false;
 }
@@ -456,9 +456,16 @@ void Mechanism::restore(const Snapshot& s) {
   u_ = Eigen::Map<const Eigen::VectorXd>(s.u.data(), s.u.size());
   for (size_t c = 0; c < constraints_.size(); ++c) constraints_[c]->setTracked(s.tracked[c]);
   t_ = s.t;
-  for (auto& l : limits_) l.active = 0;
+  deactivateLimits();
   loadKinematics(x_.data(), u_.data());
   finishStep(false);
+}
+
+void Mechanism::deactivateLimits() {
+  for (size_t l = 0; l < limits_.size(); ++l) {
+    limits_[l].active = 0;
+    static_cast<LimitConstraint&>(*constraints_[limit_constraint_[l]]).setActive(false, 0.0);
+  }
 }
 
 std::string DependencyReport::describe() const {

@@ -192,6 +192,20 @@ TEST(Urdf, TheReadmeExtensionExampleRuns) {
   run(*m, 2.0);
 }
 
+// After a reset the stops are free again: the slider leaves its limit and returns to it.
+TEST(Urdf, ResetReleasesActiveLimits) {
+  auto m = load("urdf/parallel_gripper.urdf");
+  const int slider = m->dofIndex("slider_joint");
+  run(*m, 0.5);
+  ASSERT_NEAR(m->position(slider), -0.05, 1e-9);  // on its stop
+  m->reset();
+  EXPECT_NEAR(m->position(slider), 0.0, 1e-12);
+  m->step(1e-3);
+  EXPECT_GT(m->position(slider), -0.01);  // not pulled back onto the stop
+  run(*m, 0.5);
+  EXPECT_NEAR(m->position(slider), -0.05, 1e-9);
+}
+
 TEST(Urdf, ResetReturnsToTheInitialState) {
   auto m = load("urdf/four_bar.urdf");
   const double q0 = m->position(0), v0 = m->velocity(0);

@@ -190,6 +190,7 @@ class Mechanism {
   void projectVelocities();
   void finishStep(bool project);
   bool updateLimits();
+  void deactivateLimits();
   void addJtx(const double* x, double* out) const;   // out += Phi_q^T x
   void mulJ(const double* v, double* out) const;      // out = Phi_q v
   void applyDisplacement(const double* dq);
