@@ -113,7 +113,11 @@ void SimNode::publishStatic() {
   if (!fixed.empty()) tf_static_.sendTransform(fixed);
 }
 
-void SimNode::publish() {
+// Without /clock, stamps follow wall time: a pause or a reset moves the origin so that
+// they never repeat or run backwards. With /clock, a pause freezes time and tf is not
+// republished (a repeated stamp is an error for tf2 listeners).
+void SimNode::publish(bool paused) {
+  if (!publish_clock_ && paused) time_origin_ = ros::Time(ros::WallTime::now().toSec()) - ros::Duration(model_->mechanism().time());
   const ros::Time now = stamp();
   const Mechanism& m = model_->mechanism();
   sensor_msgs::JointState js;
@@ -130,7 +134,7 @@ void SimNode::publish() {
   std::vector<geometry_msgs::TransformStamped> moving;
   for (const TreeJoint& j : model_->treeJoints())
     if (!j.fixed) moving.push_back(treeTransform(j, now));
-  if (!moving.empty()) tf_.sendTransform(moving);
+  if (!moving.empty() && !(paused && publish_clock_)) tf_.sendTransform(moving);
 
   geometry_msgs::Vector3Stamped v;
   v.header.stamp = now;
@@ -197,7 +201,7 @@ void SimNode::run() {
     if (paused_) {
       {
         std::lock_guard<std::mutex> lock(mutex_);
-        publish();
+        publish(true);
         restartPacing();
       }
       diagnostics_->update();
@@ -272,6 +276,7 @@ bool SimNode::onReset(std_srvs::Empty::Request&, std_srvs::Empty::Response&) {
   model_->reset();
   worst_position_ = worst_velocity_ = 0.0;
   restartPacing();
+  if (!publish_clock_) time_origin_ = ros::Time(ros::WallTime::now().toSec());  // stamps go on, not back
   publish();
   return true;
 }

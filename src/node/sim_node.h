@@ -28,7 +28,7 @@ class SimNode {
   void run();
 
  private:
-  void publish();
+  void publish(bool paused = false);
   void publishStatic();
   geometry_msgs::TransformStamped treeTransform(const TreeJoint& j, const ros::Time& time) const;
   void onEffort(const sensor_msgs::JointState::ConstPtr& msg);

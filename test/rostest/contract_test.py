@@ -95,7 +95,12 @@ class NodeContract(unittest.TestCase):
         service("b", "reset")()
         time.sleep(0.2)
         msg = joint_states("b")
+        stamps = [joint_states("b").header.stamp for _ in range(3)]
         service("b", "unpause")()
+        # b has no /clock: stamps keep following wall time through a pause and a reset
+        self.assertLess(stamps[0], stamps[1])
+        self.assertLess(stamps[1], stamps[2])
+        self.assertLess(abs(stamps[2].to_sec() - time.time()), 1.0)
         # initial_positions holds crank_joint at 0.5; the file gives it 14 rad/s
         self.assertAlmostEqual(msg.position[0], 0.5, places=9)
         self.assertAlmostEqual(msg.velocity[0], 14.0, places=9)
