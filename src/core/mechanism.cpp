@@ -258,6 +258,7 @@ void Mechanism::build() {
 
   auto zeros = [](Eigen::VectorXd& v, int size) { v = Eigen::VectorXd::Zero(size); };
   zeros(Phi_, m_), zeros(gamma_, m_), zeros(lambda_, m_), zeros(work_m_, m_), zeros(work_m2_, m_);
+  zeros(work_query_, m_);
   zeros(Q_, n_), zeros(acc_, n_), zeros(work_n_, n_), zeros(work_n2_, n_);
   zeros(x_, 7 * nb), zeros(u_, n_), zeros(x0_, 7 * nb), zeros(u0_, n_);
   zeros(xs_, 7 * nb), zeros(us_, n_);
@@ -419,9 +420,8 @@ Reaction Mechanism::reaction(int ci) const {
 double Mechanism::positionViolation() const { return maxAbs(Phi_, m_); }
 
 double Mechanism::velocityViolation() const {
-  Eigen::VectorXd out(m_);
-  mulJ(u_.data(), out.data());
-  return maxAbs(out, m_);
+  mulJ(u_.data(), work_query_.data());
+  return maxAbs(work_query_, m_);
 }
 
 double Mechanism::kineticEnergy() const {

@@ -77,7 +77,7 @@ bool SimNode::init() {
   reset_ = pnh_.advertiseService("reset", &SimNode::onReset, this);
   pause_ = pnh_.advertiseService("pause", &SimNode::onPause, this);
   unpause_ = pnh_.advertiseService("unpause", &SimNode::onUnpause, this);
-  step_ = pnh_.advertiseService("step", &SimNode::onStep, this);
+  step_ = pnh_.advertiseService("advance", &SimNode::onStep, this);
   diagnostics_ = std::make_unique<diagnostic_updater::Updater>(nh_, pnh_);
   diagnostics_->setHardwareID("mechanism_sim/" + model_->name());
   diagnostics_->add("constraints", this, &SimNode::diagnose);
@@ -295,7 +295,7 @@ bool SimNode::onUnpause(std_srvs::Empty::Request&, std_srvs::Empty::Response&) {
 
 bool SimNode::onStep(StepSimulation::Request& req, StepSimulation::Response& res) {
   if (!paused_ || req.steps > 1000000) {
-    ROS_WARN("mechanism_sim: ~step needs a paused simulation and at most 1000000 steps");
+    ROS_WARN("mechanism_sim: ~advance needs a paused simulation and at most 1000000 steps");
     return false;
   }
   std::lock_guard<std::mutex> lock(mutex_);

@@ -78,7 +78,7 @@ class NodeContract(unittest.TestCase):
         p0 = joint_states("a").position
         time.sleep(0.3)
         self.assertEqual(joint_states("a").position, p0)  # paused: nothing moves
-        after = service("a", "step", StepSimulation)(10).time
+        after = service("a", "advance", StepSimulation)(10).time
         self.assertAlmostEqual(after - t0, 0.010, places=9)
         self.assertNotEqual(joint_states("a").position, p0)
         service("a", "unpause")()
@@ -86,7 +86,7 @@ class NodeContract(unittest.TestCase):
         time.sleep(0.5)
         self.assertGreater(rospy.wait_for_message("/clock", Clock, 10.0).clock.to_sec(), t1 + 0.3)
         with self.assertRaises(rospy.ServiceException):  # stepping needs a paused simulation
-            service("a", "step", StepSimulation)(5)
+            service("a", "advance", StepSimulation)(5)
 
     def test_reset_returns_to_the_initial_state(self):
         time.sleep(0.5)

@@ -230,6 +230,7 @@ class Mechanism {
   Eigen::VectorXd Phi_, gamma_, lambda_, Q_, acc_, Mdiag_;
   Eigen::VectorXd x_, u_, x0_, u0_, xs_, us_, kx_[4], ku_[4];
   Eigen::VectorXd work_n_, work_n2_, work_m_, work_m2_;
+  mutable Eigen::VectorXd work_query_;  // for const queries, so that they allocate nothing
   bool acc_valid_ = false;
 };
 
