@@ -149,8 +149,9 @@ void Mechanism::finishStep(bool project) {
   assembleH(alpha_, 0.0, true);
   factorH("projection");
   if (project) projectVelocities();
-  for (auto& fe : friction_effort_) fe = {0.0, 0.0, 0.0};  // pass 0 solves without friction
-  for (int pass = 0; pass < 3; ++pass) {
+  for (auto& fe : friction_effort_) fe = {0.0, 0.0, 0.0};  // first solve without friction
+  bool friction_done = false;
+  for (int pass = 0; pass < 4; ++pass) {
     evaluateConstraints();
     computeForces();
     solveAccelerations();
@@ -172,7 +173,10 @@ void Mechanism::finishStep(bool project) {
       factorH("limit release");
       continue;
     }
-    if (pass == 0 && updateFriction()) continue;  // re-solve with friction
+    if (!friction_done) {  // friction from the friction-free accelerations, then re-solve
+      friction_done = true;
+      if (updateFriction()) continue;
+    }
     break;
   }
   // Rows of released limits stay zero; the accelerations above are those of the next stage 1.
