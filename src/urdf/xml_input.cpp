@@ -308,6 +308,16 @@ ExtJoint readSdfJoint(const XMLElement* e, const XmlReader& r) {
     if (!(is >> v.x() >> v.y() >> v.z()) || !v.allFinite()) r.fail(xyz, "axis needs three finite numbers");
     if (v.norm() < 1e-12) r.fail(xyz, "axis is zero");
     *out = v.normalized();
+    if (const XMLElement* dyn = a->FirstChildElement("dynamics")) {  // SDF joint dynamics
+      for (const char* tag : {"damping", "friction"}) {
+        const XMLElement* d = dyn->FirstChildElement(tag);
+        if (!d || !d->GetText()) continue;
+        char* end = nullptr;
+        const double value = std::strtod(d->GetText(), &end);
+        if (!std::isfinite(value) || value < 0 || value > 1e9) r.fail(d, std::string(tag) + " must be finite and >= 0");
+        (tag[0] == 'd' ? j.damping : j.friction) = value;
+      }
+    }
     const char* in = xyz->Attribute("expressed_in");
     const XMLElement* upm = a->FirstChildElement("use_parent_model_frame");
     if ((in && std::string(in) == "__model__") ||

@@ -106,6 +106,21 @@ TEST(Mechanisms, ExtensionAndGazeboLoopJointsGiveTheSameMotion) {
   }
 }
 
+// SDF <axis><dynamics><damping> on a Gazebo loop joint is viscous damping: the joint reports
+// effort -c q_dot, and the mechanism loses energy it keeps without it.
+TEST(Mechanisms, GazeboLoopJointDampingIsApplied) {
+  auto damped = load("test/urdf/four_bar_gazebo_damped.urdf"), plain = load("urdf/four_bar_gazebo.urdf");
+  const int loop = damped->dofIndex("loop");
+  run(*damped, 1.0);
+  run(*plain, 1.0);
+  EXPECT_NEAR(damped->effort(loop), -0.05 * damped->velocity(loop), 1e-12);
+  EXPECT_EQ(plain->effort(plain->dofIndex("loop")), 0.0);
+  const auto energy = [](const MechanismModel& m) {
+    return m.mechanism().kineticEnergy() + m.mechanism().potentialEnergy();
+  };
+  EXPECT_LT(energy(*damped), energy(*plain) - 1e-3);
+}
+
 // URDF features: massless link fixed to a point mass with zero inertia, a negative,
 // non-unit axis, a rotated joint origin: the period of the horizontal release is exact.
 TEST(Urdf, PointMassPendulumThroughFixedJointHasTheExactPeriod) {
