@@ -154,10 +154,7 @@ AssemblyReport Mechanism::assemble(const std::vector<CoordinateTarget>& position
   factorH("assembly");
   Eigen::VectorXd Mu(n_), mu_c = Eigen::VectorXd::Zero(m_), Ju(m_);
   std::vector<double> mu_t(velocities.size(), 0.0);
-  for (int b = 0; b < numBodies() - 1; ++b) {
-    Mu.segment<3>(6 * b) = bodies_[b + 1].m * u_.segment<3>(6 * b);
-    Mu.segment<3>(6 * b + 3) = bodies_[b + 1].Jp * u_.segment<3>(6 * b + 3);
-  }
+  mulM(u_.data(), Mu.data());
   double vres = 0;
   for (int it = 0; it < 60; ++it) {
     mulJ(u_.data(), Ju.data());

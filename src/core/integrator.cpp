@@ -294,11 +294,7 @@ void Mechanism::projectPositions(bool refactor) {
 // Mass-orthogonal projection of velocities onto Phi_q v = 0 (augmented Lagrangian):
 //   (M + alpha Phi_q^T Phi_q) v_{k+1} = M v* - Phi_q^T mu_k,  mu_{k+1} = mu_k + alpha Phi_q v_{k+1}.
 void Mechanism::projectVelocities() {
-  for (int b = 0; b < numBodies() - 1; ++b) {
-    const Body& B = bodies_[b + 1];
-    work_n2_.segment<3>(6 * b) = B.m * u_.segment<3>(6 * b);
-    work_n2_.segment<3>(6 * b + 3) = B.Jp * u_.segment<3>(6 * b + 3);
-  }
+  mulM(u_.data(), work_n2_.data());
   work_m2_.setZero();
   for (int it = 0; it < 30; ++it) {
     mulJ(u_.data(), work_m_.data());

@@ -292,6 +292,16 @@ void Mechanism::mulJ(const double* v, double* out) const {
     }
 }
 
+void Mechanism::mulM(const double* u, double* out) const {
+  for (int b = 0; b < numBodies() - 1; ++b) {
+    const Body& B = bodies_[b + 1];
+    Eigen::Map<Eigen::Matrix<double, 6, 1>> o(out + 6 * b);
+    Eigen::Map<const Eigen::Matrix<double, 6, 1>> v(u + 6 * b);
+    o.head<3>() = B.m * v.head<3>();
+    o.tail<3>() = B.Jp * v.tail<3>();
+  }
+}
+
 void Mechanism::addJtx(const double* x, double* out) const {
   for (const ConstraintData& cd : cdata_)
     for (size_t k = 0; k < cd.cols.size(); ++k) {

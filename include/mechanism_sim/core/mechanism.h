@@ -193,6 +193,7 @@ class Mechanism {
   void deactivateLimits();
   void addJtx(const double* x, double* out) const;   // out += Phi_q^T x
   void mulJ(const double* v, double* out) const;      // out = Phi_q v
+  void mulM(const double* u, double* out) const;      // out = M u
   void applyDisplacement(const double* dq);
   void jointRows(int joint, std::array<Row, 3>& rows) const;
   void addToH(const ConstraintData& cd, int k1, int k2, int r, int c, double value);
