@@ -162,8 +162,7 @@ void Mechanism::finishStep(bool project) {
       if (!L.active) continue;
       const double lam = lambda_[cdata_[limit_constraint_[l]].row];
       if ((L.active < 0 && lam > 0) || (L.active > 0 && lam < 0)) {
-        L.active = 0;
-        static_cast<LimitConstraint&>(*constraints_[limit_constraint_[l]]).setActive(false, 0);
+        setLimitSide(l, 0);
         released = true;
       }
     }
@@ -230,11 +229,9 @@ bool Mechanism::updateLimits() {
     LimitData& L = limits_[l];
     if (L.active) continue;
     const double q = jointPosition(L.joint, L.k);
-    int side = q < L.lower ? -1 : q > L.upper ? 1 : 0;
+    const int side = q < L.lower ? -1 : q > L.upper ? 1 : 0;
     if (!side) continue;
-    L.active = side;
-    static_cast<LimitConstraint&>(*constraints_[limit_constraint_[l]])
-        .setActive(true, side < 0 ? L.lower : L.upper);
+    setLimitSide(l, side);
     changed = true;
   }
   return changed;
@@ -280,10 +277,11 @@ void Mechanism::projectPositions(bool refactor) {
   err = maxAbs(Phi_, m_);
   if (err > 1e-6) {
     int worst = 0;
-    for (size_t ci = 0; ci < cdata_.size(); ++ci)
-      if (maxAbs(Phi_.segment(cdata_[ci].row, cdata_[ci].size), cdata_[ci].size) >
-          maxAbs(Phi_.segment(cdata_[worst].row, cdata_[worst].size), cdata_[worst].size))
-        worst = static_cast<int>(ci);
+    double worst_err = -1.0;
+    for (size_t ci = 0; ci < cdata_.size(); ++ci) {
+      const double e = maxAbs(Phi_.segment(cdata_[ci].row, cdata_[ci].size), cdata_[ci].size);
+      if (e > worst_err) worst_err = e, worst = static_cast<int>(ci);
+    }
     std::ostringstream os;
     os << "at t = " << t_ << " s: the step left the constraints (residual " << err << " at '"
        << constraints_[worst]->name() << "'); try a smaller step";

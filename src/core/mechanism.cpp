@@ -471,11 +471,16 @@ void Mechanism::restore(const Snapshot& s) {
   finishStep(false);
 }
 
+// The one place a limit changes state: its side and its constraint row together.
+void Mechanism::setLimitSide(size_t l, int side) {
+  LimitData& L = limits_[l];
+  L.active = side;
+  static_cast<LimitConstraint&>(*constraints_[limit_constraint_[l]])
+      .setActive(side != 0, side < 0 ? L.lower : L.upper);
+}
+
 void Mechanism::deactivateLimits() {
-  for (size_t l = 0; l < limits_.size(); ++l) {
-    limits_[l].active = 0;
-    static_cast<LimitConstraint&>(*constraints_[limit_constraint_[l]]).setActive(false, 0.0);
-  }
+  for (size_t l = 0; l < limits_.size(); ++l) setLimitSide(l, 0);
 }
 
 std::string DependencyReport::describe() const {

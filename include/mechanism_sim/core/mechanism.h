@@ -191,6 +191,7 @@ class Mechanism {
   void finishStep(bool project);
   bool updateLimits();
   void deactivateLimits();
+  void setLimitSide(size_t l, int side);  // -1 at lower, +1 at upper, 0 free
   void addJtx(const double* x, double* out) const;   // out += Phi_q^T x
   void mulJ(const double* v, double* out) const;      // out = Phi_q v
   void mulM(const double* u, double* out) const;      // out = M u
