@@ -108,6 +108,8 @@ class ModelBuilder {
     model_->name_ = urdf_->getName();
     model_->root_link_ = urdf_->getRoot()->name;
     collectJoints(robot);
+    for (const JointSpec& s : specs_)
+      if (s.tree) children_[s.parent].push_back(&s);
     groupLinks();
     addBodies();
     addJoints();
@@ -225,14 +227,11 @@ class ModelBuilder {
 
   // Groups of links joined by fixed tree joints; the group of the root is ground.
   void groupLinks() {
-    std::map<std::string, std::vector<const JointSpec*>> children;
-    for (const JointSpec& s : specs_)
-      if (s.tree) children[s.parent].push_back(&s);
     std::function<void(const std::string&, int, const Isometry3d&)> visit =
         [&](const std::string& link, int group, const Isometry3d& G_L) {
           link_group_[link] = group;
           group_T_link_[link] = G_L;
-          for (const JointSpec* j : children[link]) {
+          for (const JointSpec* j : children_[link]) {
             if (j->type == "fixed") {
               visit(j->child, group, G_L * j->P_J * j->C_J.inverse());
             } else {
@@ -324,17 +323,21 @@ class ModelBuilder {
       }
       return {s->name, k};
     };
+    // An initial position is placed by forward kinematics and held during assembly.
+    auto hold = [&](const std::pair<std::string, int>& at, double value) {
+      initial_q_[at.first].resize(3, 0.0);
+      initial_q_[at.first][at.second] = value;
+      held_.insert(at);
+    };
     for (const auto& in : ext_.initial) {
       const auto at = locate(in.dof, in.element);
-      if (in.position) initial_q_[at.first].resize(3, 0.0), initial_q_[at.first][at.second] = *in.position, held_.insert({at.first, at.second});
-      if (in.velocity) initial_v_[{at.first, at.second}] = *in.velocity;
+      if (in.position) hold(at, *in.position);
+      if (in.velocity) initial_v_[at] = *in.velocity;
     }
     for (const auto& p : options_.positions) {
       const auto at = locate(p.first, nullptr);
       if (!std::isfinite(p.second)) throw LoadError(reader_.file + ": initial position of '" + p.first + "' is not finite");
-      initial_q_[at.first].resize(3, 0.0);
-      initial_q_[at.first][at.second] = p.second;
-      held_.insert(at);
+      hold(at, p.second);
     }
     for (const auto& v : options_.velocities) {
       const auto at = locate(v.first, nullptr);
@@ -344,12 +347,9 @@ class ModelBuilder {
   }
 
   void fk(std::map<std::string, Isometry3d>& out, const std::map<std::string, std::vector<double>>& q) {
-    std::map<std::string, std::vector<const JointSpec*>> children;
-    for (const JointSpec& s : specs_)
-      if (s.tree) children[s.parent].push_back(&s);
     std::function<void(const std::string&, const Isometry3d&)> visit = [&](const std::string& link, const Isometry3d& W) {
       out[link] = W;
-      for (const JointSpec* j : children[link]) {
+      for (const JointSpec* j : children_[link]) {
         std::vector<double> values(3, 0.0);
         if (q.count(j->name)) values = q.at(j->name);
         visit(j->child, W * j->P_J * motion(j->type, j->alpha, values) * j->C_J.inverse());
@@ -466,6 +466,7 @@ class ModelBuilder {
   urdf::ModelInterfaceSharedPtr urdf_;
   std::unique_ptr<MechanismModel> model_;
   std::vector<JointSpec> specs_;
+  std::map<std::string, std::vector<const JointSpec*>> children_;  // tree joints by parent link
   std::vector<std::string> group_root_;
   std::map<std::string, int> link_group_;
   std::map<std::string, Isometry3d> group_T_link_, nominal_, initial_;
