@@ -34,6 +34,20 @@ void XmlReader::fail(const XMLElement* e, const std::string& what) const {
   throw LoadError(os.str());
 }
 
+// One number of attribute attr of e (text `token`, taken from the attribute text `whole`):
+// finite and no larger than absurd, or a one-line error naming the attribute.
+double XmlReader::parseNumber(const XMLElement* e, const char* attr, const std::string& token,
+                              const char* whole, double absurd) const {
+  const std::string where = std::string("attribute '") + attr + "' ";
+  char* end = nullptr;
+  const double x = std::strtod(token.c_str(), &end);
+  if (token.empty() || *end != '\0') fail(e, where + "is not a number: '" + whole + "'");
+  if (!std::isfinite(x)) fail(e, where + "is not finite: '" + whole + "'");
+  if (std::fabs(x) > absurd)
+    fail(e, where + "is absurdly large: '" + whole + "' (limit " + std::to_string(absurd) + ")");
+  return x;
+}
+
 double XmlReader::number(const XMLElement* e, const char* attr, std::optional<double> def,
                          double absurd) const {
   const char* s = e->Attribute(attr);
@@ -44,14 +58,7 @@ double XmlReader::number(const XMLElement* e, const char* attr, std::optional<do
   std::string text(s);
   text.erase(0, text.find_first_not_of(" \t\n\r"));
   text.erase(text.find_last_not_of(" \t\n\r") + 1);
-  char* end = nullptr;
-  const double x = std::strtod(text.c_str(), &end);
-  if (text.empty() || *end != '\0') fail(e, std::string("attribute '") + attr + "' is not a number: '" + s + "'");
-  if (!std::isfinite(x)) fail(e, std::string("attribute '") + attr + "' is not finite");
-  if (std::fabs(x) > absurd)
-    fail(e, std::string("attribute '") + attr + "' = " + s + " is absurdly large (limit " +
-                std::to_string(absurd) + ")");
-  return x;
+  return parseNumber(e, attr, text, s, absurd);
 }
 
 std::vector<double> XmlReader::numbers(const XMLElement* e, const char* attr, size_t count,
@@ -61,14 +68,7 @@ std::vector<double> XmlReader::numbers(const XMLElement* e, const char* attr, si
   std::istringstream is(s);
   std::vector<double> out;
   std::string tok;
-  while (is >> tok) {
-    char* end = nullptr;
-    const double x = std::strtod(tok.c_str(), &end);
-    if (*end != '\0') fail(e, std::string("attribute '") + attr + "' is not numbers: '" + s + "'");
-    if (!std::isfinite(x)) fail(e, std::string("attribute '") + attr + "' is not finite: '" + s + "'");
-    if (std::fabs(x) > absurd) fail(e, std::string("attribute '") + attr + "' is absurdly large: '" + s + "'");
-    out.push_back(x);
-  }
+  while (is >> tok) out.push_back(parseNumber(e, attr, tok, s, absurd));
   if (count && out.size() != count)
     fail(e, std::string("attribute '") + attr + "' needs " + std::to_string(count) + " numbers: '" + s + "'");
   return out;

@@ -24,6 +24,8 @@ struct XmlReader {
                 double absurd = 1e6) const;
   std::vector<double> numbers(const tinyxml2::XMLElement* e, const char* attr, size_t count,
                               double absurd = 1e6) const;
+  double parseNumber(const tinyxml2::XMLElement* e, const char* attr, const std::string& token,
+                     const char* whole, double absurd) const;
   Vector3d vec3(const tinyxml2::XMLElement* e, const char* attr, const Vector3d& def,
                 double absurd = 1e6) const;
   // <origin xyz rpy> child of e (identity if absent).
