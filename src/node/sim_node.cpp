@@ -82,13 +82,18 @@ bool SimNode::init() {
   diagnostics_->setHardwareID("mechanism_sim/" + model_->name());
   diagnostics_->add("constraints", this, &SimNode::diagnose);
 
-  time_origin_ = publish_clock_ ? ros::Time(0) : ros::Time(ros::WallTime::now().toSec());
+  if (!publish_clock_) anchorStampsToWall();
   restartPacing();
   publishStatic();
   return true;
 }
 
 ros::Time SimNode::stamp() const { return time_origin_ + ros::Duration(model_->mechanism().time()); }
+
+// Without /clock: the current simulation time is stamped as the current wall time.
+void SimNode::anchorStampsToWall() {
+  time_origin_ = ros::Time(ros::WallTime::now().toSec()) - ros::Duration(model_->mechanism().time());
+}
 
 void SimNode::restartPacing() {
   pace_wall_ = ros::WallTime::now();
@@ -117,7 +122,7 @@ void SimNode::publishStatic() {
 // they never repeat or run backwards. With /clock, a pause freezes time and tf is not
 // republished (a repeated stamp is an error for tf2 listeners).
 void SimNode::publish(bool paused) {
-  if (!publish_clock_ && paused) time_origin_ = ros::Time(ros::WallTime::now().toSec()) - ros::Duration(model_->mechanism().time());
+  if (!publish_clock_ && paused) anchorStampsToWall();
   const ros::Time now = stamp();
   const Mechanism& m = model_->mechanism();
   sensor_msgs::JointState js;
@@ -276,7 +281,7 @@ bool SimNode::onReset(std_srvs::Empty::Request&, std_srvs::Empty::Response&) {
   model_->reset();
   worst_position_ = worst_velocity_ = 0.0;
   restartPacing();
-  if (!publish_clock_) time_origin_ = ros::Time(ros::WallTime::now().toSec());  // stamps go on, not back
+  if (!publish_clock_) anchorStampsToWall();  // stamps go on, not back
   publish();
   return true;
 }

@@ -38,6 +38,7 @@ class SimNode {
   bool onStep(StepSimulation::Request& req, StepSimulation::Response& res);
   void diagnose(diagnostic_updater::DiagnosticStatusWrapper& status);
   ros::Time stamp() const;
+  void anchorStampsToWall();
   void restartPacing();
 
   ros::NodeHandle nh_, pnh_;
@@ -47,7 +48,7 @@ class SimNode {
   bool publish_clock_ = false;
   std::atomic<bool> paused_{false};
   std::string prefix_;
-  ros::Time time_origin_;
+  ros::Time time_origin_{0};  // stamp of simulation time 0 (0 when the node owns /clock)
   ros::WallTime pace_wall_;
   double pace_sim_ = 0.0, rtf_achieved_ = 0.0, step_time_ = 0.0;
   double worst_position_ = 0.0, worst_velocity_ = 0.0;
