@@ -53,15 +53,8 @@ AssemblyReport Mechanism::assemble(const std::vector<CoordinateTarget>& position
     return rows[t.k];
   };
   auto addRowToH = [&](const CoordinateTarget& t, const Row& row, double weight) {
-    const ConstraintData& cd = cdata_[joint_constraint_[t.joint]];
-    for (int k1 = 0; k1 < 2; ++k1)
-      for (int k2 = 0; k2 < 2; ++k2) {
-        const int base = cd.base[k1 * 2 + k2];
-        if (base < 0) continue;
-        const int st = cd.stride[k1 * 2 + k2];
-        for (int c = 0; c < 6; ++c)
-          for (int r = 0; r < 6; ++r) Hx_[base + c * st + r] += weight * row.J(6 * k1 + r) * row.J(6 * k2 + c);
-      }
+    const Eigen::MatrixXd J = row.J;  // a joint coordinate's row spans the joint's two bodies
+    addJtJ(cdata_[joint_constraint_[t.joint]], J, weight);
   };
   auto addRowT = [&](const CoordinateTarget& t, const Row& row, double x, double* out) {
     const int bs[2] = {joints_[t.joint]->bodyI(), joints_[t.joint]->bodyJ()};

@@ -328,23 +328,27 @@ void Mechanism::assembleH(double alpha, double shift, bool mass) {
       blk[(3 + k) * st + 3 + k] += shift;
     }
   }
+  for (const ConstraintData& cd : cdata_) addJtJ(cd, cd.J, alpha);
+}
+
+// H += weight J^T J for rows J over the bodies of cd (6 columns a body), block by block
+// into the fixed pattern; each off-diagonal pair is formed once and added with its transpose.
+void Mechanism::addJtJ(const ConstraintData& cd, const Eigen::Ref<const Eigen::MatrixXd>& J, double weight) {
   using Block = Eigen::Matrix<double, 6, 6>;
-  for (const ConstraintData& cd : cdata_) {
-    const int nbc = static_cast<int>(cd.cols.size());
-    for (int k1 = 0; k1 < nbc; ++k1)
-      for (int k2 = k1; k2 < nbc; ++k2) {
-        const int base = cd.base[k1 * nbc + k2];
-        if (base < 0) continue;
-        const Block B = alpha * cd.J.middleCols<6>(6 * k1).transpose().lazyProduct(cd.J.middleCols<6>(6 * k2));
-        const int st = cd.stride[k1 * nbc + k2];
-        for (int c = 0; c < 6; ++c)
-          for (int r = 0; r < 6; ++r) Hx_[base + c * st + r] += B(r, c);
-        if (k2 == k1) continue;
-        const int base_t = cd.base[k2 * nbc + k1], st_t = cd.stride[k2 * nbc + k1];
-        for (int c = 0; c < 6; ++c)
-          for (int r = 0; r < 6; ++r) Hx_[base_t + c * st_t + r] += B(c, r);
-      }
-  }
+  const int nbc = static_cast<int>(cd.cols.size());
+  for (int k1 = 0; k1 < nbc; ++k1)
+    for (int k2 = k1; k2 < nbc; ++k2) {
+      const int base = cd.base[k1 * nbc + k2];
+      if (base < 0) continue;
+      const Block B = weight * J.middleCols<6>(6 * k1).transpose().lazyProduct(J.middleCols<6>(6 * k2));
+      const int st = cd.stride[k1 * nbc + k2];
+      for (int c = 0; c < 6; ++c)
+        for (int r = 0; r < 6; ++r) Hx_[base + c * st + r] += B(r, c);
+      if (k2 == k1) continue;
+      const int base_t = cd.base[k2 * nbc + k1], st_t = cd.stride[k2 * nbc + k1];
+      for (int c = 0; c < 6; ++c)
+        for (int r = 0; r < 6; ++r) Hx_[base_t + c * st_t + r] += B(c, r);
+    }
 }
 
 void Mechanism::factorH(const char* where) {

@@ -197,7 +197,7 @@ class Mechanism {
   void mulM(const double* u, double* out) const;      // out = M u
   void applyDisplacement(const double* dq);
   void jointRows(int joint, std::array<Row, 3>& rows) const;
-  void addToH(const ConstraintData& cd, int k1, int k2, int r, int c, double value);
+  void addJtJ(const ConstraintData& cd, const Eigen::Ref<const Eigen::MatrixXd>& J, double weight);
   void analyzeDependencies();
   Eigen::Matrix<double, 12, 1> rowVelocity(const CoordinateTarget& t) const;
   void checkMassRank();
