@@ -1,7 +1,8 @@
 # Sourced by the scripts: repository paths, ROS environment, a catkin workspace inside
 # the repository (.catkin_ws, ignored by git) whose src/ links to the package.
 REPO="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-WS="$REPO/.catkin_ws"
+# MECHANISM_SIM_WS: another workspace (parallel builds of one checkout stay apart).
+WS="${MECHANISM_SIM_WS:-$REPO/.catkin_ws}"
 # The ROS Python modules live under /usr/bin/python3, not a pyenv python3 earlier in PATH.
 export PATH="/usr/bin:/bin:/usr/sbin:/sbin:$PATH"
 export ROS_HOME="${ROS_HOME:-$WS/ros_home}"
