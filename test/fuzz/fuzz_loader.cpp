@@ -1,0 +1,86 @@
+// libFuzzer target for the loader (README "Fuzzing and sanitizers"): bytes -> loadModelString;
+// what loads is stepped 100 times. A clean refusal is a LoadError whose message is one line
+// starting with the file name; a step may refuse with ModelError (a std::runtime_error).
+// Anything else is a finding: another exception escaping, a bad message, a non-finite state
+// after a step that did not refuse, or what the sanitizers and libFuzzer catch (crash, hang,
+// leak). A finding prints "FINDING: ..." and aborts, so libFuzzer keeps the input.
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <cstdlib>
+#include <exception>
+#include <string>
+#include <typeinfo>
+
+#include <cxxabi.h>
+
+#include "mechanism_sim/urdf/model.h"
+
+namespace {
+
+const char* const kSource = "fuzz.urdf";
+
+// One line, control characters escaped, for scripts/fuzz's triage.
+[[noreturn]] void finding(const std::string& what) {
+  std::string line;
+  for (const char c : what) {
+    if (c == '\n') line += "\\n";
+    else if (static_cast<unsigned char>(c) >= 0x20) line += c;
+    else {
+      char hex[8];
+      std::snprintf(hex, sizeof hex, "\\x%02x", c);
+      line += hex;
+    }
+  }
+  std::fprintf(stderr, "FINDING: %s\n", line.c_str());
+  std::fflush(stderr);
+  std::abort();
+}
+
+std::string typeName(const std::exception& e) {
+  int status = 0;
+  char* name = abi::__cxa_demangle(typeid(e).name(), nullptr, nullptr, &status);
+  std::string out = status == 0 && name ? name : typeid(e).name();
+  std::free(name);
+  return out;
+}
+
+// The README's promise: one line, "FILE:LINE: element 'name': what" or "FILE: what".
+void checkMessage(const std::string& msg) {
+  const std::string prefix = std::string(kSource) + ":";
+  if (msg.rfind(prefix, 0) != 0) finding("LoadError does not start with the file: " + msg);
+  if (msg.find('\n') != std::string::npos) finding("LoadError is not one line: " + msg);
+}
+
+}  // namespace
+
+extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
+  const std::string xml(reinterpret_cast<const char*>(data), size);
+  std::unique_ptr<mechanism_sim::MechanismModel> model;
+  try {
+    model = mechanism_sim::loadModelString(xml, kSource);
+  } catch (const mechanism_sim::LoadError& e) {
+    checkMessage(e.what());
+    return 0;
+  } catch (const std::exception& e) {
+    finding("load: " + typeName(e) + " escaped: " + e.what());
+  } catch (...) {
+    finding("load: a non-std exception escaped");
+  }
+  for (int s = 0; s < 100; ++s) {
+    try {
+      model->step(1e-3);
+    } catch (const mechanism_sim::ModelError&) {
+      return 0;
+    } catch (const std::runtime_error&) {
+      return 0;
+    } catch (const std::exception& e) {
+      finding("step: " + typeName(e) + " escaped: " + e.what());
+    }
+    const double p = model->mechanism().positionViolation(), v = model->mechanism().velocityViolation();
+    if (!std::isfinite(p) || !std::isfinite(v))
+      finding("step: non-finite state without an error (violation " + std::to_string(p) + ", " +
+              std::to_string(v) + ")");
+  }
+  return 0;
+}
