@@ -318,9 +318,11 @@ TEST(Assembly, ALoopThatCannotCloseNamesItsJoints) {
   }
 }
 
-// A hanging point-mass pendulum at rest: the pivot carries m g; a torque equal to the
-// gravity torque holds an arm level (joint effort along the free direction).
-TEST(Reactions, HangingMassAndHeldArm) {
+// A hanging point-mass pendulum at rest: the pivot carries m g. An arm that falls onto
+// its stop and rests there level, pushed up by a command of half its gravity torque: the
+// stop carries the other half, so the joint's effort (command plus the limit's reaction)
+// is the whole gravity load -m g L, which no command alone sets.
+TEST(Reactions, HangingMassAndArmRestingOnItsStop) {
   Mechanism m;
   const int bob = m.addBody(body("bob", 2.0, Vector3d::Zero(), Vector3d(0, 0, -1)));
   m.addJoint(makeJoint("revolute", "pivot", Mechanism::kGround, models::axisY(Vector3d::Zero()), bob,
@@ -331,17 +333,21 @@ TEST(Reactions, HangingMassAndHeldArm) {
   const Reaction r = m.reaction(0);
   EXPECT_LT((r.force - Vector3d(0, 0, 2.0 * g0)).norm(), 1e-9);
 
+  const double mass = 2.0, L = 0.5;
   Mechanism arm;
-  const int a = arm.addBody(body("arm", 2.0, Vector3d(0.01, 0.1, 0.1), Vector3d(0.5, 0, 0)));
+  const int a = arm.addBody(body("arm", mass, Vector3d(0.01, 0.1, 0.1), Vector3d(L, 0, 0)));
   arm.addJoint(makeJoint("revolute", "shoulder", Mechanism::kGround, models::axisY(Vector3d::Zero()), a,
-                         models::axisY(Vector3d(-0.5, 0, 0))));
+                         models::axisY(Vector3d(-L, 0, 0))));
+  // Gravity pulls the arm down (-z): about +y a positive torque m g L at the level pose,
+  // which is the upper stop. It starts 0.3 rad above and falls onto it.
+  arm.setJointLimits(0, 0, -1.0, 0.0);
   arm.build();
-  arm.assemble();
-  // Gravity pulls the arm down (-z); about +y that is a positive torque m g 0.5.
-  arm.setJointEffort(0, 0, -2.0 * g0 * 0.5);
-  for (int k = 0; k < 1000; ++k) arm.step(1e-3);
+  arm.assemble({CoordinateTarget{0, 0, -0.3}});
+  arm.setJointEffort(0, 0, -0.5 * mass * g0 * L);
+  for (int k = 0; k < 2000; ++k) arm.step(1e-3);
   EXPECT_NEAR(arm.jointPosition(0, 0), 0.0, 1e-10);
-  EXPECT_NEAR(arm.jointEffort(0, 0), -2.0 * g0 * 0.5, 1e-12);
+  EXPECT_NEAR(arm.jointVelocity(0, 0), 0.0, 1e-10);
+  EXPECT_NEAR(arm.jointEffort(0, 0), -mass * g0 * L, 1e-9);
 }
 
 // A mass on a vertical spring along a prismatic joint: period 2 pi sqrt(m/k), energy kept.

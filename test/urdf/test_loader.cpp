@@ -3,7 +3,10 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <filesystem>
 #include <fstream>
+#include <map>
+#include <set>
 #include <sstream>
 
 #include "mechanism_sim/urdf/model.h"
@@ -232,16 +235,38 @@ TEST(Urdf, ResetReturnsToTheInitialState) {
 }
 
 // Each invalid model gets one error naming the file (and, for element errors, the line)
-// and saying what is wrong; test/invalid/expected.txt lists file and message.
+// and saying what is wrong; test/invalid/expected.txt lists file and message. Every file
+// in test/invalid/ is listed there and every listed file exists: all of them run.
 TEST(InvalidModels, EachFailsWithItsMessage) {
-  std::ifstream table(kSource + "/test/invalid/expected.txt");
+  const std::string dir = kSource + "/test/invalid";
+  std::set<std::string> files;
+  for (const auto& entry : std::filesystem::directory_iterator(dir))
+    if (entry.is_regular_file() && entry.path().filename() != "expected.txt")
+      files.insert(entry.path().filename().string());
+  ASSERT_FALSE(files.empty()) << dir;
+
+  std::ifstream table(dir + "/expected.txt");
+  ASSERT_TRUE(table) << dir << "/expected.txt";
+  std::map<std::string, std::string> expected;
   std::string line;
-  int checked = 0;
   while (std::getline(table, line)) {
     if (line.empty() || line[0] == '#') continue;
     const size_t bar = line.find(" | ");
+    ASSERT_NE(bar, std::string::npos) << "expected.txt: not 'file | message': " << line;
     const std::string file = line.substr(0, bar), expect = line.substr(bar + 3);
-    const std::string path = kSource + "/test/invalid/" + file;
+    EXPECT_FALSE(expect.empty()) << "expected.txt: " << file << " has an empty message";
+    EXPECT_TRUE(expected.emplace(file, expect).second) << "expected.txt: " << file << " listed twice";
+  }
+  for (const std::string& f : files)
+    EXPECT_TRUE(expected.count(f)) << "test/invalid/" << f << " has no expected message in expected.txt";
+
+  int checked = 0;
+  for (const auto& [file, expect] : expected) {
+    if (!files.count(file)) {
+      ADD_FAILURE() << "expected.txt lists " << file << ", which is not in test/invalid/";
+      continue;
+    }
+    const std::string path = dir + "/" + file;
     try {
       loadModelFile(path);
       ADD_FAILURE() << file << " loaded without an error";
@@ -255,7 +280,7 @@ TEST(InvalidModels, EachFailsWithItsMessage) {
     }
     ++checked;
   }
-  EXPECT_GE(checked, 30);
+  EXPECT_EQ(checked, static_cast<int>(files.size()));
 }
 
 TEST(InvalidModels, ElementErrorsCarryTheLine) {
