@@ -3,6 +3,7 @@ add_library(mechanism_sim_urdf
   src/urdf/xml_input.cpp
   src/urdf/loader.cpp
   src/urdf/model.cpp
+  src/urdf/run_loop.cpp
 )
 target_include_directories(mechanism_sim_urdf PUBLIC include ${urdfdom_INCLUDE_DIRS})
 target_link_libraries(mechanism_sim_urdf mechanism_sim_core ${urdfdom_LIBRARIES} ${TINYXML2_TARGET} console_bridge)
@@ -11,7 +12,8 @@ add_executable(simulate src/cli/simulate.cpp src/cli/csv_writer.cpp)
 target_link_libraries(simulate mechanism_sim_urdf)
 
 if(EXISTS ${PROJECT_SOURCE_DIR}/src/node/main.cpp)
-  add_executable(mechanism_sim_node src/node/main.cpp src/node/sim_node.cpp)
+  add_executable(mechanism_sim_node src/node/main.cpp src/node/sim_node.cpp src/node/pacer.cpp
+    src/node/constraint_markers.cpp)
   target_include_directories(mechanism_sim_node PRIVATE ${catkin_INCLUDE_DIRS})
   target_link_libraries(mechanism_sim_node mechanism_sim_urdf ${catkin_LIBRARIES})
   add_dependencies(mechanism_sim_node ${catkin_EXPORTED_TARGETS})

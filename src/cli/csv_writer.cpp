@@ -19,17 +19,12 @@ void CsvWriter::header() {
   out_ << '\n';
 }
 
-void CsvWriter::row() {
-  const Mechanism& m = model_.mechanism();
-  out_ << m.time();
-  for (size_t d = 0; d < model_.dofs().size(); ++d) {
-    const int i = static_cast<int>(d);
-    out_ << ',' << model_.position(i) << ',' << model_.velocity(i) << ',' << model_.effort(i);
-  }
-  out_ << ',' << m.positionViolation() << ',' << m.velocityViolation();
+void CsvWriter::row(const Sample& s) {
+  out_ << s.time;
+  for (size_t d = 0; d < s.position.size(); ++d) out_ << ',' << s.position[d] << ',' << s.velocity[d] << ',' << s.effort[d];
+  out_ << ',' << s.position_violation << ',' << s.velocity_violation;
   if (poses_)
-    for (size_t l = 0; l < model_.links().size(); ++l) {
-      const Eigen::Isometry3d T = model_.linkPose(static_cast<int>(l));
+    for (const Eigen::Isometry3d& T : s.link_poses) {
       const Eigen::Quaterniond q(T.linear());
       const Eigen::Vector3d& p = T.translation();
       out_ << ',' << p.x() << ',' << p.y() << ',' << p.z() << ',' << q.w() << ',' << q.x() << ',' << q.y() << ',' << q.z();

@@ -4,6 +4,7 @@
 #include <ostream>
 
 #include "mechanism_sim/urdf/model.h"
+#include "mechanism_sim/urdf/run_loop.h"
 
 namespace mechanism_sim {
 
@@ -11,7 +12,7 @@ class CsvWriter {
  public:
   CsvWriter(std::ostream& out, const MechanismModel& model, bool poses);
   void header();
-  void row();
+  void row(const Sample& sample);
 
  private:
   std::ostream& out_;

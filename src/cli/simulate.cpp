@@ -1,17 +1,20 @@
 // simulate: runs a URDF mechanism without ROS and writes CSV (README "Batch simulator").
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <fstream>
+#include <functional>
 #include <iostream>
 #include <memory>
 #include <string>
 
 #include "csv_writer.h"
 #include "mechanism_sim/urdf/model.h"
+#include "mechanism_sim/urdf/run_loop.h"
 
 using namespace mechanism_sim;
 
@@ -120,39 +123,40 @@ int main(int argc, char** argv) {
     out = &file;
   }
   CsvWriter csv(*out, *model, args.poses);
+  RunLoop loop(*model, args.dt, args.every);
   const bool write = !args.csv.empty() || !isatty(STDOUT_FILENO) || !args.quiet;
-  if (write) csv.header(), csv.row();
+  if (write) csv.header(), csv.row(loop.sample());
   const long steps = std::lround(args.duration / args.dt);
   const auto start = std::chrono::steady_clock::now();
   auto elapsed = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(); };
   const bool bar = !args.quiet && isatty(STDERR_FILENO);
-  double worst_p = model->mechanism().positionViolation(), worst_v = model->mechanism().velocityViolation();
   double last_bar = 0;
+  auto tick = [&] {
+    if (elapsed() > 1.0 && elapsed() - last_bar > 0.1) {
+      last_bar = elapsed();
+      progress(static_cast<double>(loop.steps()) / steps, last_bar);
+    }
+  };
   try {
-    for (long s = 1; s <= steps; ++s) {
-      model->step(args.dt);
-      worst_p = std::max(worst_p, model->mechanism().positionViolation());
-      worst_v = std::max(worst_v, model->mechanism().velocityViolation());
-      if (write && (s % args.every == 0 || s == steps)) csv.row();
-      if (bar && (s & 63) == 0 && elapsed() > 1.0 && elapsed() - last_bar > 0.1) {
-        last_bar = elapsed();
-        progress(static_cast<double>(s) / steps, last_bar);
-      }
+    // A row every N steps, and one at the end.
+    while (loop.steps() < steps) {
+      loop.advance(std::min(args.every, steps - loop.steps()), bar ? std::function<void()>(tick) : nullptr);
+      if (write) csv.row(loop.sample());
     }
   } catch (const std::exception& e) {
-    std::cerr << "\nsimulate: " << args.model << ": at t = " << model->mechanism().time() << " s: " << e.what() << "\n";
+    std::cerr << "\nsimulate: " << args.model << ": at t = " << model->time() << " s: " << e.what() << "\n";
     return 1;
   }
   out->flush();
   const double wall = elapsed();
   if (bar && last_bar > 0) progress(1.0, wall), std::fputc('\n', stderr);
   if (!args.quiet) {
-    const Mechanism& m = model->mechanism();
     std::fprintf(stderr,
                  "%s: assembled to %.1e; %ld steps of %g s in %.3f s wall (real-time factor %.1f); largest "
                  "violation %.2e (position), %.2e (velocity); %s\n",
                  args.model.c_str(), model->assembly().position_residual, steps, args.dt, wall,
-                 wall > 0 ? steps * args.dt / wall : 0.0, worst_p, worst_v, m.dependencies().describe().c_str());
+                 wall > 0 ? steps * args.dt / wall : 0.0, loop.worstPositionViolation(),
+                 loop.worstVelocityViolation(), model->dependencies().describe().c_str());
   }
   return 0;
 }

@@ -1,4 +1,8 @@
-// mechanism_sim_node: runs a URDF mechanism in a ROS graph (README "The node").
+// mechanism_sim_node: runs a URDF mechanism in a ROS graph (README "The node"). The node
+// reads its parameters, loads the model, and then drives the shared run loop
+// (mechanism_sim/urdf/run_loop.h) paced to wall-clock time (pacer.h), publishing each
+// sample (joint_states, tf, violation, markers in constraint_markers.h, /clock) and
+// serving effort commands, reset, pause, unpause, advance and diagnostics.
 #pragma once
 #include <atomic>
 #include <memory>
@@ -14,10 +18,23 @@
 #include <tf2_ros/static_transform_broadcaster.h>
 #include <tf2_ros/transform_broadcaster.h>
 
+#include "constraint_markers.h"
 #include "mechanism_sim/StepSimulation.h"
 #include "mechanism_sim/urdf/model.h"
+#include "mechanism_sim/urdf/run_loop.h"
+#include "pacer.h"
 
 namespace mechanism_sim {
+
+// The node's private parameters (config/default.yaml).
+struct NodeParams {
+  double step = 1e-3, publish_rate = 100.0, real_time_factor = 1.0;
+  bool publish_clock = false, start_paused = false;
+  std::string frame_prefix;
+  LoadOptions load;  // ~integrator, ~initial_positions, ~initial_velocities
+  // Reads them; false (after logging why) when they are out of range.
+  bool read(const ros::NodeHandle& pnh);
+};
 
 class SimNode {
  public:
@@ -28,9 +45,10 @@ class SimNode {
   void run();
 
  private:
+  bool load();
   void publish(bool paused = false);
   void publishStatic();
-  geometry_msgs::TransformStamped treeTransform(const TreeJoint& j, const ros::Time& time) const;
+  geometry_msgs::TransformStamped treeTransform(size_t tree_joint, const ros::Time& time) const;
   void onEffort(const sensor_msgs::JointState::ConstPtr& msg);
   bool onReset(std_srvs::Empty::Request&, std_srvs::Empty::Response&);
   bool onPause(std_srvs::Empty::Request&, std_srvs::Empty::Response&);
@@ -39,22 +57,18 @@ class SimNode {
   void diagnose(diagnostic_updater::DiagnosticStatusWrapper& status);
   ros::Time stamp() const;
   void anchorStampsToWall();
-  void restartPacing();
 
   ros::NodeHandle nh_, pnh_;
+  NodeParams params_;
   std::unique_ptr<MechanismModel> model_;
-  std::mutex mutex_;  // guards model_ and the pacing state
-  double dt_ = 1e-3, publish_rate_ = 100.0, rtf_target_ = 1.0;
-  bool publish_clock_ = false;
+  std::unique_ptr<RunLoop> loop_;
+  std::unique_ptr<Pacer> pacer_;
+  std::unique_ptr<ConstraintMarkers> markers_;
+  std::mutex mutex_;  // guards model_ and loop_
   std::atomic<bool> paused_{false};
-  std::string prefix_;
   ros::Time time_origin_{0};  // stamp of simulation time 0 (0 when the node owns /clock)
-  ros::WallTime pace_wall_;
-  double pace_sim_ = 0.0, rtf_achieved_ = 0.0, step_time_ = 0.0;
-  double worst_position_ = 0.0, worst_velocity_ = 0.0;
-  bool behind_ = false;
-  ros::Publisher joint_states_, clock_, violation_, markers_;
-  std::vector<int> loop_joints_;  // Mechanism joints that close loops (not tf edges)
+  std::vector<std::pair<int, int>> tree_links_;  // (parent, child) link of each tree joint
+  ros::Publisher joint_states_, clock_, violation_;
   ros::Subscriber effort_;
   ros::ServiceServer reset_, pause_, unpause_, step_;
   tf2_ros::TransformBroadcaster tf_;

@@ -78,6 +78,27 @@ Isometry3d motion(const std::string& type, double alpha, const std::vector<doubl
   return T;
 }
 
+// urdfdom reports its parse errors through console_bridge, and the loader reports its own,
+// so console_bridge is silenced while urdfdom parses and its level restored after (also
+// when parsing throws): the embedding program's own logging is left as it was.
+class ConsoleBridgeSilenced {
+ public:
+  ConsoleBridgeSilenced() : saved_(console_bridge::getLogLevel()) {
+    console_bridge::setLogLevel(console_bridge::CONSOLE_BRIDGE_LOG_NONE);
+  }
+  ~ConsoleBridgeSilenced() { console_bridge::setLogLevel(saved_); }
+  ConsoleBridgeSilenced(const ConsoleBridgeSilenced&) = delete;
+  ConsoleBridgeSilenced& operator=(const ConsoleBridgeSilenced&) = delete;
+
+ private:
+  console_bridge::LogLevel saved_;
+};
+
+urdf::ModelInterfaceSharedPtr parseWithUrdfdom(const std::string& xml) {
+  ConsoleBridgeSilenced quiet;
+  return urdf::parseURDF(xml);
+}
+
 }  // namespace
 
 class ModelBuilder {
@@ -99,8 +120,7 @@ class ModelBuilder {
     urdf_input::validateStandard(robot, reader_);
     ext_ = urdf_input::readExtension(robot, reader_);
 
-    console_bridge::setLogLevel(console_bridge::CONSOLE_BRIDGE_LOG_NONE);
-    urdf_ = urdf::parseURDF(xml_);
+    urdf_ = parseWithUrdfdom(xml_);
     if (!urdf_) throw LoadError(reader_.file + ": urdfdom could not parse the robot description");
 
     model_ = std::make_unique<MechanismModel>();
@@ -392,6 +412,9 @@ class ModelBuilder {
       }
       const int index = mech().addJoint(std::move(joint));
       s.core = index;
+      if (!s.tree)
+        model_->loops_.push_back(LoopJoint{s.name, s.type, model_->linkIndex(s.parent), model_->linkIndex(s.child),
+                                           s.P_J.translation(), s.C_J.translation()});
       core_of[s.name] = index;
       const Joint& j = mech().joint(index);
       for (int k = 0; k < j.dof(); ++k) {

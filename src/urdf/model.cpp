@@ -16,6 +16,22 @@ int MechanismModel::linkIndex(const std::string& name) const {
   return -1;
 }
 
+int MechanismModel::numMovingBodies() const { return mechanism_->numBodies() - 1; }
+int MechanismModel::numEquations() const { return mechanism_->numEquations(); }
+const DependencyReport& MechanismModel::dependencies() const { return mechanism_->dependencies(); }
+const Eigen::Vector3d& MechanismModel::gravity() const { return mechanism_->gravity(); }
+
+void MechanismModel::setGravity(const Eigen::Vector3d& g) {
+  if (!g.allFinite()) throw std::invalid_argument("gravity must be three finite numbers");
+  mechanism_->setGravity(g);
+}
+
+double MechanismModel::time() const { return mechanism_->time(); }
+double MechanismModel::kineticEnergy() const { return mechanism_->kineticEnergy(); }
+double MechanismModel::potentialEnergy() const { return mechanism_->potentialEnergy(); }
+double MechanismModel::positionViolation() const { return mechanism_->positionViolation(); }
+double MechanismModel::velocityViolation() const { return mechanism_->velocityViolation(); }
+
 Eigen::Isometry3d MechanismModel::linkPose(int link) const {
   const Link& l = links_.at(link);
   Eigen::Isometry3d W_B = Eigen::Isometry3d::Identity();

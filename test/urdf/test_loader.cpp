@@ -9,7 +9,10 @@
 #include <set>
 #include <sstream>
 
+#include <console_bridge/console.h>
+
 #include "mechanism_sim/urdf/model.h"
+#include "mechanism_sim/urdf/run_loop.h"
 
 namespace mechanism_sim {
 namespace {
@@ -232,6 +235,104 @@ TEST(Urdf, ResetReturnsToTheInitialState) {
   EXPECT_EQ(m->mechanism().time(), 0.0);
   EXPECT_NEAR(m->position(0), q0, 1e-12);
   EXPECT_NEAR(m->velocity(0), v0, 1e-12);
+}
+
+// The embedding API answers directly what programs used to ask the core for.
+TEST(EmbeddingApi, ModelQueriesAgreeWithTheCore) {
+  auto m = load("urdf/four_bar.urdf");
+  const Mechanism& core = m->mechanism();
+  EXPECT_EQ(m->time(), 0.0);
+  run(*m, 0.2);
+  EXPECT_EQ(m->time(), core.time());
+  EXPECT_NEAR(m->time(), 0.2, 1e-12);
+  EXPECT_EQ(m->kineticEnergy(), core.kineticEnergy());
+  EXPECT_GT(m->kineticEnergy(), 0.0);
+  EXPECT_EQ(m->potentialEnergy(), core.potentialEnergy());
+  EXPECT_EQ(m->positionViolation(), core.positionViolation());
+  EXPECT_EQ(m->velocityViolation(), core.velocityViolation());
+  EXPECT_EQ(m->numEquations(), core.numEquations());
+  EXPECT_EQ(m->numMovingBodies(), 3);
+  EXPECT_EQ(m->dependencies().dependent, 3);  // a planar loop of revolute joints in 3-D
+  ASSERT_EQ(m->dependencies().by_constraint.size(), 1u);
+  EXPECT_EQ(m->dependencies().by_constraint[0].first, "loop");
+  EXPECT_EQ(m->gravity(), Vector3d(0, 0, -9.81));
+  m->setGravity(Vector3d(0, 0, -1.62));
+  EXPECT_EQ(core.gravity(), Vector3d(0, 0, -1.62));
+  EXPECT_THROW(m->setGravity(Vector3d(0, NAN, 0)), std::invalid_argument);
+}
+
+// Loop closures with the points they tie together: these coincide (revolute joints) in
+// the assembled state and while the mechanism runs; Gazebo loop joints are listed too.
+TEST(EmbeddingApi, LoopJointsTieTheirTwoPointsTogether) {
+  for (const char* file : {"urdf/four_bar.urdf", "urdf/four_bar_gazebo.urdf", "urdf/slider_crank.urdf"}) {
+    auto m = load(file);
+    ASSERT_EQ(m->loopJoints().size(), 1u) << file;
+    const LoopJoint& j = m->loopJoints()[0];
+    EXPECT_EQ(j.type, "revolute");
+    EXPECT_GE(j.parent_link, 0);
+    EXPECT_GE(j.child_link, 0);
+    EXPECT_NE(j.parent_link, j.child_link);
+    for (int t = 0; t < 2; ++t) {
+      const Vector3d a = m->linkPose(j.parent_link) * j.parent_point, b = m->linkPose(j.child_link) * j.child_point;
+      EXPECT_LT((a - b).norm(), 1e-10) << file << " t = " << m->time();
+      run(*m, 0.3);
+    }
+  }
+  auto four_bar = load("urdf/four_bar.urdf");
+  const LoopJoint& j = four_bar->loopJoints()[0];
+  EXPECT_EQ(j.name, "loop");
+  EXPECT_EQ(four_bar->links()[j.parent_link].name, "base");
+  EXPECT_EQ(four_bar->links()[j.child_link].name, "rocker");
+  EXPECT_TRUE(j.parent_point.isApprox(Vector3d(0.4, 0, 0)));
+  EXPECT_TRUE(load("test/urdf/mimic.urdf")->loopJoints().empty());  // a mimic is no loop joint
+}
+
+// The run loop the CLI and the node share: samples every N steps, the largest violations
+// so far, a reset that starts again.
+TEST(RunLoop, SamplesEveryNStepsAndKeepsTheLargestViolation) {
+  auto m = load("urdf/slider_crank.urdf");
+  RunLoop loop(*m, 1e-3, 10);
+  EXPECT_EQ(loop.sample().time, 0.0);
+  ASSERT_EQ(loop.sample().position.size(), m->dofs().size());
+  ASSERT_EQ(loop.sample().link_poses.size(), m->links().size());
+  double worst = m->positionViolation();
+  for (int k = 0; k < 5; ++k) {
+    loop.advance();
+    worst = std::max(worst, m->positionViolation());
+  }
+  EXPECT_EQ(loop.steps(), 50);
+  EXPECT_NEAR(m->time(), 0.05, 1e-12);
+  const Sample& s = loop.sample();
+  EXPECT_EQ(s.time, m->time());
+  for (size_t d = 0; d < m->dofs().size(); ++d) {
+    EXPECT_EQ(s.position[d], m->position(static_cast<int>(d)));
+    EXPECT_EQ(s.velocity[d], m->velocity(static_cast<int>(d)));
+    EXPECT_EQ(s.effort[d], m->effort(static_cast<int>(d)));
+  }
+  for (size_t l = 0; l < m->links().size(); ++l)
+    EXPECT_TRUE(s.link_poses[l].isApprox(m->linkPose(static_cast<int>(l)), 0.0));
+  EXPECT_EQ(s.position_violation, m->positionViolation());
+  EXPECT_GE(loop.worstPositionViolation(), worst);  // every step counts, not only samples
+  EXPECT_GE(loop.worstPositionViolation(), s.position_violation);
+  EXPECT_GT(loop.stepWallTime(), 0.0);
+  loop.advance(3);
+  EXPECT_EQ(loop.steps(), 53);
+  loop.reset();
+  EXPECT_EQ(loop.steps(), 0);
+  EXPECT_EQ(loop.sample().time, 0.0);
+  EXPECT_EQ(loop.worstPositionViolation(), m->positionViolation());
+}
+
+// urdfdom speaks through console_bridge; the loader quiets it only while urdfdom parses.
+TEST(Loader, LeavesTheConsoleBridgeLevelAsItWas) {
+  const console_bridge::LogLevel before = console_bridge::getLogLevel();
+  console_bridge::setLogLevel(console_bridge::CONSOLE_BRIDGE_LOG_WARN);
+  load("urdf/four_bar.urdf");
+  EXPECT_EQ(console_bridge::getLogLevel(), console_bridge::CONSOLE_BRIDGE_LOG_WARN);
+  console_bridge::setLogLevel(console_bridge::CONSOLE_BRIDGE_LOG_DEBUG);
+  EXPECT_THROW(load("test/invalid/loop_cannot_close.urdf"), LoadError);  // fails after urdfdom
+  EXPECT_EQ(console_bridge::getLogLevel(), console_bridge::CONSOLE_BRIDGE_LOG_DEBUG);
+  console_bridge::setLogLevel(before);
 }
 
 // Each invalid model gets one error naming the file (and, for element errors, the line)

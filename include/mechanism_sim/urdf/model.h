@@ -1,5 +1,8 @@
 // A URDF mechanism for the core: loaded with urdfdom, plus the mechanism_sim extension
 // and Gazebo <gazebo><joint> loop closures (README "Model format"). ROS-free.
+// MechanismModel is the library's entry point for programs that embed the simulator
+// (README "Embedding API"): load, step, reset and ask it; mechanism() is the core
+// underneath, for what the model does not answer itself.
 #pragma once
 #include <map>
 #include <memory>
@@ -47,31 +50,63 @@ struct TreeJoint {
   bool fixed = false;
 };
 
+// A loop-closure joint (<mechanism_sim:joint> with parent and child, or <gazebo><joint>):
+// the origin of its joint frame on each side, as a point in that link's frame. The two
+// points coincide while the loop holds (for a joint whose frames coincide: revolute,
+// spherical, universal, fixed; along the axis they may slide apart for prismatic,
+// cylindrical and screw joints).
+struct LoopJoint {
+  std::string name, type;               // type as the core names it ("revolute", "spherical", ...)
+  int parent_link = -1, child_link = -1;  // indices into links()
+  Eigen::Vector3d parent_point = Eigen::Vector3d::Zero(), child_point = Eigen::Vector3d::Zero();
+};
+
 class MechanismModel {
  public:
-  Mechanism& mechanism() { return *mechanism_; }
-  const Mechanism& mechanism() const { return *mechanism_; }
+  // ---- what the model is
   const std::string& name() const { return name_; }
   const std::string& rootLink() const { return root_link_; }
-  const std::vector<Dof>& dofs() const { return dofs_; }
+  const std::vector<Dof>& dofs() const { return dofs_; }  // tree joints in file order, then loops
   const std::vector<Link>& links() const { return links_; }
   const std::vector<TreeJoint>& treeJoints() const { return tree_; }
-  int dofIndex(const std::string& name) const;
-  int linkIndex(const std::string& name) const;
+  const std::vector<LoopJoint>& loopJoints() const { return loops_; }
+  int dofIndex(const std::string& name) const;   // -1 if there is none
+  int linkIndex(const std::string& name) const;  // -1 if there is none
+  int numMovingBodies() const;                   // rigid bodies (links joined by fixed joints are one)
+  int numEquations() const;                      // constraint equations, dependent ones included
+  // Dependent equations and the joints they belong to (found at assembly).
+  const DependencyReport& dependencies() const;
   const AssemblyReport& assembly() const { return assembly_; }
+  const Eigen::Vector3d& gravity() const;
+  void setGravity(const Eigen::Vector3d& g);  // overrides the file's <mechanism_sim:gravity>
 
-  // World pose of a link in the current state.
+  // ---- where it is now
+  double time() const;
+  // World pose of a link.
   Eigen::Isometry3d linkPose(int link) const;
+  // Degree of freedom: position, rate, and the effort the joint applies along it
+  // (commanded effort minus damping plus friction, plus a limit's reaction).
   double position(int dof) const;
   double velocity(int dof) const;
   double effort(int dof) const;
+  double kineticEnergy() const;
+  double potentialEnergy() const;   // gravity and springs
+  double positionViolation() const;  // largest |Phi|
+  double velocityViolation() const;  // largest |Phi_q v|
 
+  // ---- running
   // Commanded effort along a dof, clamped to its effort limit; a velocity limit cuts the
   // command while it would drive the joint faster than the limit. Throws on a bad value.
   void setEffort(int dof, double tau);
   double commandedEffort(int dof) const { return command_[dof]; }
+  // One step of h seconds. Throws std::runtime_error when the step fails.
   void step(double h);
+  // Back to the assembled initial state, commands zeroed.
   void reset();
+
+  // The core underneath (bodies, joints, reactions, body wrenches, integrator options).
+  Mechanism& mechanism() { return *mechanism_; }
+  const Mechanism& mechanism() const { return *mechanism_; }
 
  private:
   friend class ModelBuilder;
@@ -80,6 +115,7 @@ class MechanismModel {
   std::vector<Dof> dofs_;
   std::vector<Link> links_;
   std::vector<TreeJoint> tree_;
+  std::vector<LoopJoint> loops_;
   std::vector<double> command_;
   AssemblyReport assembly_;
   Mechanism::Snapshot initial_;

@@ -1,0 +1,62 @@
+// The run loop that the simulate CLI and the node share: it advances a model by output
+// samples of N steps of h and keeps what both report, the sample of the state (written as
+// a CSV row, published as joint_states, tf and markers), the largest violations so far
+// and the wall time per step. The node adds wall-clock pacing on top (src/node/pacer.h).
+// ROS-free.
+#pragma once
+#include <functional>
+#include <vector>
+
+#include <Eigen/Geometry>
+
+#include "mechanism_sim/urdf/model.h"
+
+namespace mechanism_sim {
+
+// The state at one output time.
+struct Sample {
+  double time = 0.0;
+  std::vector<double> position, velocity, effort;  // by dof, as MechanismModel::dofs()
+  std::vector<Eigen::Isometry3d> link_poses;        // by link, as MechanismModel::links(); world frame
+  double position_violation = 0.0, velocity_violation = 0.0;  // largest |Phi|, |Phi_q v|
+};
+
+class RunLoop {
+ public:
+  // A sample every steps_per_sample steps of h seconds. Takes the first sample now.
+  RunLoop(MechanismModel& model, double h, long steps_per_sample);
+
+  // Advances one sample (steps_per_sample steps, or `steps` when given) and takes the
+  // sample. `tick`, when given, is called whenever steps() reaches a multiple of 64 (for
+  // a progress bar). Throws what MechanismModel::step throws; the model is
+  // then at the last accepted step and the sample is not updated.
+  void advance() { advance(steps_per_sample_); }
+  void advance(long steps, const std::function<void()>& tick = {});
+  // Back to the model's initial state; the step count and the largest violations start
+  // again.
+  void reset();
+
+  const Sample& sample() const { return sample_; }
+  double h() const { return h_; }
+  long stepsPerSample() const { return steps_per_sample_; }
+  long steps() const { return steps_; }  // since construction or reset()
+  // Largest violations at any step since construction or reset() (the start included).
+  double worstPositionViolation() const { return worst_position_; }
+  double worstVelocityViolation() const { return worst_velocity_; }
+  double stepWallTime() const { return step_wall_; }  // seconds per step in the last advance
+  MechanismModel& model() { return model_; }
+  const MechanismModel& model() const { return model_; }
+
+ private:
+  void takeSample();
+  void restartWorst();
+
+  MechanismModel& model_;
+  double h_;
+  long steps_per_sample_;
+  long steps_ = 0;
+  double worst_position_ = 0.0, worst_velocity_ = 0.0, step_wall_ = 0.0;
+  Sample sample_;
+};
+
+}  // namespace mechanism_sim

@@ -1,0 +1,61 @@
+#include "mechanism_sim/urdf/run_loop.h"
+
+#include <algorithm>
+#include <chrono>
+#include <stdexcept>
+
+namespace mechanism_sim {
+
+RunLoop::RunLoop(MechanismModel& model, double h, long steps_per_sample)
+    : model_(model), h_(h), steps_per_sample_(steps_per_sample) {
+  if (!(h > 0)) throw std::invalid_argument("the step must be positive");
+  if (steps_per_sample < 1) throw std::invalid_argument("a sample needs at least one step");
+  const size_t dofs = model.dofs().size();
+  sample_.position.resize(dofs);
+  sample_.velocity.resize(dofs);
+  sample_.effort.resize(dofs);
+  sample_.link_poses.resize(model.links().size());
+  restartWorst();
+  takeSample();
+}
+
+void RunLoop::advance(long steps, const std::function<void()>& tick) {
+  const auto start = std::chrono::steady_clock::now();
+  for (long s = 1; s <= steps; ++s) {
+    model_.step(h_);
+    ++steps_;
+    worst_position_ = std::max(worst_position_, model_.positionViolation());
+    worst_velocity_ = std::max(worst_velocity_, model_.velocityViolation());
+    if (tick && (steps_ & 63) == 0) tick();
+  }
+  if (steps > 0)
+    step_wall_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() / steps;
+  takeSample();
+}
+
+void RunLoop::reset() {
+  model_.reset();
+  steps_ = 0;
+  restartWorst();
+  takeSample();
+}
+
+void RunLoop::restartWorst() {
+  worst_position_ = model_.positionViolation();
+  worst_velocity_ = model_.velocityViolation();
+}
+
+void RunLoop::takeSample() {
+  sample_.time = model_.time();
+  for (size_t d = 0; d < sample_.position.size(); ++d) {
+    const int i = static_cast<int>(d);
+    sample_.position[d] = model_.position(i);
+    sample_.velocity[d] = model_.velocity(i);
+    sample_.effort[d] = model_.effort(i);
+  }
+  for (size_t l = 0; l < sample_.link_poses.size(); ++l) sample_.link_poses[l] = model_.linkPose(static_cast<int>(l));
+  sample_.position_violation = model_.positionViolation();
+  sample_.velocity_violation = model_.velocityViolation();
+}
+
+}  // namespace mechanism_sim
