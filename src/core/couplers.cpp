@@ -26,12 +26,13 @@ CoordinateCoupler::CoordinateCoupler(const std::string& name, const Joint& a, in
   slot_b_ = {slotOf(bodies(), b.bodyI()), slotOf(bodies(), b.bodyJ())};
 }
 
-void CoordinateCoupler::evaluate(const BodyKin* const* kin, Eigen::Ref<Eigen::VectorXd> Phi,
+void CoordinateCoupler::evaluate(const BodyKin* const* kin, const EvalContext& ctx,
+                                 Eigen::Ref<Eigen::VectorXd> Phi,
                                  Eigen::Ref<Eigen::MatrixXd> J,
                                  Eigen::Ref<Eigen::VectorXd> gamma) const {
   std::array<Row, 3> ra, rb;
-  a_.coordinates(*kin[slot_a_[0]], *kin[slot_a_[1]], ra.data());
-  b_.coordinates(*kin[slot_b_[0]], *kin[slot_b_[1]], rb.data());
+  a_.coordinates(*kin[slot_a_[0]], *kin[slot_a_[1]], ctx.tracked[a_.id()], ra.data());
+  b_.coordinates(*kin[slot_b_[0]], *kin[slot_b_[1]], ctx.tracked[b_.id()], rb.data());
   const Row& qa = ra[k_a_];
   const Row& qb = rb[k_b_];
   Phi(0) = qa.Phi - multiplier_ * qb.Phi - offset_;
@@ -43,18 +44,19 @@ void CoordinateCoupler::evaluate(const BodyKin* const* kin, Eigen::Ref<Eigen::Ve
   }
 }
 
-void LimitConstraint::evaluate(const BodyKin* const* kin, Eigen::Ref<Eigen::VectorXd> Phi,
-                               Eigen::Ref<Eigen::MatrixXd> J,
+void LimitConstraint::evaluate(const BodyKin* const* kin, const EvalContext& ctx,
+                               Eigen::Ref<Eigen::VectorXd> Phi, Eigen::Ref<Eigen::MatrixXd> J,
                                Eigen::Ref<Eigen::VectorXd> gamma) const {
   J.setZero();
-  if (!active_) {
+  const int side = ctx.limit_side[limit_];
+  if (side == 0) {
     Phi(0) = 0.0;
     gamma(0) = 0.0;
     return;
   }
   std::array<Row, 3> rows;
-  joint_.coordinates(*kin[0], *kin[1], rows.data());
-  Phi(0) = rows[k_].Phi - bound_;
+  joint_.coordinates(*kin[0], *kin[1], ctx.tracked[joint_.id()], rows.data());
+  Phi(0) = rows[k_].Phi - (side < 0 ? lower_ : upper_);
   gamma(0) = rows[k_].gamma;
   J.row(0) = rows[k_].J;
 }

@@ -14,30 +14,39 @@
 namespace mechanism_sim {
 namespace {
 
-const std::pair<const char*, JointFactory> kJointTypes[] = {
-    {"spherical", &SphericalJoint::make},
-    {"revolute", &RevoluteJoint::make},
-    {"cylindrical", &CylindricalJoint::make},
-    {"prismatic", &PrismaticJoint::make},
-    {"screw", &ScrewJoint::make},
-    {"universal", &UniversalJoint::make},
-    {"fixed", &FixedJoint::make},
-    {"planar", &PlanarJoint::make},
+// name, factory, dof names ("" for a one-dof joint), pose of frame j in frame i.
+const JointTypeInfo kJointTypes[] = {
+    {"spherical", &SphericalJoint::make, {"x", "y", "z"}, &SphericalJoint::relativePose},
+    {"revolute", &RevoluteJoint::make, {""}, &RevoluteJoint::relativePose},
+    {"cylindrical", &CylindricalJoint::make, {"rotation", "translation"}, &CylindricalJoint::relativePose},
+    {"prismatic", &PrismaticJoint::make, {""}, &PrismaticJoint::relativePose},
+    {"screw", &ScrewJoint::make, {""}, &ScrewJoint::relativePose},
+    {"universal", &UniversalJoint::make, {"axis1", "axis2"}, &UniversalJoint::relativePose},
+    {"fixed", &FixedJoint::make, {}, &FixedJoint::relativePose},
+    {"planar", &PlanarJoint::make, {"x", "y", "rotation"}, &PlanarJoint::relativePose},
 };
 
 }  // namespace
+
+const JointTypeInfo& jointTypeInfo(const std::string& type) {
+  for (const auto& entry : kJointTypes)
+    if (type == entry.name) return entry;
+  throw std::invalid_argument("unknown joint type '" + type + "'");
+}
+
+std::string Joint::dofName(int k) const { return jointTypeInfo(type()).dof_names.at(k); }
 
 std::unique_ptr<Joint> makeJoint(const std::string& type, const std::string& name, int body_i,
                                  const JointFrame& frame_i, int body_j,
                                  const JointFrame& frame_j, const JointParams& params) {
   for (const auto& entry : kJointTypes)
-    if (type == entry.first) return entry.second(name, body_i, frame_i, body_j, frame_j, params);
+    if (type == entry.name) return entry.make(name, body_i, frame_i, body_j, frame_j, params);
   throw std::invalid_argument("joint '" + name + "': unknown joint type '" + type + "'");
 }
 
 std::vector<std::string> jointTypes() {
   std::vector<std::string> names;
-  for (const auto& entry : kJointTypes) names.emplace_back(entry.first);
+  for (const auto& entry : kJointTypes) names.push_back(entry.name);
   return names;
 }
 

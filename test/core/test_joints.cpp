@@ -27,12 +27,19 @@ struct Evaluation {
   Eigen::MatrixXd J;
 };
 
-Evaluation evaluate(const Joint& joint, const std::vector<BodyKin>& kin) {
+// A joint on its own: constraint id 0, its tracked angles in tr.
+Evaluation evaluate(const Joint& joint, const std::vector<BodyKin>& kin, const Tracked& tr) {
   Evaluation e{Eigen::VectorXd(joint.size()), Eigen::VectorXd(joint.size()),
                Eigen::MatrixXd(joint.size(), 12)};
   const BodyKin* ptrs[2] = {&kin[0], &kin[1]};
-  joint.evaluate(ptrs, e.Phi, e.J, e.gamma);
+  joint.evaluate(ptrs, EvalContext{&tr, nullptr}, e.Phi, e.J, e.gamma);
   return e;
+}
+
+// Moves the tracked angles to the pose kin (as an accepted step does).
+void track(const Joint& joint, const std::vector<BodyKin>& kin, Tracked& tr) {
+  const BodyKin* ptrs[2] = {&kin[0], &kin[1]};
+  joint.track(ptrs, EvalContext{&tr, nullptr}, tr);
 }
 
 class JointTypes : public ::testing::TestWithParam<std::string> {};
@@ -42,11 +49,11 @@ TEST_P(JointTypes, JacobianAndGammaMatchFiniteDifferences) {
   for (int n = 0; n < 100; ++n) {
     auto joint = randomJoint(GetParam(), rng);
     const std::vector<BodyKin> kin = {test::randomBody(rng), test::randomBody(rng)};
-    const BodyKin* ptrs[2] = {&kin[0], &kin[1]};
-    joint->accept(ptrs);  // track angles from this pose
-    const Evaluation e = evaluate(*joint, kin);
+    Tracked tr = joint->initialTracked();
+    track(*joint, kin, tr);  // track angles from this pose
+    const Evaluation e = evaluate(*joint, kin, tr);
     ASSERT_EQ(e.Phi.size(), joint->size());
-    auto f = [&](const std::vector<BodyKin>& k) { return evaluate(*joint, k).Phi; };
+    auto f = [&](const std::vector<BodyKin>& k) { return evaluate(*joint, k, tr).Phi; };
     const double scale = 1.0 + e.J.cwiseAbs().maxCoeff();
     EXPECT_LT((test::fdJacobian(f, kin) - e.J).cwiseAbs().maxCoeff(), 1e-7 * scale) << n;
     EXPECT_LT((test::fdGamma(f, kin) - e.gamma).cwiseAbs().maxCoeff(),
@@ -61,12 +68,12 @@ TEST_P(JointTypes, CoordinateRowsMatchFiniteDifferences) {
     auto joint = randomJoint(GetParam(), rng);
     if (joint->dof() == 0) return;
     const std::vector<BodyKin> kin = {test::randomBody(rng), test::randomBody(rng)};
-    const BodyKin* ptrs[2] = {&kin[0], &kin[1]};
-    joint->accept(ptrs);
+    Tracked tr = joint->initialTracked();
+    track(*joint, kin, tr);
     auto coords = [&](const std::vector<BodyKin>& k, Eigen::MatrixXd* G, Eigen::VectorXd* rate,
                       Eigen::VectorXd* gamma) {
       Row rows[3];
-      joint->coordinates(k[0], k[1], rows);
+      joint->coordinates(k[0], k[1], tr, rows);
       Eigen::VectorXd q(joint->dof());
       for (int c = 0; c < joint->dof(); ++c) {
         q(c) = rows[c].Phi;
@@ -122,17 +129,14 @@ TEST_P(JointTypes, FullRankAndZeroViolationInAssembledPoses) {
     const JointFrame &fi = joint->frameI(), &fj = joint->frameJ();
     kin[1].A_Oi = kin[0].A_Oi * fi.Rp * m.R * fj.Rp.transpose();
     kin[1].r = kin[0].r + kin[0].A_Oi * (fi.sp_B + fi.Rp * m.t) - kin[1].A_Oi * fj.sp_B;
-    if (!m.q.empty() && joint->trackedSlot(0) >= 0) {
-      std::array<double, 2> tr{};
-      for (int k = 0; k < joint->dof(); ++k)
-        if (joint->trackedSlot(k) >= 0) tr[joint->trackedSlot(k)] = m.q[k];
-      joint->setTracked(tr);
-    }
-    const Evaluation e = evaluate(*joint, kin);
+    Tracked tr = joint->initialTracked();
+    for (int k = 0; k < joint->dof() && k < static_cast<int>(m.q.size()); ++k)
+      if (joint->trackedSlot(k) >= 0) tr[joint->trackedSlot(k)] = m.q[k];
+    const Evaluation e = evaluate(*joint, kin, tr);
     EXPECT_LT(e.Phi.cwiseAbs().maxCoeff(), 1e-12) << n;
     EXPECT_EQ(test::rankOf(e.J), joint->size()) << "assembled pose " << n;
     Row rows[3];
-    joint->coordinates(kin[0], kin[1], rows);
+    joint->coordinates(kin[0], kin[1], tr, rows);
     for (size_t k = 0; k < m.q.size(); ++k) EXPECT_NEAR(rows[k].Phi, m.q[k], 1e-10) << n;
   }
 }
@@ -152,18 +156,18 @@ TEST(ScrewJoint, TracksManyTurns) {
   JointFrame f;
   auto joint = makeJoint("screw", "s", 1, f, 2, f, JointParams{0.01, 0.0});
   std::vector<BodyKin> kin(2);
+  Tracked tr = joint->initialTracked();
   double phi = 0;
   for (int k = 0; k < 200; ++k) {
     phi += 0.33;
     kin[1].A_Oi = Eigen::AngleAxisd(phi, Vector3d::UnitZ()).toRotationMatrix();
     kin[1].r = Vector3d(0, 0, 0.01 * phi);
-    const BodyKin* ptrs[2] = {&kin[0], &kin[1]};
-    joint->accept(ptrs);
-    const Evaluation e = evaluate(*joint, kin);
+    track(*joint, kin, tr);
+    const Evaluation e = evaluate(*joint, kin, tr);
     EXPECT_LT(e.Phi.cwiseAbs().maxCoeff(), 1e-12);
   }
   Row rows[1];
-  joint->coordinates(kin[0], kin[1], rows);
+  joint->coordinates(kin[0], kin[1], tr, rows);
   EXPECT_NEAR(rows[0].Phi, phi, 1e-9);
 }
 

@@ -10,6 +10,16 @@
 
 namespace mechanism_sim {
 
+// Angles a constraint tracks through turns (the branch references): part of the State.
+using Tracked = std::array<double, 2>;
+
+// What constraints read besides the bodies: the State's tracked angles (indexed by
+// constraint id) and the sides of the position limits (indexed by limit id).
+struct EvalContext {
+  const Tracked* tracked = nullptr;
+  const signed char* limit_side = nullptr;
+};
+
 class Constraint {
  public:
   Constraint(std::string name, std::vector<int> bodies)
@@ -24,21 +34,22 @@ class Constraint {
   virtual int size() const = 0;
   // Phi (size), Jacobian J (size x 6*bodies().size(), columns [r, theta'] per body)
   // and gamma (size) with J a = gamma for every admissible acceleration a.
-  virtual void evaluate(const BodyKin* const* kin, Eigen::Ref<Eigen::VectorXd> Phi,
-                        Eigen::Ref<Eigen::MatrixXd> J, Eigen::Ref<Eigen::VectorXd> gamma) const = 0;
-  // Called with an accepted state (after assembly and every step): angle trackers
-  // move their turn count here.
-  virtual void accept(const BodyKin* const* /*kin*/) {}
-  // Angles tracked through turns (the branch references); saved and restored with a state.
-  const std::array<double, 2>& tracked() const { return tracked_; }
-  void setTracked(const std::array<double, 2>& t) { tracked_ = t; }
-
- protected:
-  std::array<double, 2> tracked_{};
+  virtual void evaluate(const BodyKin* const* kin, const EvalContext& ctx,
+                        Eigen::Ref<Eigen::VectorXd> Phi, Eigen::Ref<Eigen::MatrixXd> J,
+                        Eigen::Ref<Eigen::VectorXd> gamma) const = 0;
+  // The tracked angles of an accepted state, moved from those of the state before
+  // (angle trackers count turns here). Stateless: the angles live in the State.
+  virtual void track(const BodyKin* const* /*kin*/, const EvalContext& /*ctx*/, Tracked& /*t*/) const {}
+  // Tracked angles of the pose the constraint was defined in.
+  virtual Tracked initialTracked() const { return Tracked{}; }
+  // Position in its System's constraint list: where its tracked angles are in the State.
+  int id() const { return id_; }
+  void setId(int id) { id_ = id; }
 
  private:
   std::string name_;
   std::vector<int> bodies_;
+  int id_ = 0;
 };
 
 // Writes Rows into the outputs of Constraint::evaluate, for two-body constraints.

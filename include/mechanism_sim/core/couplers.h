@@ -16,7 +16,7 @@ class CoordinateCoupler : public Constraint {
                     double multiplier, double offset);
   std::string type() const override { return "coupler"; }
   int size() const override { return 1; }
-  void evaluate(const BodyKin* const* kin, Eigen::Ref<Eigen::VectorXd> Phi,
+  void evaluate(const BodyKin* const* kin, const EvalContext& ctx, Eigen::Ref<Eigen::VectorXd> Phi,
                 Eigen::Ref<Eigen::MatrixXd> J, Eigen::Ref<Eigen::VectorXd> gamma) const override;
 
  private:
@@ -27,23 +27,24 @@ class CoordinateCoupler : public Constraint {
   std::array<int, 2> slot_a_{}, slot_b_{};  // positions of each joint's bodies in bodies()
 };
 
-// While active: Phi = q - bound (one row); while inactive the row is zero.
+// Position limit lower <= q_k <= upper of a joint coordinate. Its side (State::limit_side,
+// entry `limit`: -1 pressing on lower, +1 on upper, 0 free) decides the row: while active
+// Phi = q_k - bound (one row), while free the row is zero.
 class LimitConstraint : public Constraint {
  public:
-  LimitConstraint(const Joint& joint, int k)
-      : Constraint(joint.name() + " limit", {joint.bodyI(), joint.bodyJ()}), joint_(joint), k_(k) {}
+  LimitConstraint(const Joint& joint, int k, int limit, double lower, double upper)
+      : Constraint(joint.name() + " limit", {joint.bodyI(), joint.bodyJ()}),
+        joint_(joint), k_(k), limit_(limit), lower_(lower), upper_(upper) {}
   std::string type() const override { return "limit"; }
   int size() const override { return 1; }
-  void setActive(bool active, double bound) { active_ = active, bound_ = bound; }
-  bool active() const { return active_; }
-  void evaluate(const BodyKin* const* kin, Eigen::Ref<Eigen::VectorXd> Phi,
+  int limit() const { return limit_; }
+  void evaluate(const BodyKin* const* kin, const EvalContext& ctx, Eigen::Ref<Eigen::VectorXd> Phi,
                 Eigen::Ref<Eigen::MatrixXd> J, Eigen::Ref<Eigen::VectorXd> gamma) const override;
 
  private:
   const Joint& joint_;
-  int k_;
-  bool active_ = false;
-  double bound_ = 0.0;
+  int k_, limit_;
+  double lower_, upper_;
 };
 
 }  // namespace mechanism_sim

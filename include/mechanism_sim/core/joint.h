@@ -6,6 +6,8 @@
 #include <string>
 #include <vector>
 
+#include <Eigen/Geometry>
+
 #include "mechanism_sim/core/constraint.h"
 
 namespace mechanism_sim {
@@ -41,7 +43,7 @@ class Joint : public Constraint {
 
   // Degrees of freedom and their names ("" for a one-dof joint).
   virtual int dof() const = 0;
-  virtual std::string dofName(int /*k*/) const { return ""; }
+  std::string dofName(int k) const;  // from the registry (JointTypeInfo::dof_names)
   // Whether q_dot = G v is the time derivative of q (false for a spherical joint,
   // whose rates are the relative angular velocity in frame i).
   virtual bool holonomicCoordinates() const { return true; }
@@ -51,22 +53,25 @@ class Joint : public Constraint {
   // Joint coordinates: out[k] (k < dof) holds q_k (Phi), its rate (Phi_dot), the row G_k
   // (J) with q_dot_k = G_k v, and gamma_k. A generalized effort tau_k along coordinate k
   // acts on the bodies as G_k^T tau_k.
-  virtual void coordinates(const BodyKin& ki, const BodyKin& kj, Row* out) const = 0;
+  // The tracked angles t are the branch references (State).
+  virtual void coordinates(const BodyKin& ki, const BodyKin& kj, const Tracked& t, Row* out) const = 0;
 
-  void evaluate(const BodyKin* const* kin, Eigen::Ref<Eigen::VectorXd> Phi,
+  void evaluate(const BodyKin* const* kin, const EvalContext& ctx, Eigen::Ref<Eigen::VectorXd> Phi,
                 Eigen::Ref<Eigen::MatrixXd> J, Eigen::Ref<Eigen::VectorXd> gamma) const final {
     RowWriter out(Phi, J, gamma);
-    equations(geometry(*kin[0], *kin[1]), *kin[0], *kin[1], out);
+    equations(geometry(*kin[0], *kin[1]), *kin[0], *kin[1], ctx.tracked[id()], out);
   }
-  void accept(const BodyKin* const* kin) override { acceptAngles(*kin[0], *kin[1]); }
+  void track(const BodyKin* const* kin, const EvalContext&, Tracked& t) const final {
+    trackAngles(*kin[0], *kin[1], t);
+  }
 
   JointGeometry geometry(const BodyKin& ki, const BodyKin& kj) const;
 
  protected:
   virtual void equations(const JointGeometry& g, const BodyKin& ki, const BodyKin& kj,
-                         RowWriter& out) const = 0;
-  // Joints holding tracked angles move their references here.
-  virtual void acceptAngles(const BodyKin& /*ki*/, const BodyKin& /*kj*/) {}
+                         const Tracked& t, RowWriter& out) const = 0;
+  // Joints with tracked angles move them to the pose (ki, kj) here.
+  virtual void trackAngles(const BodyKin& /*ki*/, const BodyKin& /*kj*/, Tracked& /*t*/) const {}
 
   // C(p1)(bz_i, bz_j) = tilde(bz_i) bz_j = 0 (A8.1): of its three rows the one along bz_i
   // vanishes identically; its components along by_i and -bx_i are the two independent
@@ -92,6 +97,24 @@ using JointFactory = std::unique_ptr<Joint> (*)(const std::string& name, int bod
                                                 const JointFrame& frame_i, int body_j,
                                                 const JointFrame& frame_j,
                                                 const JointParams& params);
+
+// What a joint type is, described once (joint_registry.cpp): its name, its factory, its
+// degrees of freedom and their names ("" for a one-dof joint), and the map from its
+// coordinates q (dof values) to the pose of joint frame j in joint frame i. The loader,
+// the XML reader and the tests ask this instead of building joints to learn it.
+using RelativePose = Eigen::Isometry3d (*)(const double* q, const JointParams& params);
+struct JointTypeInfo {
+  std::string name;
+  JointFactory make = nullptr;
+  std::vector<std::string> dof_names;
+  RelativePose relative_pose = nullptr;
+  int dof() const { return static_cast<int>(dof_names.size()); }
+  Eigen::Isometry3d relativePose(const double* q, const JointParams& params) const {
+    return relative_pose(q, params);
+  }
+};
+// Throws std::invalid_argument naming the type when it is unknown.
+const JointTypeInfo& jointTypeInfo(const std::string& type);
 
 // Joint types by name ("revolute", "screw", ...); throws std::invalid_argument on an
 // unknown type or parameters the type cannot take.

@@ -36,6 +36,15 @@ inline Vector3d logRotation(Quaterniond q) {
   return 2.0 * std::atan2(s, q.w()) * q.vec() / s;
 }
 
+// Rigid transform with rotation R and translation t.
+inline Eigen::Isometry3d pose(const Matrix3d& R, const Vector3d& t) {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = R;
+  T.translation() = t;
+  return T;
+}
+inline Matrix3d rotZ(double a) { return Eigen::AngleAxisd(a, Vector3d::UnitZ()).toRotationMatrix(); }
+
 // Nearest representative of angle to ref (unwrap across turns).
 inline double unwrapNear(double angle, double ref) {
   constexpr double kTwoPi = 6.283185307179586476925;

@@ -2,6 +2,11 @@
 
 namespace mechanism_sim {
 
+// Pose of frame j in frame i: translation q0 along bz_i.
+Eigen::Isometry3d PrismaticJoint::relativePose(const double* q, const JointParams&) {
+  return pose(Matrix3d::Identity(), Vector3d(0, 0, q[0]));
+}
+
 std::unique_ptr<Joint> PrismaticJoint::make(const std::string& name, int bi,
                                             const JointFrame& fi, int bj, const JointFrame& fj,
                                             const JointParams&) {
@@ -10,7 +15,7 @@ std::unique_ptr<Joint> PrismaticJoint::make(const std::string& name, int bi,
 
 // Seed table A8.1 (b).
 void PrismaticJoint::equations(const JointGeometry& g, const BodyKin&, const BodyKin&,
-                               RowWriter& out) const {
+                               const Tracked&, RowWriter& out) const {
   putParallelAxes(g, out);        // C(p1)(bz_i, bz_j) = 0 (A8.3)  (2)
   putOnAxis(g, out);              // C(p2)(bz_i, d_ij) = 0 (A8.4)  (2)
   // (A8.5) prints C(n1)(bx_i, bx_j) = 0. A dot product pins the rotation only between
@@ -19,7 +24,7 @@ void PrismaticJoint::equations(const JointGeometry& g, const BodyKin&, const Bod
   out.put(Cn1(g.by_i, g.bx_j));
 }
 
-void PrismaticJoint::coordinates(const BodyKin& ki, const BodyKin& kj, Row* out) const {
+void PrismaticJoint::coordinates(const BodyKin& ki, const BodyKin& kj, const Tracked&, Row* out) const {
   const JointGeometry g = geometry(ki, kj);
   out[0] = Cn2(g.bz_i, g.d);
 }

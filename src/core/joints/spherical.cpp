@@ -2,23 +2,26 @@
 
 namespace mechanism_sim {
 
+// Pose of frame j in frame i: the rotation vector (x, y, z).
+Eigen::Isometry3d SphericalJoint::relativePose(const double* q, const JointParams&) {
+  return pose(expRotation(Vector3d(q[0], q[1], q[2])).toRotationMatrix(), Vector3d::Zero());
+}
+
 std::unique_ptr<Joint> SphericalJoint::make(const std::string& name, int bi,
                                             const JointFrame& fi, int bj, const JointFrame& fj,
                                             const JointParams&) {
   return std::make_unique<SphericalJoint>(name, bi, fi, bj, fj);
 }
 
-std::string SphericalJoint::dofName(int k) const { return k == 0 ? "x" : k == 1 ? "y" : "z"; }
-
 void SphericalJoint::equations(const JointGeometry& g, const BodyKin&, const BodyKin&,
-                               RowWriter& out) const {
+                               const Tracked&, RowWriter& out) const {
   putPoint(g, out);  // d_ij = 0
 }
 
 // Rates: omega_rel = F_i^T (A_Oj w_j - A_Oi w_i), F_i = A_Oi Rp_i the frame-i axes, so
 // G = [0, -Rp_i^T, 0, F_i^T A_Oj]. Positions: rotation vector of F_i^T F_j. gamma is not
 // defined for these rates (they are not derivatives of the positions) and is left zero.
-void SphericalJoint::coordinates(const BodyKin& ki, const BodyKin& kj, Row* out) const {
+void SphericalJoint::coordinates(const BodyKin& ki, const BodyKin& kj, const Tracked&, Row* out) const {
   const Matrix3d Fi = ki.A_Oi * frameI().Rp;
   const Matrix3d Fj = kj.A_Oi * frameJ().Rp;
   const Vector3d rotvec = logRotation(Quaterniond(Matrix3d(Fi.transpose() * Fj)));

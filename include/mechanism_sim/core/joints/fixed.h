@@ -9,14 +9,15 @@ class FixedJoint : public Joint {
   using Joint::Joint;
   static std::unique_ptr<Joint> make(const std::string& name, int bi, const JointFrame& fi,
                                      int bj, const JointFrame& fj, const JointParams& params);
+  static Eigen::Isometry3d relativePose(const double* q, const JointParams& params);
   std::string type() const override { return "fixed"; }
   int size() const override { return 6; }
   int dof() const override { return 0; }
-  void coordinates(const BodyKin&, const BodyKin&, Row*) const override {}
+  void coordinates(const BodyKin&, const BodyKin&, const Tracked&, Row*) const override {}
 
  protected:
   void equations(const JointGeometry& g, const BodyKin& ki, const BodyKin& kj,
-                 RowWriter& out) const override;
+                 const Tracked& t, RowWriter& out) const override;
 };
 
 }  // namespace mechanism_sim

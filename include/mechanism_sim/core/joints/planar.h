@@ -11,17 +11,17 @@ class PlanarJoint : public Joint {
   using Joint::Joint;
   static std::unique_ptr<Joint> make(const std::string& name, int bi, const JointFrame& fi,
                                      int bj, const JointFrame& fj, const JointParams& params);
+  static Eigen::Isometry3d relativePose(const double* q, const JointParams& params);
   std::string type() const override { return "planar"; }
   int size() const override { return 3; }
   int trackedSlot(int k) const override { return k == 2 ? 0 : -1; }
   int dof() const override { return 3; }
-  std::string dofName(int k) const override { return k == 0 ? "x" : k == 1 ? "y" : "rotation"; }
-  void coordinates(const BodyKin& ki, const BodyKin& kj, Row* out) const override;
+  void coordinates(const BodyKin& ki, const BodyKin& kj, const Tracked& t, Row* out) const override;
 
  protected:
   void equations(const JointGeometry& g, const BodyKin& ki, const BodyKin& kj,
-                 RowWriter& out) const override;
-  void acceptAngles(const BodyKin& ki, const BodyKin& kj) override;
+                 const Tracked& t, RowWriter& out) const override;
+  void trackAngles(const BodyKin& ki, const BodyKin& kj, Tracked& t) const override;
 
 };
 

@@ -10,22 +10,22 @@ class ScrewJoint : public Joint {
  public:
   ScrewJoint(const std::string& name, int bi, const JointFrame& fi, int bj,
              const JointFrame& fj, double alpha, double phi0)
-      : Joint(name, bi, fi, bj, fj), alpha_(alpha), phi0_(phi0) {
-    tracked_[0] = phi0;
-  }
+      : Joint(name, bi, fi, bj, fj), alpha_(alpha), phi0_(phi0) {}
+  Tracked initialTracked() const override { return Tracked{phi0_, 0.0}; }
   static std::unique_ptr<Joint> make(const std::string& name, int bi, const JointFrame& fi,
                                      int bj, const JointFrame& fj, const JointParams& params);
+  static Eigen::Isometry3d relativePose(const double* q, const JointParams& params);
   std::string type() const override { return "screw"; }
   int size() const override { return 5; }
   int trackedSlot(int k) const override { return k == 0 ? 0 : -1; }
   int dof() const override { return 1; }
   double alpha() const { return alpha_; }
-  void coordinates(const BodyKin& ki, const BodyKin& kj, Row* out) const override;
+  void coordinates(const BodyKin& ki, const BodyKin& kj, const Tracked& t, Row* out) const override;
 
  protected:
   void equations(const JointGeometry& g, const BodyKin& ki, const BodyKin& kj,
-                 RowWriter& out) const override;
-  void acceptAngles(const BodyKin& ki, const BodyKin& kj) override;
+                 const Tracked& t, RowWriter& out) const override;
+  void trackAngles(const BodyKin& ki, const BodyKin& kj, Tracked& t) const override;
 
  private:
   double alpha_, phi0_;

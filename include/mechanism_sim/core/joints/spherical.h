@@ -11,16 +11,16 @@ class SphericalJoint : public Joint {
   using Joint::Joint;
   static std::unique_ptr<Joint> make(const std::string& name, int bi, const JointFrame& fi,
                                      int bj, const JointFrame& fj, const JointParams& params);
+  static Eigen::Isometry3d relativePose(const double* q, const JointParams& params);
   std::string type() const override { return "spherical"; }
   int size() const override { return 3; }
   int dof() const override { return 3; }
-  std::string dofName(int k) const override;
   bool holonomicCoordinates() const override { return false; }
-  void coordinates(const BodyKin& ki, const BodyKin& kj, Row* out) const override;
+  void coordinates(const BodyKin& ki, const BodyKin& kj, const Tracked& t, Row* out) const override;
 
  protected:
   void equations(const JointGeometry& g, const BodyKin& ki, const BodyKin& kj,
-                 RowWriter& out) const override;
+                 const Tracked& t, RowWriter& out) const override;
 };
 
 }  // namespace mechanism_sim

@@ -1,0 +1,61 @@
+// Cholesky factorization H = L L^T of a symmetric positive definite matrix made of 6x6
+// blocks, one block row per moving body, with the block pattern of the body graph (two
+// bodies are adjacent when a constraint couples them). The symbolic phase runs once: a
+// fill-reducing order of the body graph (AMD; a tree then factors with no fill, as in
+// Featherstone, "Efficient factorization of the joint-space inertia matrix for branched
+// kinematic trees", IJRR 2005), the block pattern of L and a fixed schedule of block
+// updates. The numeric phase is right-looking over fixed-size 6x6 kernels and allocates
+// nothing. H is assembled straight into the block storage (block()).
+#pragma once
+#include <utility>
+#include <vector>
+
+#include <Eigen/Core>
+
+namespace mechanism_sim {
+
+class BlockCholesky {
+ public:
+  using Block = Eigen::Matrix<double, 6, 6>;
+  using Vec6 = Eigen::Matrix<double, 6, 1>;
+
+  // nb block rows; edges (i, j), i != j, of the block pattern (either order, repeats fine).
+  void analyze(int nb, const std::vector<std::pair<int, int>>& edges);
+  int size() const { return nb_; }
+
+  // Storage of block (i, j) of H (original body indices, adjacent or i == j): *transposed
+  // tells whether the stored block is H(j, i) (then add the transpose).
+  int address(int i, int j, bool* transposed) const;
+  Block& block(int address) { return blocks_[address]; }
+  void setZero();
+
+  // Factors in place. A pivot d with d <= pivot_tol * (the diagonal entry it started from)
+  // is zero: with skip_zero its row and column are dropped (noted in zeroPivot),
+  // otherwise factorization stops. Returns the number of zero pivots met.
+  int factorize(double pivot_tol, bool skip_zero);
+  // Solves H x = b in place (6 entries per body, original order; zero pivots give 0).
+  void solve(double* x) const;
+  // Whether entry r of body b had a zero pivot in the last factorize().
+  bool zeroPivot(int b, int r) const { return zero_[6 * b + r] != 0; }
+  // Number of stored off-diagonal blocks of L (fill included): the cost of a factorization.
+  int offDiagonalBlocks() const { return static_cast<int>(blocks_.size()) - nb_; }
+
+ private:
+  struct Update {
+    int target, a, b;  // blocks_[target] -= blocks_[a] * blocks_[b]^T
+  };
+  bool factorDiagonal(Block& D, double pivot_tol, bool skip_zero, int body, int* zeros);
+
+  int nb_ = 0;
+  std::vector<int> order_, position_;           // k-th pivot body, body -> k
+  std::vector<int> col_start_, col_row_, col_block_;  // column k: rows (k order) and blocks
+  std::vector<Update> updates_;
+  std::vector<int> update_start_;               // updates of column k
+  std::vector<std::vector<std::pair<int, int>>> lookup_;  // per column k: (row k', block)
+  std::vector<Block> blocks_;                   // [0, nb): diagonal of body order_[k]
+  std::vector<char> zero_;
+  std::vector<Vec6> start_;                     // diagonal of H before factorization
+  mutable std::vector<Vec6> y_;
+};
+
+}  // namespace mechanism_sim

@@ -1,0 +1,122 @@
+// The stepper: maps (System, State, Inputs, h) to the next State, with its own scratch
+// space. Method (README "Integration method"):
+//   * accelerations and multipliers of  M a + Phi_q^T lambda = Q,  Phi_q a = gamma  from
+//     the quasi-definite KKT system, factored as H = M + Phi_q^T W Phi_q (block Cholesky,
+//     block_cholesky.h) with a weight per equation scaled by the masses it couples, and
+//     refined on the exact KKT residual until it meets a relative tolerance;
+//   * classical RK4 (or Heun) on the index-1 equations;
+//   * after the step, mass-orthogonal projection of positions onto Phi = 0 (simplified
+//     Newton) and of velocities onto Phi_q v = 0, both to relative tolerances.
+// Every iteration that stops short of its tolerance is counted in SolverStats.
+#pragma once
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "mechanism_sim/core/block_cholesky.h"
+#include "mechanism_sim/core/system.h"
+
+namespace mechanism_sim {
+
+// Iterations that met their tolerance and those that stopped short (with the worst
+// relative residual they left).
+struct SolverStats {
+  long solves = 0, solve_shortfalls = 0;
+  long position_projections = 0, position_shortfalls = 0;
+  long velocity_projections = 0, velocity_shortfalls = 0;
+  long evaluations = 0, factorizations = 0;
+  double worst_solve = 0, worst_position = 0, worst_velocity = 0;
+  long shortfalls() const { return solve_shortfalls + position_shortfalls + velocity_shortfalls; }
+  std::string describe() const;  // one line
+};
+
+// r += dr, p <- p (x) exp(dtheta'/2) per moving body: a displacement in variation coordinates.
+void displace(const System& sys, Eigen::VectorXd& x, const double* dq);
+
+// Body kinematics of a state, ground first.
+void loadKinematics(const System& sys, const double* x, const double* u, std::vector<BodyKin>& kin);
+
+class Stepper {
+ public:
+  explicit Stepper(const System& sys);
+
+  // Advances s by h under the inputs. Throws std::runtime_error (naming the constraint)
+  // when the step leaves the constraints beyond repair.
+  void step(const System& sys, State& s, const Inputs& in, double h);
+  // Evaluates at s and solves accelerations and multipliers (s.acc, s.lambda) with the
+  // friction efforts in s; after it the queries below describe s.
+  void settle(const System& sys, State& s, const Inputs& in);
+
+  // ---- the last evaluation (after step() or settle(): the state reached)
+  const std::vector<BodyKin>& kin() const { return kin_; }
+  const Eigen::VectorXd& Phi() const { return Phi_; }
+  const Eigen::VectorXd& gamma() const { return gamma_; }
+  const Eigen::MatrixXd& jacobian(int c) const { return J_[c]; }
+  // max over equations of |Phi_e| and |Phi_q v|_e
+  double positionViolation() const;
+  double velocityViolation(const System& sys, const Eigen::VectorXd& u) const;
+  // Relative residuals: each equation against the size of its terms (scale-free).
+  double positionResidual(const System& sys) const;
+  double velocityResidual(const System& sys, const Eigen::VectorXd& u) const;
+  // Size of the terms of row e of J over the bodies of c: |J_r| |r| + |J_theta| per body.
+  double rowScale(const Constraint& c, const Eigen::Ref<const Eigen::MatrixXd>& J, int e) const;
+  // 1 / (row M~^-1 row^T) for a row over the bodies of a constraint (see rowWeights).
+  double rowWeight(const System& sys, int constraint, const Eigen::Ref<const Eigen::MatrixXd>& row) const;
+  // Re-solves accelerations and multipliers at the evaluated state (H factored there).
+  void factorHere(const System& sys, double t) { factor(sys, "assembly", t); }
+  const SolverStats& stats() const { return stats_; }
+
+  // ---- building blocks (assembly.cpp uses them)
+  void load(const System& sys, const double* x, const double* u);
+  void evaluate(const System& sys, const State& s);
+  // H = diag * M + shift I + sum_e w_e J_e^T J_e over the rows, w_e = kappa * (row weight),
+  // plus extra rows (Jx: rows over the bodies of constraint `extra_constraint`).
+  void assembleH(const System& sys, double kappa, double mass, double shift);
+  void addRowsToH(const System& sys, int constraint, const Eigen::MatrixXd& rows, double weight);
+  BlockCholesky& cholesky() { return chol_; }
+  void mulJ(const System& sys, const double* v, double* out) const;   // out = Phi_q v
+  void addJt(const System& sys, const double* y, double* out) const;  // out += Phi_q^T y
+  void mulM(const System& sys, const double* v, double* out) const;   // out = M v
+  // Per-row weights 1 / (J_e M~^{-1} J_e^T), M~ the masses with stand-ins for massless
+  // bodies (System scales): W = kappa * rowWeights makes kappa dimensionless.
+  const Eigen::VectorXd& rowWeights(const System& sys);
+
+ private:
+  void forces(const System& sys, const State& s, const Inputs& in,
+              const std::vector<std::array<double, 3>>& friction);
+  void factor(const System& sys, const char* where, double t);
+  // Refines s.acc/lambda-warm-started a_, lam_; factors H here first if it must iterate
+  // and `factored` is false.
+  bool solveKKT(const System& sys, bool factored, double t);
+  bool frictionActs(const System& sys) const;
+  void rates(const System& sys, const State& s, const Inputs& in,
+             const std::vector<std::array<double, 3>>& friction, const double* x, const double* u,
+             double* xdot, double* udot);
+  void frictionFor(const System& sys, State& s, const Inputs& in, double h);
+  void finishStep(const System& sys, State& s, const Inputs& in);
+  void projectPositions(const System& sys, State& s);
+  void projectVelocities(const System& sys, State& s);
+  bool updateLimits(const System& sys, State& s);
+  bool releaseLimits(const System& sys, State& s);
+  void jointRows(const System& sys, const State& s, int j, Row* rows) const;
+  [[noreturn]] void leftConstraints(const System& sys, double t, double err) const;
+
+  std::vector<BodyKin> kin_;
+  std::vector<char> dropped_;
+  double length_scale_ = 1.0;  // of the last evaluation (State::dropped)
+  std::vector<Eigen::MatrixXd> J_;
+  mutable Eigen::VectorXd query_;
+  Eigen::VectorXd Phi_, gamma_, W_, Q_, a_, lam_, r1_, r2_, s1_, s2_, dn_, dm_;
+  std::vector<Eigen::Matrix<double, 6, 6>> Minv_;  // per moving body, with stand-ins
+  BlockCholesky chol_;
+  Eigen::VectorXd x0_, u0_, xs_, us_, kx_[4], ku_[4];
+  // The evaluation and factorization describe this state (compared by content, so no
+  // flag has to be kept in step with anything).
+  Eigen::VectorXd eval_x_, eval_u_;
+  std::vector<signed char> eval_side_;
+  bool have_eval_ = false;
+  SolverStats stats_;
+};
+
+}  // namespace mechanism_sim

@@ -1,0 +1,129 @@
+// What a mechanism is (System), where it is now (State), what acts on it from outside
+// (Inputs). After Drake's System/Context and Pinocchio's Model/Data: a System is built and
+// validated once and never changes; a State is a plain value (a copy is a snapshot, a
+// reset is an assignment); the Stepper (stepper.h) maps (System, State, Inputs, h) to the
+// next State with its own scratch space.
+#pragma once
+#include <array>
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "mechanism_sim/core/block_cholesky.h"
+#include "mechanism_sim/core/joint.h"
+
+namespace mechanism_sim {
+
+// A model that cannot be simulated; the message names what is at fault.
+class ModelError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+struct Body {
+  std::string name;
+  double m = 0.0;                    // mass
+  Matrix3d Jp = Matrix3d::Zero();    // inertia about the centre of mass, body components
+  Vector3d r = Vector3d::Zero();     // centre of mass (the body's reference point)
+  Quaterniond p = Quaterniond::Identity();
+  Vector3d v = Vector3d::Zero();
+  Vector3d w = Vector3d::Zero();     // omega', body components
+};
+
+// Linear spring-damper-actuator between point sp_i on body_i and sp_j on body_j:
+// tension F = k (L - L0) + c L_dot + f_act pulls the points together when positive.
+struct SpringDamper {
+  std::string name;
+  int body_i = 0, body_j = 0;
+  Vector3d sp_i = Vector3d::Zero(), sp_j = Vector3d::Zero();
+  double k = 0.0, c = 0.0, L0 = 0.0, f_act = 0.0;
+};
+
+struct IntegratorOptions {
+  std::string method = "rk4";  // "rk4" (default) or "rk2" (Heun)
+  // Relative tolerances: of each equation against the size of its own terms (positions,
+  // velocities, the equations of motion). Scale-free: metres or millimetres alike.
+  double position_tol = 1e-13;
+  double velocity_tol = 1e-13;
+  double solve_tol = 1e-13;
+};
+
+// Position limit of a joint coordinate; `constraint` is its LimitConstraint.
+struct LimitSpec {
+  int joint = 0, k = 0;
+  double lower = 0.0, upper = 0.0;
+  int constraint = 0;
+};
+
+// Where a constraint's equations and Jacobian columns sit.
+struct ConstraintLayout {
+  int row = 0, size = 0;
+  std::vector<int> bodies;    // moving-body index (body - 1) per slot, -1 for ground
+  std::vector<int> address;   // BlockCholesky block of slot pair (k1, k2), k1 <= k2 (-1: ground)
+  std::vector<char> transposed;
+};
+
+class System {
+ public:
+  static constexpr int kGround = 0;
+
+  // ---- description (validated in finalize())
+  std::vector<Body> bodies;  // bodies[0] is ground; r, p, v, w give the initial state
+  std::vector<std::shared_ptr<Constraint>> constraints;  // joints, couplers, then limits
+  std::vector<const Joint*> joints;
+  std::vector<int> joint_constraint;
+  std::vector<SpringDamper> springs;
+  std::vector<LimitSpec> limits;
+  std::vector<std::array<double, 3>> damping, friction;  // per joint coordinate
+  Vector3d gravity = Vector3d(0, 0, -9.81);
+  IntegratorOptions options;
+
+  // ---- derived once by finalize()
+  int nb = 0;          // moving bodies
+  int n = 0;           // 6 nb velocity coordinates
+  int m = 0;           // rows (limits included)
+  int m_eq = 0;        // rows of the equality constraints (without limits)
+  std::vector<ConstraintLayout> layout;
+  std::vector<std::pair<int, int>> block_edges;  // body graph of H
+  // Scales: a length (largest lever arm / joint offset / body distance), a mass and a
+  // rotational inertia (means over bodies that have them); the stand-ins for what massless
+  // bodies lack in the row weights.
+  double length_scale = 1.0, mass_scale = 1.0, inertia_scale = 1.0;
+
+  // Validates and lays out; throws ModelError naming what is wrong.
+  void finalize();
+  int numBodies() const { return static_cast<int>(bodies.size()); }
+  int numJoints() const { return static_cast<int>(joints.size()); }
+  int numConstraints() const { return static_cast<int>(constraints.size()); }
+};
+
+// Plain value: everything that changes while a mechanism moves.
+struct State {
+  double t = 0.0;
+  long steps = 0;
+  Eigen::VectorXd x;  // per moving body: r (3), p (4: w x y z)
+  Eigen::VectorXd u;  // per moving body: v (3), w' (3)
+  std::vector<Tracked> tracked;            // per constraint
+  std::vector<signed char> limit_side;     // per limit: -1 lower, +1 upper, 0 free
+  std::vector<char> dropped;               // per row: a dependent equation, left out of solves
+  Eigen::VectorXd lambda;                  // multipliers at this state (and warm start)
+  Eigen::VectorXd acc;                     // accelerations at this state
+  std::vector<std::array<double, 3>> friction;  // friction effort of the step that led here
+  EvalContext context() const { return EvalContext{tracked.data(), limit_side.data()}; }
+};
+
+// What acts from outside; set between steps.
+struct Inputs {
+  std::vector<std::array<double, 3>> effort;  // per joint coordinate
+  std::vector<Vector3d> force, torque;        // per body: global force at the centre of mass,
+                                              // torque in body components
+  std::vector<double> spring_actuation;       // per spring, added to its tension
+};
+
+State initialState(const System& sys);
+Inputs zeroInputs(const System& sys);
+
+}  // namespace mechanism_sim

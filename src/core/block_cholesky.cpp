@@ -1,0 +1,178 @@
+#include "mechanism_sim/core/block_cholesky.h"
+
+#include <algorithm>
+#include <cmath>
+#include <set>
+#include <stdexcept>
+
+namespace mechanism_sim {
+
+// Symbolic phase.
+//  1. Order: minimum degree on the body graph, ties to the lower index (deterministic);
+//     leaves of a tree go first, so a tree has no fill.
+//  2. Pattern of L: eliminating pivot k joins its later neighbours into a clique.
+//  3. Schedule: for each column k, the blocks below the diagonal and the updates
+//     L_ij -= L_ik L_jk^T they make (i >= j > k).
+void BlockCholesky::analyze(int nb, const std::vector<std::pair<int, int>>& edges) {
+  nb_ = nb;
+  std::vector<std::set<int>> adj(nb);
+  for (const auto& e : edges) {
+    if (e.first < 0 || e.second < 0 || e.first >= nb || e.second >= nb)
+      throw std::out_of_range("BlockCholesky::analyze: edge out of range");
+    if (e.first == e.second) continue;
+    adj[e.first].insert(e.second);
+    adj[e.second].insert(e.first);
+  }
+  // 1. minimum degree
+  order_.clear();
+  position_.assign(nb, -1);
+  {
+    std::vector<std::set<int>> g = adj;
+    std::vector<char> done(nb, 0);
+    for (int step = 0; step < nb; ++step) {
+      int best = -1;
+      for (int b = 0; b < nb; ++b)
+        if (!done[b] && (best < 0 || g[b].size() < g[best].size())) best = b;
+      done[best] = 1;
+      position_[best] = step;
+      order_.push_back(best);
+      for (int a : g[best])
+        for (int c : g[best])
+          if (a != c) g[a].insert(c);
+      for (int a : g[best]) g[a].erase(best);
+      g[best].clear();
+    }
+  }
+  // 2. pattern of L in pivot order
+  std::vector<std::set<int>> below(nb);  // column k: rows i > k
+  for (int b = 0; b < nb; ++b)
+    for (int c : adj[b]) {
+      const int i = position_[b], j = position_[c];
+      if (i > j) below[j].insert(i);
+    }
+  for (int k = 0; k < nb; ++k)
+    for (int i : below[k])
+      for (int j : below[k])
+        if (i > j) below[j].insert(i);
+  // 3. storage and schedule
+  blocks_.assign(nb, Block::Zero());
+  lookup_.assign(nb, {});
+  col_start_.assign(nb + 1, 0);
+  col_row_.clear();
+  col_block_.clear();
+  for (int k = 0; k < nb; ++k) {
+    for (int i : below[k]) {
+      col_row_.push_back(i);
+      col_block_.push_back(static_cast<int>(blocks_.size()));
+      lookup_[k].push_back({i, static_cast<int>(blocks_.size())});
+      blocks_.push_back(Block::Zero());
+    }
+    col_start_[k + 1] = static_cast<int>(col_row_.size());
+  }
+  auto find = [&](int i, int j) {  // block of L(i, j), i > j
+    for (const auto& e : lookup_[j])
+      if (e.first == i) return e.second;
+    throw std::logic_error("BlockCholesky: fill block missing");
+  };
+  updates_.clear();
+  update_start_.assign(nb + 1, 0);
+  for (int k = 0; k < nb; ++k) {
+    for (int p = col_start_[k]; p < col_start_[k + 1]; ++p)
+      for (int q = col_start_[k]; q <= p; ++q) {
+        const int i = col_row_[p], j = col_row_[q];  // i >= j (rows sorted ascending)
+        const int target = i == j ? i : find(i, j);
+        updates_.push_back({target, col_block_[p], col_block_[q]});
+      }
+    update_start_[k + 1] = static_cast<int>(updates_.size());
+  }
+  zero_.assign(6 * nb, 0);
+  y_.assign(nb, Vec6::Zero());
+  start_.assign(nb, Vec6::Zero());
+}
+
+int BlockCholesky::address(int i, int j, bool* transposed) const {
+  const int pi = position_.at(i), pj = position_.at(j);
+  *transposed = false;
+  if (pi == pj) return pi;
+  const int row = std::max(pi, pj), col = std::min(pi, pj);
+  *transposed = pi < pj;
+  for (const auto& e : lookup_[col])
+    if (e.first == row) return e.second;
+  throw std::logic_error("BlockCholesky::address: bodies are not adjacent");
+}
+
+void BlockCholesky::setZero() {
+  for (Block& b : blocks_) b.setZero();
+}
+
+// In-place lower Cholesky factor of one diagonal block, column by column, with the
+// pivot test relative to the entry's own starting value.
+bool BlockCholesky::factorDiagonal(Block& D, double pivot_tol, bool skip_zero, int k, int* zeros) {
+  const Vec6& start = start_[k];
+  for (int c = 0; c < 6; ++c) {
+    double s = D(c, c);
+    for (int p = 0; p < c; ++p) s -= D(c, p) * D(c, p);
+    zero_[6 * order_[k] + c] = 0;
+    if (!(s > pivot_tol * std::fabs(start(c))) || !std::isfinite(s)) {
+      ++*zeros;
+      if (!skip_zero) return false;
+      zero_[6 * order_[k] + c] = 1;
+      D(c, c) = 1.0;
+      for (int r = c + 1; r < 6; ++r) D(r, c) = 0.0;
+      continue;
+    }
+    const double l = std::sqrt(s);
+    D(c, c) = l;
+    for (int r = c + 1; r < 6; ++r) {
+      double t = D(r, c);
+      for (int p = 0; p < c; ++p) t -= D(r, p) * D(c, p);
+      D(r, c) = t / l;
+    }
+  }
+  for (int c = 1; c < 6; ++c)
+    for (int r = 0; r < c; ++r) D(r, c) = 0.0;  // upper triangle: zero, so L_kk is the block
+  return true;
+}
+
+int BlockCholesky::factorize(double pivot_tol, bool skip_zero) {
+  int zeros = 0;
+  for (int k = 0; k < nb_; ++k) start_[k] = blocks_[k].diagonal();
+  for (int k = 0; k < nb_; ++k) {
+    Block& D = blocks_[k];
+    if (!factorDiagonal(D, pivot_tol, skip_zero, k, &zeros)) return zeros;
+    const auto U = D.transpose().triangularView<Eigen::Upper>();
+    for (int p = col_start_[k]; p < col_start_[k + 1]; ++p) {
+      Block& B = blocks_[col_block_[p]];
+      U.solveInPlace<Eigen::OnTheRight>(B);  // L_ik = H_ik L_kk^{-T}
+      for (int c = 0; c < 6; ++c)
+        if (zero_[6 * order_[k] + c]) B.col(c).setZero();
+    }
+    for (int u = update_start_[k]; u < update_start_[k + 1]; ++u) {
+      const Update& up = updates_[u];
+      blocks_[up.target].noalias() -= blocks_[up.a] * blocks_[up.b].transpose();
+    }
+  }
+  return zeros;
+}
+
+void BlockCholesky::solve(double* x) const {
+  for (int k = 0; k < nb_; ++k) y_[k] = Eigen::Map<const Vec6>(x + 6 * order_[k]);
+  for (int k = 0; k < nb_; ++k) {  // L y = b
+    blocks_[k].triangularView<Eigen::Lower>().solveInPlace(y_[k]);
+    for (int p = col_start_[k]; p < col_start_[k + 1]; ++p)
+      y_[col_row_[p]].noalias() -= blocks_[col_block_[p]] * y_[k];
+  }
+  for (int k = nb_ - 1; k >= 0; --k) {  // L^T x = y
+    for (int p = col_start_[k]; p < col_start_[k + 1]; ++p)
+      y_[k].noalias() -= blocks_[col_block_[p]].transpose() * y_[col_row_[p]];
+    blocks_[k].transpose().triangularView<Eigen::Upper>().solveInPlace(y_[k]);
+  }
+  for (int k = 0; k < nb_; ++k) {
+    Vec6 v = y_[k];
+    for (int c = 0; c < 6; ++c)
+      if (zero_[6 * order_[k] + c]) v(c) = 0.0;
+    Eigen::Map<Vec6>(x + 6 * order_[k]) = v;
+  }
+}
+
+}  // namespace mechanism_sim

@@ -1,0 +1,683 @@
+// Stepper: forces, the KKT solve, time stepping and projection onto the constraints.
+#include "mechanism_sim/core/stepper.h"
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+
+#include "mechanism_sim/core/couplers.h"
+
+namespace mechanism_sim {
+namespace {
+
+// Dimensionless weight of the equations in H = M + kappa Phi_q^T W Phi_q (W: rowWeights).
+// Each refinement pass contracts the KKT error by about 1/(kappa sigma), sigma the
+// smallest eigenvalue of the row-scaled W^1/2 Phi_q M^-1 Phi_q^T W^1/2 (1 for one joint,
+// about 1/N^2 along a chain of N bodies), while H's condition number grows like kappa;
+// 1e8 balances the two (README "Integration method": measured).
+constexpr double kKappa = 1e8;
+constexpr int kMaxSolvePasses = 12;
+constexpr int kMaxNewton = 20;
+constexpr int kMaxVelocityPasses = 8;
+
+std::string fmt(double x) {
+  std::ostringstream os;
+  os.precision(3);
+  os << x;
+  return os.str();
+}
+
+// |r| / scale, where scale is the size of the terms r was computed from; 0/0 = 0.
+inline double relative(double r, double scale) {
+  r = std::fabs(r);
+  if (r == 0.0) return 0.0;
+  return scale > 0.0 ? r / scale : HUGE_VAL;
+}
+
+}  // namespace
+
+void loadKinematics(const System& sys, const double* x, const double* u, std::vector<BodyKin>& kin) {
+  kin.resize(sys.bodies.size());
+  kin[0] = BodyKin();
+  for (int b = 1; b <= sys.nb; ++b) {
+    const double* xb = x + 7 * (b - 1);
+    const double* ub = u + 6 * (b - 1);
+    BodyKin& k = kin[b];
+    k.r = Vector3d(xb[0], xb[1], xb[2]);
+    k.A_Oi = Quaterniond(xb[3], xb[4], xb[5], xb[6]).normalized().toRotationMatrix();
+    k.v = Vector3d(ub[0], ub[1], ub[2]);
+    k.w = Vector3d(ub[3], ub[4], ub[5]);
+  }
+}
+
+std::string SolverStats::describe() const {
+  std::ostringstream os;
+  os.precision(2);
+  if (shortfalls() == 0) {
+    os << "every iteration met its tolerance (" << solves << " solves, " << position_projections
+       << " position and " << velocity_projections << " velocity projections)";
+    return os.str();
+  }
+  os << "iterations short of tolerance:";
+  if (solve_shortfalls) os << " " << solve_shortfalls << " of " << solves << " solves (worst relative residual " << worst_solve << ")";
+  if (position_shortfalls)
+    os << " " << position_shortfalls << " of " << position_projections << " position projections (worst " << worst_position << ")";
+  if (velocity_shortfalls)
+    os << " " << velocity_shortfalls << " of " << velocity_projections << " velocity projections (worst " << worst_velocity << ")";
+  return os.str();
+}
+
+Stepper::Stepper(const System& sys) {
+  kin_.assign(sys.bodies.size(), BodyKin());
+  J_.clear();
+  for (const auto& c : sys.constraints)
+    J_.push_back(Eigen::MatrixXd::Zero(c->size(), 6 * static_cast<int>(c->bodies().size())));
+  auto zeros = [](Eigen::VectorXd& v, int size) { v = Eigen::VectorXd::Zero(size); };
+  zeros(Phi_, sys.m), zeros(gamma_, sys.m), zeros(W_, sys.m), zeros(lam_, sys.m);
+  zeros(r2_, sys.m), zeros(s2_, sys.m), zeros(dm_, sys.m), zeros(query_, sys.m);
+  zeros(Q_, sys.n), zeros(a_, sys.n), zeros(r1_, sys.n), zeros(s1_, sys.n), zeros(dn_, sys.n);
+  zeros(x0_, 7 * sys.nb), zeros(u0_, sys.n), zeros(xs_, 7 * sys.nb), zeros(us_, sys.n);
+  for (int s = 0; s < 4; ++s) zeros(kx_[s], 7 * sys.nb), zeros(ku_[s], sys.n);
+  chol_.analyze(sys.nb, sys.block_edges);
+  length_scale_ = sys.length_scale;
+  // Inverse masses with stand-ins: a massless body weighs the mean mass, a missing
+  // principal moment the mean moment (System scales); they only scale W.
+  Minv_.assign(sys.nb, Eigen::Matrix<double, 6, 6>::Zero());
+  for (int b = 1; b <= sys.nb; ++b) {
+    const Body& B = sys.bodies[b];
+    const double m = B.m > 0 ? B.m : sys.mass_scale;
+    const double tr = B.Jp.trace() / 3.0;
+    const Matrix3d Jp = B.Jp + (tr > 0 ? 1e-9 * tr : sys.inertia_scale) * Matrix3d::Identity();
+    Minv_[b - 1].topLeftCorner<3, 3>() = Matrix3d::Identity() / m;
+    Minv_[b - 1].bottomRightCorner<3, 3>() = Jp.inverse();
+  }
+  eval_side_.clear();
+}
+
+void Stepper::load(const System& sys, const double* x, const double* u) { loadKinematics(sys, x, u, kin_); }
+
+void Stepper::evaluate(const System& sys, const State& st) {
+  const EvalContext ctx = st.context();
+  const BodyKin* ptrs[8];
+  for (int ci = 0; ci < sys.numConstraints(); ++ci) {
+    const Constraint& c = *sys.constraints[ci];
+    const ConstraintLayout& L = sys.layout[ci];
+    const int k = static_cast<int>(c.bodies().size());
+    for (int s = 0; s < k && s < 8; ++s) ptrs[s] = &kin_[c.bodies()[s]];
+    c.evaluate(ptrs, ctx, Phi_.segment(L.row, L.size), J_[ci], gamma_.segment(L.row, L.size));
+  }
+  // Dependent equations (assembly found them) are implied by the others near the
+  // constraint manifold; off it they are nearly dependent and make the KKT system
+  // ill-posed, so they leave the solve (their Phi is still reported).
+  dropped_ = st.dropped;
+  if (!dropped_.empty())
+    for (int ci = 0; ci < sys.numConstraints(); ++ci) {
+      const ConstraintLayout& L = sys.layout[ci];
+      for (int e = 0; e < L.size; ++e)
+        if (dropped_[L.row + e]) J_[ci].row(e).setZero(), gamma_[L.row + e] = 0.0;
+    }
+  ++stats_.evaluations;
+}
+
+// ---- products over the constraint blocks (no allocation)
+
+void Stepper::mulJ(const System& sys, const double* v, double* out) const {
+  for (int e = 0; e < sys.m; ++e) out[e] = 0.0;
+  for (int ci = 0; ci < sys.numConstraints(); ++ci) {
+    const ConstraintLayout& L = sys.layout[ci];
+    const Eigen::MatrixXd& J = J_[ci];
+    for (size_t s = 0; s < L.bodies.size(); ++s) {
+      if (L.bodies[s] < 0) continue;
+      Eigen::Map<const Eigen::Matrix<double, 6, 1>> vb(v + 6 * L.bodies[s]);
+      Eigen::Map<Eigen::VectorXd>(out + L.row, L.size).noalias() += J.middleCols<6>(6 * s) * vb;
+    }
+  }
+}
+
+void Stepper::addJt(const System& sys, const double* y, double* out) const {
+  for (int ci = 0; ci < sys.numConstraints(); ++ci) {
+    const ConstraintLayout& L = sys.layout[ci];
+    const Eigen::MatrixXd& J = J_[ci];
+    Eigen::Map<const Eigen::VectorXd> yc(y + L.row, L.size);
+    for (size_t s = 0; s < L.bodies.size(); ++s) {
+      if (L.bodies[s] < 0) continue;
+      Eigen::Map<Eigen::Matrix<double, 6, 1>>(out + 6 * L.bodies[s]).noalias() +=
+          J.middleCols<6>(6 * s).transpose() * yc;
+    }
+  }
+}
+
+void Stepper::mulM(const System& sys, const double* v, double* out) const {
+  for (int b = 1; b <= sys.nb; ++b) {
+    const Body& B = sys.bodies[b];
+    Eigen::Map<Eigen::Matrix<double, 6, 1>> o(out + 6 * (b - 1));
+    Eigen::Map<const Eigen::Matrix<double, 6, 1>> vb(v + 6 * (b - 1));
+    o.head<3>() = B.m * vb.head<3>();
+    o.tail<3>() = B.Jp * vb.tail<3>();
+  }
+}
+
+const Eigen::VectorXd& Stepper::rowWeights(const System& sys) {
+  for (int ci = 0; ci < sys.numConstraints(); ++ci) {
+    const ConstraintLayout& L = sys.layout[ci];
+    const Eigen::MatrixXd& J = J_[ci];
+    for (int e = 0; e < L.size; ++e) {
+      double s = 0;
+      for (size_t k = 0; k < L.bodies.size(); ++k) {
+        if (L.bodies[k] < 0) continue;
+        const Eigen::Matrix<double, 1, 6> row = J.block<1, 6>(e, 6 * k);
+        s += row * Minv_[L.bodies[k]] * row.transpose();
+      }
+      W_[L.row + e] = (s > 0 && std::isfinite(s)) ? 1.0 / s : 0.0;
+    }
+  }
+  return W_;
+}
+
+// H = mass M + shift M~ + kappa sum_c J_c^T W_c J_c, block by block into the factor's
+// storage (M~: the stand-in masses of Minv_, used as Levenberg-Marquardt damping).
+void Stepper::assembleH(const System& sys, double kappa, double mass, double shift) {
+  chol_.setZero();
+  for (int b = 1; b <= sys.nb; ++b) {
+    bool t = false;
+    auto& D = chol_.block(chol_.address(b - 1, b - 1, &t));
+    const Body& B = sys.bodies[b];
+    D.topLeftCorner<3, 3>().diagonal().array() += mass * B.m;
+    D.bottomRightCorner<3, 3>() += mass * B.Jp;
+    if (shift != 0.0) D.diagonal() += shift * Minv_[b - 1].diagonal().cwiseInverse();
+  }
+  for (int ci = 0; ci < sys.numConstraints(); ++ci) {
+    const Eigen::MatrixXd& J = J_[ci];
+    const ConstraintLayout& L = sys.layout[ci];
+    const int k = static_cast<int>(L.bodies.size());
+    for (int k1 = 0; k1 < k; ++k1)
+      for (int k2 = k1; k2 < k; ++k2) {
+        const int address = L.address[k1 * k + k2];
+        if (address < 0) continue;
+        Eigen::Matrix<double, 6, 6> B;
+        B.noalias() = J.middleCols<6>(6 * k1).transpose() *
+                      (kappa * W_.segment(L.row, L.size)).asDiagonal() * J.middleCols<6>(6 * k2);
+        if (L.transposed[k1 * k + k2]) chol_.block(address) += B.transpose();
+        else chol_.block(address) += B;
+      }
+  }
+}
+
+// Adds weight * rows^T rows for rows over the bodies of a constraint (assembly targets).
+void Stepper::addRowsToH(const System& sys, int constraint, const Eigen::MatrixXd& rows, double weight) {
+  const ConstraintLayout& L = sys.layout[constraint];
+  const int k = static_cast<int>(L.bodies.size());
+  for (int k1 = 0; k1 < k; ++k1)
+    for (int k2 = k1; k2 < k; ++k2) {
+      const int address = L.address[k1 * k + k2];
+      if (address < 0) continue;
+      const Eigen::Matrix<double, 6, 6> B =
+          weight * rows.middleCols<6>(6 * k1).transpose() * rows.middleCols<6>(6 * k2);
+      if (L.transposed[k1 * k + k2]) chol_.block(address) += B.transpose();
+      else chol_.block(address) += B;
+    }
+}
+
+void Stepper::factor(const System& sys, const char* where, double t) {
+  rowWeights(sys);
+  assembleH(sys, kKappa, 1.0, 0.0);
+  ++stats_.factorizations;
+  if (chol_.factorize(0.0, false) != 0) {
+    std::ostringstream os;
+    os << "at t = " << t << " s (" << where
+       << "): the constrained mass matrix is singular; some motion moves no mass";
+    throw std::runtime_error(os.str());
+  }
+}
+
+// Q per body: [f (global, at the centre of mass); n' (body components)].
+void Stepper::forces(const System& sys, const State& s, const Inputs& in,
+                     const std::vector<std::array<double, 3>>& friction) {
+  for (int b = 1; b <= sys.nb; ++b) {
+    const Body& B = sys.bodies[b];
+    const BodyKin& k = kin_[b];
+    Q_.segment<3>(6 * (b - 1)) = B.m * sys.gravity + in.force[b];
+    Q_.segment<3>(6 * (b - 1) + 3) = in.torque[b] - k.w.cross(B.Jp * k.w);  // Euler, in omega'
+  }
+  auto addForceAt = [&](int b, const Vector3d& sp, const Vector3d& f) {
+    if (b == System::kGround) return;
+    Q_.segment<3>(6 * (b - 1)) += f;
+    Q_.segment<3>(6 * (b - 1) + 3) += sp.cross(kin_[b].A_Oi.transpose() * f);
+  };
+  for (size_t i = 0; i < sys.springs.size(); ++i) {
+    const SpringDamper& sd = sys.springs[i];
+    const Gap g = gap(kin_[sd.body_i], sd.sp_i, kin_[sd.body_j], sd.sp_j);
+    const double L = g.d.norm();
+    if (!(L > 1e-12 * sys.length_scale)) continue;  // direction undefined; no force
+    const Vector3d e = g.d / L;
+    const double F = sd.k * (L - sd.L0) + sd.c * e.dot(g.d_dot) + sd.f_act + in.spring_actuation[i];
+    addForceAt(sd.body_i, sd.sp_i, F * e);
+    addForceAt(sd.body_j, sd.sp_j, -F * e);
+  }
+  Row rows[3];
+  for (int j = 0; j < sys.numJoints(); ++j) {
+    const auto& tau = in.effort[j];
+    const auto& c = sys.damping[j];
+    const auto& fr = friction[j];
+    const int dof = sys.joints[j]->dof();
+    bool any = false;
+    for (int k = 0; k < dof; ++k) any = any || tau[k] != 0.0 || c[k] != 0.0 || fr[k] != 0.0;
+    if (!any) continue;
+    jointRows(sys, s, j, rows);
+    const int bs[2] = {sys.joints[j]->bodyI(), sys.joints[j]->bodyJ()};
+    for (int k = 0; k < dof; ++k) {
+      const double effort = tau[k] - c[k] * rows[k].Phi_dot + fr[k];  // along q_k
+      for (int b = 0; b < 2; ++b)
+        if (bs[b] != System::kGround)
+          Q_.segment<6>(6 * (bs[b] - 1)) += rows[k].J.segment<6>(6 * b).transpose() * effort;
+    }
+  }
+}
+
+void Stepper::jointRows(const System& sys, const State& s, int j, Row* rows) const {
+  const Joint& jt = *sys.joints[j];
+  jt.coordinates(kin_[jt.bodyI()], kin_[jt.bodyJ()], s.tracked[jt.id()], rows);
+}
+
+// Iterative refinement of the KKT system  [M J^T; J 0] [a; lambda] = [Q; gamma]  with the
+// regularized matrix [M J^T; J -W^-1] as preconditioner (H = M + J^T W J factored):
+//   r1 = Q - M a - J^T lambda,  r2 = gamma - J a,
+//   H da = r1 + J^T W r2,  dlambda = W (J da - r2).
+// With H factored at the current J one pass is the augmented Lagrangian update (Bayo &
+// Ledesma 1996); with H from a nearby state it still converges. It stops when every
+// equation's residual is within solve_tol of the size of the terms it was computed from
+// (componentwise backward error: independent of units); a shortfall is counted.
+bool Stepper::solveKKT(const System& sys, bool factored, double t) {
+  const double tol = sys.options.solve_tol;
+  double res = 0;
+  for (int pass = 0;; ++pass) {
+    // The size of the terms: per body, the largest force (torque) term of its three
+    // components; per equation, |gamma| + |J_r| |a_r|_max + |J_theta| |a_theta|_max.
+    mulM(sys, a_.data(), r1_.data());
+    for (int i = 0; i < sys.n; ++i) s1_[i] = std::fabs(Q_[i]) + std::fabs(r1_[i]), r1_[i] = Q_[i] - r1_[i];
+    for (int e = 0; e < sys.m; ++e) r2_[e] = gamma_[e], s2_[e] = std::fabs(gamma_[e]);
+    for (int ci = 0; ci < sys.numConstraints(); ++ci) {
+      const ConstraintLayout& L = sys.layout[ci];
+      const Eigen::MatrixXd& J = J_[ci];
+      for (size_t s = 0; s < L.bodies.size(); ++s) {
+        if (L.bodies[s] < 0) continue;
+        const int col = 6 * L.bodies[s];
+        // linear and angular parts measured against each other through the length scale
+        const double ar0 = a_.segment<3>(col).cwiseAbs().maxCoeff();
+        const double at0 = a_.segment<3>(col + 3).cwiseAbs().maxCoeff();
+        const double ar = std::max(ar0, at0 * length_scale_), at = std::max(at0, ar0 / length_scale_);
+        for (int e = 0; e < L.size; ++e) {
+          const double le = lam_[L.row + e];
+          double ja = 0;
+          for (int c = 0; c < 6; ++c) {
+            const double Jec = J(e, 6 * s + c);
+            ja += Jec * a_[col + c];
+            r1_[col + c] -= Jec * le;
+            s1_[col + c] += std::fabs(Jec * le);
+          }
+          r2_[L.row + e] -= ja;
+          s2_[L.row + e] += J.block<1, 3>(e, 6 * s).cwiseAbs().sum() * ar +
+                            J.block<1, 3>(e, 6 * s + 3).cwiseAbs().sum() * at;
+        }
+      }
+    }
+    res = 0;
+    for (int i = 0; i < sys.n; i += 6) {
+      const double f = std::max({s1_[i], s1_[i + 1], s1_[i + 2]});
+      const double n = std::max({s1_[i + 3], s1_[i + 4], s1_[i + 5]});
+      const double fs = std::max(f, n / length_scale_), ns = std::max(n, f * length_scale_);
+      for (int c = 0; c < 3; ++c)
+        res = std::max({res, relative(r1_[i + c], fs), relative(r1_[i + 3 + c], ns)});
+    }
+    for (int e = 0; e < sys.m; ++e) res = std::max(res, relative(r2_[e], s2_[e]));
+    if (res <= tol) {
+      ++stats_.solves;
+      return true;
+    }
+    if (pass == kMaxSolvePasses) break;
+    if (!factored) factor(sys, "stage 1", t), factored = true;
+    for (int e = 0; e < sys.m; ++e) dm_[e] = kKappa * W_[e] * r2_[e];
+    dn_ = r1_;
+    addJt(sys, dm_.data(), dn_.data());
+    chol_.solve(dn_.data());
+    a_ += dn_;
+    mulJ(sys, dn_.data(), dm_.data());
+    for (int e = 0; e < sys.m; ++e) lam_[e] += kKappa * W_[e] * (dm_[e] - r2_[e]);
+  }
+  ++stats_.solves;
+  ++stats_.solve_shortfalls;
+  stats_.worst_solve = std::max(stats_.worst_solve, res);
+  return false;
+}
+
+// (x, u) -> (x_dot, u_dot): r_dot = v, p_dot = p (x) (0, w) / 2, u_dot = a.
+static void positionRates(int nb, const double* x, const double* u, double* xdot) {
+  for (int b = 0; b < nb; ++b) {
+    const double* p = x + 7 * b + 3;
+    const double* w = u + 6 * b + 3;
+    double* xd = xdot + 7 * b;
+    xd[0] = u[6 * b], xd[1] = u[6 * b + 1], xd[2] = u[6 * b + 2];
+    xd[3] = 0.5 * (-p[1] * w[0] - p[2] * w[1] - p[3] * w[2]);
+    xd[4] = 0.5 * (p[0] * w[0] + p[2] * w[2] - p[3] * w[1]);
+    xd[5] = 0.5 * (p[0] * w[1] + p[3] * w[0] - p[1] * w[2]);
+    xd[6] = 0.5 * (p[0] * w[2] + p[1] * w[1] - p[2] * w[0]);
+  }
+}
+
+void Stepper::rates(const System& sys, const State& s, const Inputs& in,
+                    const std::vector<std::array<double, 3>>& friction, const double* x,
+                    const double* u, double* xdot, double* udot) {
+  load(sys, x, u);
+  evaluate(sys, s);
+  factor(sys, "stage", s.t);
+  forces(sys, s, in, friction);
+  solveKKT(sys, true, s.t);
+  positionRates(sys.nb, x, u, xdot);
+  std::copy(a_.data(), a_.data() + sys.n, udot);
+}
+
+// Friction for the step h about to be taken, from the state with H factored there.
+// The effective inertia along coordinate k is I = 1 / (G H^-1 G^T) (H^-1 is the
+// constrained inverse mass up to 1/kappa); the effort that leaves q_dot = 0 after the step
+// is I (q_dot / h + q_ddot_free) with q_ddot_free = G a_free - gamma_G (the coordinate's
+// own velocity term), and friction supplies it up to f.
+void Stepper::frictionFor(const System& sys, State& s, const Inputs& in, double h) {
+  for (auto& f : s.friction) f = {0.0, 0.0, 0.0};
+  forces(sys, s, in, s.friction);
+  a_ = s.acc;
+  lam_ = s.lambda;
+  solveKKT(sys, true, s.t);
+  Row rows[3];
+  for (int j = 0; j < sys.numJoints(); ++j) {
+    const auto& f = sys.friction[j];
+    const int dof = sys.joints[j]->dof();
+    bool has = false;
+    for (int k = 0; k < dof; ++k) has = has || f[k] > 0.0;
+    if (!has) continue;
+    jointRows(sys, s, j, rows);
+    const int bs[2] = {sys.joints[j]->bodyI(), sys.joints[j]->bodyJ()};
+    for (int k = 0; k < dof; ++k) {
+      if (f[k] <= 0.0) continue;
+      dn_.setZero();
+      double qddot = -rows[k].gamma;
+      for (int b = 0; b < 2; ++b)
+        if (bs[b] != System::kGround) {
+          dn_.segment<6>(6 * (bs[b] - 1)) = rows[k].J.segment<6>(6 * b).transpose();
+          qddot += rows[k].J.segment<6>(6 * b).dot(a_.segment<6>(6 * (bs[b] - 1)));
+        }
+      chol_.solve(dn_.data());
+      double gHg = 0;
+      for (int b = 0; b < 2; ++b)
+        if (bs[b] != System::kGround) gHg += rows[k].J.segment<6>(6 * b).dot(dn_.segment<6>(6 * (bs[b] - 1)));
+      if (!(gHg > 0)) continue;
+      const double needed = (rows[k].Phi_dot / h + qddot) / gHg;
+      s.friction[j][k] = -std::max(-f[k], std::min(f[k], needed));
+    }
+  }
+}
+
+void Stepper::step(const System& sys, State& s, const Inputs& in, double h) {
+  if (!(h > 0) || !std::isfinite(h)) throw std::invalid_argument("step must be positive and finite");
+  // Stage 1 at the accepted state. Its accelerations and multipliers are in the State (the
+  // last step solved them there); the evaluation left by that step is reused when it
+  // describes this very state (compared by content). A solve runs, on a fresh
+  // factorization, only when the inputs changed, so a restored State continues
+  // bit-identically.
+  load(sys, s.x.data(), s.u.data());
+  if (!(have_eval_ && eval_x_ == s.x && eval_u_ == s.u && eval_side_ == s.limit_side))
+    evaluate(sys, s);
+  bool factored = false;
+  if (frictionActs(sys)) {
+    factor(sys, "stage 1", s.t);
+    factored = true;
+    frictionFor(sys, s, in, h);
+  }
+  forces(sys, s, in, s.friction);
+  a_ = s.acc;
+  lam_ = s.lambda;
+  solveKKT(sys, factored, s.t);
+  have_eval_ = false;  // the stages below overwrite the evaluation
+  x0_ = s.x;
+  u0_ = s.u;
+  positionRates(sys.nb, x0_.data(), u0_.data(), kx_[0].data());
+  ku_[0] = a_;
+  auto stage = [&](int k, double c, int from) {
+    xs_ = x0_ + (c * h) * kx_[from];
+    us_ = u0_ + (c * h) * ku_[from];
+    rates(sys, s, in, s.friction, xs_.data(), us_.data(), kx_[k].data(), ku_[k].data());
+  };
+  if (sys.options.method == "rk2") {  // Heun
+    stage(1, 1.0, 0);
+    s.x = x0_ + (0.5 * h) * (kx_[0] + kx_[1]);
+    s.u = u0_ + (0.5 * h) * (ku_[0] + ku_[1]);
+  } else {  // classical RK4
+    stage(1, 0.5, 0);
+    stage(2, 0.5, 1);
+    stage(3, 1.0, 2);
+    s.x = x0_ + (h / 6.0) * (kx_[0] + 2.0 * kx_[1] + 2.0 * kx_[2] + kx_[3]);
+    s.u = u0_ + (h / 6.0) * (ku_[0] + 2.0 * ku_[1] + 2.0 * ku_[2] + ku_[3]);
+  }
+  for (int b = 0; b < sys.nb; ++b) s.x.segment<4>(7 * b + 3).normalize();
+  s.t += h;
+  ++s.steps;
+  finishStep(sys, s, in);
+}
+
+void Stepper::settle(const System& sys, State& s, const Inputs& in) {
+  for (int b = 0; b < sys.nb; ++b) s.x.segment<4>(7 * b + 3).normalize();
+  finishStep(sys, s, in);
+}
+
+bool Stepper::frictionActs(const System& sys) const {
+  for (const auto& f : sys.friction)
+    if (f[0] > 0 || f[1] > 0 || f[2] > 0) return true;
+  return false;
+}
+
+// Brings a new state onto the constraints and solves its accelerations:
+//  1. limits that were passed become active (a perfectly inelastic stop);
+//  2. H is factored here (the penalty form needs H at the current Jacobian: a stale one
+//     would turn kappa |delta J| into error);
+//  3. positions: simplified Newton on Phi = 0, mass-orthogonal;
+//  4. velocities onto Phi_q v = 0, mass-orthogonal;
+//  5. tracked angles move on; accelerations and multipliers are solved at the final state
+//     (refined on its own Jacobian) and stored in the State; limits that would pull let go.
+void Stepper::finishStep(const System& sys, State& s, const Inputs& in) {
+  load(sys, s.x.data(), s.u.data());
+  updateLimits(sys, s);
+  evaluate(sys, s);
+  factor(sys, "projection", s.t);
+  projectPositions(sys, s);
+  projectVelocities(sys, s);
+  load(sys, s.x.data(), s.u.data());
+  const EvalContext ctx = s.context();
+  const BodyKin* ptrs[8];
+  for (int ci = 0; ci < sys.numConstraints(); ++ci) {
+    const Constraint& c = *sys.constraints[ci];
+    for (size_t k = 0; k < c.bodies().size() && k < 8; ++k) ptrs[k] = &kin_[c.bodies()[k]];
+    c.track(ptrs, ctx, s.tracked[ci]);
+  }
+  evaluate(sys, s);
+  for (int pass = 0;; ++pass) {
+    forces(sys, s, in, s.friction);
+    solveKKT(sys, true, s.t);
+    if (pass > static_cast<int>(sys.limits.size()) || !releaseLimits(sys, s)) break;
+    evaluate(sys, s);
+    factor(sys, "limit release", s.t);
+  }
+  s.acc = a_;
+  s.lambda = lam_;
+  eval_x_ = s.x, eval_u_ = s.u, eval_side_ = s.limit_side, have_eval_ = true;
+}
+
+// Activates a limit whose coordinate has passed its bound; returns whether any did.
+bool Stepper::updateLimits(const System& sys, State& s) {
+  bool changed = false;
+  Row rows[3];
+  for (size_t l = 0; l < sys.limits.size(); ++l) {
+    const LimitSpec& L = sys.limits[l];
+    if (s.limit_side[l]) continue;
+    jointRows(sys, s, L.joint, rows);
+    const double q = rows[L.k].Phi;
+    const int side = q < L.lower ? -1 : q > L.upper ? 1 : 0;
+    if (!side) continue;
+    s.limit_side[l] = static_cast<signed char>(side);
+    changed = true;
+  }
+  return changed;
+}
+
+// Releases limits whose multiplier would pull; returns whether any did.
+bool Stepper::releaseLimits(const System& sys, State& s) {
+  bool released = false;
+  for (size_t l = 0; l < sys.limits.size(); ++l) {
+    if (!s.limit_side[l]) continue;
+    const double lam = lam_[sys.layout[sys.limits[l].constraint].row];
+    if ((s.limit_side[l] < 0 && lam > 0) || (s.limit_side[l] > 0 && lam < 0)) {
+      s.limit_side[l] = 0;
+      released = true;
+    }
+  }
+  return released;
+}
+
+// max_e |Phi_e| / (size of its terms): each row's terms are its Jacobian entries times the
+// coordinates they multiply (|J_r| |r| for positions, |J_theta| for rotations).
+double Stepper::rowScale(const Constraint& c, const Eigen::Ref<const Eigen::MatrixXd>& J, int e) const {
+  double scale = 0;
+  for (size_t k = 0; k < c.bodies().size(); ++k) {
+    const double r = kin_[c.bodies()[k]].r.cwiseAbs().maxCoeff();
+    scale += J.block<1, 3>(e, 6 * k).cwiseAbs().sum() * (r + length_scale_) +
+             J.block<1, 3>(e, 6 * k + 3).cwiseAbs().sum();
+  }
+  return scale;
+}
+
+double Stepper::rowWeight(const System& sys, int constraint, const Eigen::Ref<const Eigen::MatrixXd>& row) const {
+  const ConstraintLayout& L = sys.layout[constraint];
+  double s = 0;
+  for (size_t k = 0; k < L.bodies.size(); ++k) {
+    if (L.bodies[k] < 0) continue;
+    const Eigen::Matrix<double, 1, 6> r = row.block<1, 6>(0, 6 * k);
+    s += r * Minv_[L.bodies[k]] * r.transpose();
+  }
+  return (s > 0 && std::isfinite(s)) ? 1.0 / s : 0.0;
+}
+
+double Stepper::positionResidual(const System& sys) const {
+  double worst = 0;
+  for (int ci = 0; ci < sys.numConstraints(); ++ci) {
+    const ConstraintLayout& L = sys.layout[ci];
+    const Constraint& c = *sys.constraints[ci];
+    const Eigen::MatrixXd& J = J_[ci];
+    for (int e = 0; e < L.size; ++e)
+      if (dropped_.empty() || !dropped_[L.row + e])
+        worst = std::max(worst, relative(Phi_[L.row + e], rowScale(c, J, e)));
+  }
+  return worst;
+}
+
+// max_e |(Phi_q v)_e| / (size of its terms): |J_r| |v|_max + |J_theta| |w'|_max per body.
+double Stepper::velocityResidual(const System& sys, const Eigen::VectorXd& u) const {
+  double worst = 0;
+  for (int ci = 0; ci < sys.numConstraints(); ++ci) {
+    const ConstraintLayout& L = sys.layout[ci];
+    const Eigen::MatrixXd& J = J_[ci];
+    for (int e = 0; e < L.size; ++e) {
+      if (!dropped_.empty() && dropped_[L.row + e]) continue;
+      double value = 0, scale = 0;
+      for (size_t k = 0; k < L.bodies.size(); ++k) {
+        if (L.bodies[k] < 0) continue;
+        const auto ub = u.segment<6>(6 * L.bodies[k]);
+        value += J.block<1, 6>(e, 6 * k).dot(ub);
+        const double v0 = ub.head<3>().cwiseAbs().maxCoeff(), w0 = ub.tail<3>().cwiseAbs().maxCoeff();
+        scale += J.block<1, 3>(e, 6 * k).cwiseAbs().sum() * std::max(v0, w0 * length_scale_) +
+                 J.block<1, 3>(e, 6 * k + 3).cwiseAbs().sum() * std::max(w0, v0 / length_scale_);
+      }
+      worst = std::max(worst, relative(value, scale));
+    }
+  }
+  return worst;
+}
+
+double Stepper::positionViolation() const { return Phi_.size() ? Phi_.cwiseAbs().maxCoeff() : 0.0; }
+
+double Stepper::velocityViolation(const System& sys, const Eigen::VectorXd& u) const {
+  mulJ(sys, u.data(), query_.data());
+  return query_.size() ? query_.cwiseAbs().maxCoeff() : 0.0;
+}
+
+// r += dr, p <- p (x) exp(dtheta'/2): a displacement in variation coordinates.
+void displace(const System& sys, Eigen::VectorXd& x, const double* dq) {
+  for (int b = 0; b < sys.nb; ++b) {
+    double* xb = x.data() + 7 * b;
+    const double* d = dq + 6 * b;
+    xb[0] += d[0], xb[1] += d[1], xb[2] += d[2];
+    Quaterniond p(xb[3], xb[4], xb[5], xb[6]);
+    p = (p * expRotation(Vector3d(d[3], d[4], d[5]))).normalized();
+    xb[3] = p.w(), xb[4] = p.x(), xb[5] = p.y(), xb[6] = p.z();
+  }
+}
+
+[[noreturn]] void Stepper::leftConstraints(const System& sys, double t, double err) const {
+  int worst = 0;
+  double worst_err = -1.0;
+  for (int ci = 0; ci < sys.numConstraints(); ++ci) {
+    const ConstraintLayout& L = sys.layout[ci];
+    const double e = L.size ? Phi_.segment(L.row, L.size).cwiseAbs().maxCoeff() : 0.0;
+    if (e > worst_err) worst_err = e, worst = ci;
+  }
+  std::ostringstream os;
+  os << "at t = " << t << " s: the step left the constraints (relative residual " << fmt(err)
+     << ", largest at '" << sys.constraints[worst]->name() << "': " << fmt(worst_err)
+     << "); try a smaller step";
+  throw std::runtime_error(os.str());
+}
+
+// Mass-orthogonal projection of positions, simplified Newton:
+//   dq = -H^-1 Phi_q^T W Phi  (H = M + Phi_q^T W Phi_q: the least-squares step, dependent
+// equations included), renewing H when progress is slow.
+void Stepper::projectPositions(const System& sys, State& s) {
+  const double tol = sys.options.position_tol;
+  double err = positionResidual(sys), previous = HUGE_VAL;
+  int it = 0;
+  for (; err > tol && it < kMaxNewton; ++it) {
+    if (it > 0 && err > 0.1 * previous) factor(sys, "position projection", s.t);
+    previous = err;
+    for (int e = 0; e < sys.m; ++e) dm_[e] = -kKappa * W_[e] * Phi_[e];
+    dn_.setZero();
+    addJt(sys, dm_.data(), dn_.data());
+    chol_.solve(dn_.data());
+    displace(sys, s.x, dn_.data());
+    load(sys, s.x.data(), s.u.data());
+    evaluate(sys, s);
+    err = positionResidual(sys);
+  }
+  ++stats_.position_projections;
+  if (err <= tol) return;
+  ++stats_.position_shortfalls;
+  stats_.worst_position = std::max(stats_.worst_position, err);
+  if (err > 1e-6) leftConstraints(sys, s.t, err);
+}
+
+// Mass-orthogonal projection of velocities onto Phi_q v = 0:
+//   dv = -H^-1 Phi_q^T W Phi_q v, repeated until the relative residual meets velocity_tol.
+void Stepper::projectVelocities(const System& sys, State& s) {
+  const double tol = sys.options.velocity_tol;
+  double err = velocityResidual(sys, s.u);
+  for (int it = 0; err > tol && it < kMaxVelocityPasses; ++it) {
+    mulJ(sys, s.u.data(), dm_.data());
+    for (int e = 0; e < sys.m; ++e) dm_[e] *= -kKappa * W_[e];
+    dn_.setZero();
+    addJt(sys, dm_.data(), dn_.data());
+    chol_.solve(dn_.data());
+    s.u += dn_;
+    err = velocityResidual(sys, s.u);
+  }
+  ++stats_.velocity_projections;
+  if (err <= tol) return;
+  ++stats_.velocity_shortfalls;
+  stats_.worst_velocity = std::max(stats_.worst_velocity, err);
+}
+
+}  // namespace mechanism_sim

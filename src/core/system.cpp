@@ -1,0 +1,147 @@
+// System: validation and layout, done once.
+#include "mechanism_sim/core/system.h"
+
+#include <algorithm>
+#include <cmath>
+#include <set>
+
+#include <Eigen/Eigenvalues>
+
+#include "mechanism_sim/core/couplers.h"
+
+namespace mechanism_sim {
+namespace {
+
+void validateBody(const Body& b) {
+  const std::string who = "body '" + b.name + "': ";
+  if (!std::isfinite(b.m) || b.m < 0) throw ModelError(who + "mass must be finite and >= 0");
+  if (!b.Jp.allFinite()) throw ModelError(who + "inertia must be finite");
+  const double scale = std::max(1e-300, b.Jp.cwiseAbs().maxCoeff());
+  if ((b.Jp - b.Jp.transpose()).cwiseAbs().maxCoeff() > 1e-9 * scale)
+    throw ModelError(who + "inertia must be symmetric");
+  const Eigen::Vector3d ev = Eigen::SelfAdjointEigenSolver<Matrix3d>(b.Jp).eigenvalues();
+  const double tol = 1e-9 * scale;
+  if (ev.minCoeff() < -tol) throw ModelError(who + "inertia has a negative principal moment");
+  if (ev(2) > ev(0) + ev(1) + tol)
+    throw ModelError(who + "inertia violates the triangle inequality (largest principal "
+                     "moment exceeds the sum of the other two)");
+  if (!b.r.allFinite() || !b.p.coeffs().allFinite() || b.p.norm() < 1e-9 || !b.v.allFinite() ||
+      !b.w.allFinite())
+    throw ModelError(who + "initial state must be finite with a non-zero orientation");
+}
+
+}  // namespace
+
+void System::finalize() {
+  nb = numBodies() - 1;
+  if (nb < 1) throw ModelError("the mechanism has no moving body");
+  for (int b = 1; b <= nb; ++b) validateBody(bodies[b]);
+  if (!gravity.allFinite()) throw ModelError("gravity must be finite");
+  if (options.method != "rk4" && options.method != "rk2")
+    throw ModelError("unknown integrator '" + options.method + "' (known: rk4, rk2)");
+  if (!(options.position_tol > 0) || !(options.velocity_tol > 0) || !(options.solve_tol > 0))
+    throw ModelError("integrator tolerances must be positive");
+
+  // Limits become constraints after all others, free until reached.
+  constraints.erase(std::remove_if(constraints.begin(), constraints.end(),
+                                   [](const std::shared_ptr<Constraint>& c) {
+                                     return dynamic_cast<const LimitConstraint*>(c.get()) != nullptr;
+                                   }),
+                    constraints.end());
+  m_eq = 0;
+  for (const auto& c : constraints) m_eq += c->size();
+  for (size_t l = 0; l < limits.size(); ++l) {
+    LimitSpec& L = limits[l];
+    L.constraint = numConstraints();
+    constraints.push_back(std::make_shared<LimitConstraint>(*joints[L.joint], L.k,
+                                                            static_cast<int>(l), L.lower, L.upper));
+  }
+  for (int c = 0; c < numConstraints(); ++c) constraints[c]->setId(c);
+  n = 6 * nb;
+
+  // Body graph of H = M + Phi_q^T W Phi_q and the factorization's schedule.
+  block_edges.clear();
+  for (const auto& c : constraints)
+    for (int b1 : c->bodies())
+      for (int b2 : c->bodies())
+        if (b1 > 0 && b2 > 0 && b1 < b2) block_edges.push_back({b1 - 1, b2 - 1});
+  BlockCholesky pattern;
+  pattern.analyze(nb, block_edges);
+
+  layout.assign(constraints.size(), ConstraintLayout());
+  int row = 0;
+  for (size_t ci = 0; ci < constraints.size(); ++ci) {
+    const Constraint& c = *constraints[ci];
+    ConstraintLayout& L = layout[ci];
+    L.row = row;
+    L.size = c.size();
+    row += L.size;
+    const int k = static_cast<int>(c.bodies().size());
+    L.bodies.clear();
+    for (int b : c.bodies()) L.bodies.push_back(b - 1);
+    L.address.assign(k * k, -1);
+    L.transposed.assign(k * k, 0);
+    for (int k1 = 0; k1 < k; ++k1)
+      for (int k2 = k1; k2 < k; ++k2) {
+        const int b1 = L.bodies[k1], b2 = L.bodies[k2];
+        if (b1 < 0 || b2 < 0) continue;
+        bool t = false;
+        L.address[k1 * k + k2] = pattern.address(b1, b2, &t);
+        L.transposed[k1 * k + k2] = t;
+      }
+  }
+  m = row;
+
+  // Scales of the problem.
+  double msum = 0, isum = 0;
+  int mcount = 0, icount = 0;
+  for (int b = 1; b <= nb; ++b) {
+    if (bodies[b].m > 0) msum += bodies[b].m, ++mcount;
+    const double tr = bodies[b].Jp.trace() / 3.0;
+    if (tr > 0) isum += tr, ++icount;
+  }
+  double L = 0;
+  for (const Joint* j : joints) L = std::max({L, j->frameI().sp_B.norm(), j->frameJ().sp_B.norm()});
+  for (const SpringDamper& s : springs) L = std::max({L, s.sp_i.norm(), s.sp_j.norm(), s.L0});
+  // the extent of the bodies' initial positions (translation-invariant)
+  Vector3d lo = bodies[1].r, hi = bodies[1].r;
+  for (int b = 1; b <= nb; ++b) lo = lo.cwiseMin(bodies[b].r), hi = hi.cwiseMax(bodies[b].r);
+  L = std::max(L, (hi - lo).norm());
+  length_scale = L > 0 ? L : 1.0;
+  mass_scale = mcount ? msum / mcount : 1.0;
+  inertia_scale = icount ? isum / icount : mass_scale * length_scale * length_scale;
+  damping.resize(joints.size(), {0, 0, 0});
+  friction.resize(joints.size(), {0, 0, 0});
+}
+
+State initialState(const System& sys) {
+  State s;
+  s.x = Eigen::VectorXd::Zero(7 * sys.nb);
+  s.u = Eigen::VectorXd::Zero(sys.n);
+  for (int b = 1; b <= sys.nb; ++b) {
+    const Body& B = sys.bodies[b];
+    s.x.segment<3>(7 * (b - 1)) = B.r;
+    const Quaterniond p = B.p.normalized();
+    s.x.segment<4>(7 * (b - 1) + 3) << p.w(), p.x(), p.y(), p.z();
+    s.u.segment<3>(6 * (b - 1)) = B.v;
+    s.u.segment<3>(6 * (b - 1) + 3) = B.w;
+  }
+  for (const auto& c : sys.constraints) s.tracked.push_back(c->initialTracked());
+  s.limit_side.assign(sys.limits.size(), 0);
+  s.dropped.assign(sys.m, 0);
+  s.lambda = Eigen::VectorXd::Zero(sys.m);
+  s.acc = Eigen::VectorXd::Zero(sys.n);
+  s.friction.assign(sys.joints.size(), {0, 0, 0});
+  return s;
+}
+
+Inputs zeroInputs(const System& sys) {
+  Inputs in;
+  in.effort.assign(sys.joints.size(), {0, 0, 0});
+  in.force.assign(sys.bodies.size(), Vector3d::Zero());
+  in.torque.assign(sys.bodies.size(), Vector3d::Zero());
+  in.spring_actuation.assign(sys.springs.size(), 0.0);
+  return in;
+}
+
+}  // namespace mechanism_sim
