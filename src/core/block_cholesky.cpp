@@ -88,6 +88,7 @@ void BlockCholesky::analyze(int nb, const std::vector<std::pair<int, int>>& edge
   zero_.assign(6 * nb, 0);
   y_.assign(nb, Vec6::Zero());
   start_.assign(nb, Vec6::Zero());
+  dinv_.assign(nb, Vec6::Zero());
 }
 
 int BlockCholesky::address(int i, int j, bool* transposed) const {
@@ -134,16 +135,46 @@ bool BlockCholesky::factorDiagonal(Block& D, double pivot_tol, bool skip_zero, i
   return true;
 }
 
+namespace {
+
+// B <- B L^-T for lower-triangular L with inverse diagonal dinv: each row b of B solves
+// L x = b^T by forward substitution.
+inline void solveRightLT(const BlockCholesky::Block& L, const BlockCholesky::Vec6& dinv, BlockCholesky::Block& B) {
+  for (int c = 0; c < 6; ++c) {
+    BlockCholesky::Vec6 col = B.col(c);
+    for (int p = 0; p < c; ++p) col -= L(c, p) * B.col(p);
+    B.col(c) = col * dinv[c];
+  }
+}
+
+// y <- L^-1 y and y <- L^-T y for one diagonal block.
+inline void forwardL(const BlockCholesky::Block& L, const BlockCholesky::Vec6& dinv, BlockCholesky::Vec6& y) {
+  for (int c = 0; c < 6; ++c) {
+    double v = y[c];
+    for (int p = 0; p < c; ++p) v -= L(c, p) * y[p];
+    y[c] = v * dinv[c];
+  }
+}
+inline void backwardLT(const BlockCholesky::Block& L, const BlockCholesky::Vec6& dinv, BlockCholesky::Vec6& y) {
+  for (int c = 5; c >= 0; --c) {
+    double v = y[c];
+    for (int r = c + 1; r < 6; ++r) v -= L(r, c) * y[r];
+    y[c] = v * dinv[c];
+  }
+}
+
+}  // namespace
+
 int BlockCholesky::factorize(double pivot_tol, bool skip_zero) {
   int zeros = 0;
   for (int k = 0; k < nb_; ++k) start_[k] = blocks_[k].diagonal();
   for (int k = 0; k < nb_; ++k) {
     Block& D = blocks_[k];
     if (!factorDiagonal(D, pivot_tol, skip_zero, k, &zeros)) return zeros;
-    const auto U = D.transpose().triangularView<Eigen::Upper>();
+    dinv_[k] = D.diagonal().cwiseInverse();
     for (int p = col_start_[k]; p < col_start_[k + 1]; ++p) {
       Block& B = blocks_[col_block_[p]];
-      U.solveInPlace<Eigen::OnTheRight>(B);  // L_ik = H_ik L_kk^{-T}
+      solveRightLT(D, dinv_[k], B);  // L_ik = H_ik L_kk^{-T}
       for (int c = 0; c < 6; ++c)
         if (zero_[6 * order_[k] + c]) B.col(c).setZero();
     }
@@ -158,14 +189,14 @@ int BlockCholesky::factorize(double pivot_tol, bool skip_zero) {
 void BlockCholesky::solve(double* x) const {
   for (int k = 0; k < nb_; ++k) y_[k] = Eigen::Map<const Vec6>(x + 6 * order_[k]);
   for (int k = 0; k < nb_; ++k) {  // L y = b
-    blocks_[k].triangularView<Eigen::Lower>().solveInPlace(y_[k]);
+    forwardL(blocks_[k], dinv_[k], y_[k]);
     for (int p = col_start_[k]; p < col_start_[k + 1]; ++p)
       y_[col_row_[p]].noalias() -= blocks_[col_block_[p]] * y_[k];
   }
   for (int k = nb_ - 1; k >= 0; --k) {  // L^T x = y
     for (int p = col_start_[k]; p < col_start_[k + 1]; ++p)
       y_[k].noalias() -= blocks_[col_block_[p]].transpose() * y_[col_row_[p]];
-    blocks_[k].transpose().triangularView<Eigen::Upper>().solveInPlace(y_[k]);
+    backwardLT(blocks_[k], dinv_[k], y_[k]);
   }
   for (int k = 0; k < nb_; ++k) {
     Vec6 v = y_[k];

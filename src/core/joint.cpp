@@ -4,13 +4,18 @@
 
 namespace mechanism_sim {
 
-JointGeometry Joint::geometry(const BodyKin& ki, const BodyKin& kj) const {
+JointGeometry Joint::geometry(const BodyKin& ki, const BodyKin& kj, unsigned parts) const {
   const Matrix3d& Ri = frame_i_.Rp;
   const Matrix3d& Rj = frame_j_.Rp;
-  return JointGeometry{fixedVector(ki, Ri.col(0)), fixedVector(ki, Ri.col(1)),
-                       fixedVector(ki, Ri.col(2)), fixedVector(kj, Rj.col(0)),
-                       fixedVector(kj, Rj.col(1)), fixedVector(kj, Rj.col(2)),
-                       gap(ki, frame_i_.sp_B, kj, frame_j_.sp_B)};
+  JointGeometry g;
+  if (parts & kBxI) g.bx_i = fixedVector(ki, Ri.col(0));
+  if (parts & kByI) g.by_i = fixedVector(ki, Ri.col(1));
+  if (parts & kBzI) g.bz_i = fixedVector(ki, Ri.col(2));
+  if (parts & kBxJ) g.bx_j = fixedVector(kj, Rj.col(0));
+  if (parts & kByJ) g.by_j = fixedVector(kj, Rj.col(1));
+  if (parts & kBzJ) g.bz_j = fixedVector(kj, Rj.col(2));
+  if (parts & kGap) g.d = gap(ki, frame_i_.sp_B, kj, frame_j_.sp_B);
+  return g;
 }
 
 void Joint::putPoint(const JointGeometry& g, RowWriter& out) {

@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <cmath>
 #include <sstream>
+#include <cstdio>
+#include <cstdlib>
 
 #include "mechanism_sim/core/couplers.h"
 
@@ -15,8 +17,11 @@ namespace {
 // smallest eigenvalue of the row-scaled W^1/2 Phi_q M^-1 Phi_q^T W^1/2 (1 for one joint,
 // about 1/N^2 along a chain of N bodies), while H's condition number grows like kappa;
 // 1e8 balances the two (README "Integration method": measured).
-constexpr double kKappa = 1e8;
+static double kKappa = getenv("MS_KAPPA") ? atof(getenv("MS_KAPPA")) : 1e7;
 constexpr int kMaxSolvePasses = 12;
+// Residual scales have a floor of kFloor times the largest motion (force) in the system,
+// so that a body at rest beside moving ones is not judged on round-off alone.
+constexpr double kFloor = 1e-6;
 constexpr int kMaxNewton = 20;
 constexpr int kMaxVelocityPasses = 8;
 
@@ -71,7 +76,10 @@ Stepper::Stepper(const System& sys) {
   kin_.assign(sys.bodies.size(), BodyKin());
   J_.clear();
   for (const auto& c : sys.constraints)
-    J_.push_back(Eigen::MatrixXd::Zero(c->size(), 6 * static_cast<int>(c->bodies().size())));
+    J_.push_back(Jacobian::Zero(6, 6 * static_cast<int>(c->bodies().size())));
+  J_frozen_ = J_;
+  sizes_.clear();
+  for (const auto& c : sys.constraints) sizes_.push_back(c->size());
   auto zeros = [](Eigen::VectorXd& v, int size) { v = Eigen::VectorXd::Zero(size); };
   zeros(Phi_, sys.m), zeros(gamma_, sys.m), zeros(W_, sys.m), zeros(lam_, sys.m);
   zeros(r2_, sys.m), zeros(s2_, sys.m), zeros(dm_, sys.m), zeros(query_, sys.m);
@@ -104,7 +112,7 @@ void Stepper::evaluate(const System& sys, const State& st) {
     const ConstraintLayout& L = sys.layout[ci];
     const int k = static_cast<int>(c.bodies().size());
     for (int s = 0; s < k && s < 8; ++s) ptrs[s] = &kin_[c.bodies()[s]];
-    c.evaluate(ptrs, ctx, Phi_.segment(L.row, L.size), J_[ci], gamma_.segment(L.row, L.size));
+    c.evaluate(ptrs, ctx, Phi_.segment(L.row, L.size), J_[ci].topRows(L.size), gamma_.segment(L.row, L.size));
   }
   // Dependent equations (assembly found them) are implied by the others near the
   // constraint manifold; off it they are nearly dependent and make the KKT system
@@ -119,30 +127,41 @@ void Stepper::evaluate(const System& sys, const State& st) {
   ++stats_.evaluations;
 }
 
-// ---- products over the constraint blocks (no allocation)
+// ---- products over the constraint blocks (no allocation). J_[c] holds 6 rows (those past
+// the constraint's size are zero), so every body block is a fixed-size 6x6.
+
+namespace {
+using Vec6 = Eigen::Matrix<double, 6, 1>;
+using Mat6 = Eigen::Matrix<double, 6, 6>;
+inline Vec6 padded(const double* y, int size) {
+  Vec6 v = Vec6::Zero();
+  for (int e = 0; e < size; ++e) v[e] = y[e];
+  return v;
+}
+}  // namespace
 
 void Stepper::mulJ(const System& sys, const double* v, double* out) const {
   for (int e = 0; e < sys.m; ++e) out[e] = 0.0;
   for (int ci = 0; ci < sys.numConstraints(); ++ci) {
     const ConstraintLayout& L = sys.layout[ci];
-    const Eigen::MatrixXd& J = J_[ci];
+    const Jacobian& J = J_[ci];
+    Vec6 y = Vec6::Zero();
     for (size_t s = 0; s < L.bodies.size(); ++s) {
       if (L.bodies[s] < 0) continue;
-      Eigen::Map<const Eigen::Matrix<double, 6, 1>> vb(v + 6 * L.bodies[s]);
-      Eigen::Map<Eigen::VectorXd>(out + L.row, L.size).noalias() += J.middleCols<6>(6 * s) * vb;
+      y.noalias() += J.middleCols<6>(6 * s) * Eigen::Map<const Vec6>(v + 6 * L.bodies[s]);
     }
+    for (int e = 0; e < L.size; ++e) out[L.row + e] += y[e];
   }
 }
 
 void Stepper::addJt(const System& sys, const double* y, double* out) const {
   for (int ci = 0; ci < sys.numConstraints(); ++ci) {
     const ConstraintLayout& L = sys.layout[ci];
-    const Eigen::MatrixXd& J = J_[ci];
-    Eigen::Map<const Eigen::VectorXd> yc(y + L.row, L.size);
+    const Jacobian& J = J_[ci];
+    const Vec6 yc = padded(y + L.row, L.size);
     for (size_t s = 0; s < L.bodies.size(); ++s) {
       if (L.bodies[s] < 0) continue;
-      Eigen::Map<Eigen::Matrix<double, 6, 1>>(out + 6 * L.bodies[s]).noalias() +=
-          J.middleCols<6>(6 * s).transpose() * yc;
+      Eigen::Map<Vec6>(out + 6 * L.bodies[s]).noalias() += J.middleCols<6>(6 * s).transpose() * yc;
     }
   }
 }
@@ -160,14 +179,15 @@ void Stepper::mulM(const System& sys, const double* v, double* out) const {
 const Eigen::VectorXd& Stepper::rowWeights(const System& sys) {
   for (int ci = 0; ci < sys.numConstraints(); ++ci) {
     const ConstraintLayout& L = sys.layout[ci];
-    const Eigen::MatrixXd& J = J_[ci];
+    const Jacobian& J = J_[ci];
+    Vec6 sum = Vec6::Zero();  // diag(J M~^-1 J^T)
+    for (size_t k = 0; k < L.bodies.size(); ++k) {
+      if (L.bodies[k] < 0) continue;
+      const auto Jb = J.middleCols<6>(6 * k);
+      sum += (Jb * Minv_[L.bodies[k]]).cwiseProduct(Jb).rowwise().sum();
+    }
     for (int e = 0; e < L.size; ++e) {
-      double s = 0;
-      for (size_t k = 0; k < L.bodies.size(); ++k) {
-        if (L.bodies[k] < 0) continue;
-        const Eigen::Matrix<double, 1, 6> row = J.block<1, 6>(e, 6 * k);
-        s += row * Minv_[L.bodies[k]] * row.transpose();
-      }
+      const double s = sum[e];
       W_[L.row + e] = (s > 0 && std::isfinite(s)) ? 1.0 / s : 0.0;
     }
   }
@@ -187,19 +207,20 @@ void Stepper::assembleH(const System& sys, double kappa, double mass, double shi
     if (shift != 0.0) D.diagonal() += shift * Minv_[b - 1].diagonal().cwiseInverse();
   }
   for (int ci = 0; ci < sys.numConstraints(); ++ci) {
-    const Eigen::MatrixXd& J = J_[ci];
+    const Jacobian& J = J_[ci];
     const ConstraintLayout& L = sys.layout[ci];
     const int k = static_cast<int>(L.bodies.size());
-    for (int k1 = 0; k1 < k; ++k1)
+    const Vec6 w = kappa * padded(W_.data() + L.row, L.size);
+    for (int k1 = 0; k1 < k; ++k1) {
+      if (L.bodies[k1] < 0) continue;
+      const Mat6 WJ = w.asDiagonal() * J.middleCols<6>(6 * k1);
       for (int k2 = k1; k2 < k; ++k2) {
         const int address = L.address[k1 * k + k2];
         if (address < 0) continue;
-        Eigen::Matrix<double, 6, 6> B;
-        B.noalias() = J.middleCols<6>(6 * k1).transpose() *
-                      (kappa * W_.segment(L.row, L.size)).asDiagonal() * J.middleCols<6>(6 * k2);
-        if (L.transposed[k1 * k + k2]) chol_.block(address) += B.transpose();
-        else chol_.block(address) += B;
+        if (L.transposed[k1 * k + k2]) chol_.block(address).noalias() += J.middleCols<6>(6 * k2).transpose() * WJ;
+        else chol_.block(address).noalias() += WJ.transpose() * J.middleCols<6>(6 * k2);
       }
+    }
   }
 }
 
@@ -218,8 +239,8 @@ void Stepper::addRowsToH(const System& sys, int constraint, const Eigen::MatrixX
     }
 }
 
-void Stepper::factor(const System& sys, const char* where, double t) {
-  rowWeights(sys);
+void Stepper::factor(const System& sys, const char* where, double t, bool reweight) {
+  if (reweight) rowWeights(sys);
   assembleH(sys, kKappa, 1.0, 0.0);
   ++stats_.factorizations;
   if (chol_.factorize(0.0, false) != 0) {
@@ -290,6 +311,7 @@ void Stepper::jointRows(const System& sys, const State& s, int j, Row* rows) con
 bool Stepper::solveKKT(const System& sys, bool factored, double t) {
   const double tol = sys.options.solve_tol;
   double res = 0;
+  const double a_floor = kFloor * motionScale(sys, a_);
   for (int pass = 0;; ++pass) {
     // The size of the terms: per body, the largest force (torque) term of its three
     // components; per equation, |gamma| + |J_r| |a_r|_max + |J_theta| |a_theta|_max.
@@ -298,34 +320,38 @@ bool Stepper::solveKKT(const System& sys, bool factored, double t) {
     for (int e = 0; e < sys.m; ++e) r2_[e] = gamma_[e], s2_[e] = std::fabs(gamma_[e]);
     for (int ci = 0; ci < sys.numConstraints(); ++ci) {
       const ConstraintLayout& L = sys.layout[ci];
-      const Eigen::MatrixXd& J = J_[ci];
+      const Jacobian& J = J_[ci];
+      const Vec6 lam = padded(lam_.data() + L.row, L.size);
+      const Vec6 lam_abs = lam.cwiseAbs();
+      Vec6 ja = Vec6::Zero(), jas = Vec6::Zero();
       for (size_t s = 0; s < L.bodies.size(); ++s) {
         if (L.bodies[s] < 0) continue;
         const int col = 6 * L.bodies[s];
+        const auto Jb = J.middleCols<6>(6 * s);
+        const Eigen::Map<const Vec6> ab(a_.data() + col);
         // linear and angular parts measured against each other through the length scale
-        const double ar0 = a_.segment<3>(col).cwiseAbs().maxCoeff();
-        const double at0 = a_.segment<3>(col + 3).cwiseAbs().maxCoeff();
-        const double ar = std::max(ar0, at0 * length_scale_), at = std::max(at0, ar0 / length_scale_);
-        for (int e = 0; e < L.size; ++e) {
-          const double le = lam_[L.row + e];
-          double ja = 0;
-          for (int c = 0; c < 6; ++c) {
-            const double Jec = J(e, 6 * s + c);
-            ja += Jec * a_[col + c];
-            r1_[col + c] -= Jec * le;
-            s1_[col + c] += std::fabs(Jec * le);
-          }
-          r2_[L.row + e] -= ja;
-          s2_[L.row + e] += J.block<1, 3>(e, 6 * s).cwiseAbs().sum() * ar +
-                            J.block<1, 3>(e, 6 * s + 3).cwiseAbs().sum() * at;
-        }
+        const double ar0 = ab.head<3>().cwiseAbs().maxCoeff();
+        const double at0 = ab.tail<3>().cwiseAbs().maxCoeff();
+        const double ar = std::max({ar0, at0 * length_scale_, a_floor});
+        const double at = std::max({at0, ar0 / length_scale_, a_floor / length_scale_});
+        ja.noalias() += Jb * ab;
+        jas += Jb.leftCols<3>().cwiseAbs().rowwise().sum() * ar + Jb.rightCols<3>().cwiseAbs().rowwise().sum() * at;
+        Eigen::Map<Vec6>(r1_.data() + col).noalias() -= Jb.transpose() * lam;
+        Eigen::Map<Vec6>(s1_.data() + col).noalias() += Jb.cwiseAbs().transpose() * lam_abs;
       }
+      for (int e = 0; e < L.size; ++e) r2_[L.row + e] -= ja[e], s2_[L.row + e] += jas[e];
     }
     res = 0;
+    double f_floor = 0;  // the largest force in the system (torques through the length scale)
+    for (int i = 0; i < sys.n; i += 6)
+      f_floor = std::max({f_floor, s1_[i], s1_[i + 1], s1_[i + 2],
+                          (s1_[i + 3] + s1_[i + 4] + s1_[i + 5]) / length_scale_});
+    f_floor *= kFloor;
     for (int i = 0; i < sys.n; i += 6) {
       const double f = std::max({s1_[i], s1_[i + 1], s1_[i + 2]});
       const double n = std::max({s1_[i + 3], s1_[i + 4], s1_[i + 5]});
-      const double fs = std::max(f, n / length_scale_), ns = std::max(n, f * length_scale_);
+      const double fs = std::max({f, n / length_scale_, f_floor});
+      const double ns = std::max({n, f * length_scale_, f_floor * length_scale_});
       for (int c = 0; c < 3; ++c)
         res = std::max({res, relative(r1_[i + c], fs), relative(r1_[i + 3 + c], ns)});
     }
@@ -336,6 +362,7 @@ bool Stepper::solveKKT(const System& sys, bool factored, double t) {
     }
     if (pass == kMaxSolvePasses) break;
     if (!factored) factor(sys, "stage 1", t), factored = true;
+    ++stats_.solve_passes;
     for (int e = 0; e < sys.m; ++e) dm_[e] = kKappa * W_[e] * r2_[e];
     dn_ = r1_;
     addJt(sys, dm_.data(), dn_.data());
@@ -366,10 +393,10 @@ static void positionRates(int nb, const double* x, const double* u, double* xdot
 
 void Stepper::rates(const System& sys, const State& s, const Inputs& in,
                     const std::vector<std::array<double, 3>>& friction, const double* x,
-                    const double* u, double* xdot, double* udot) {
+                    const double* u, double* xdot, double* udot, bool reweight) {
   load(sys, x, u);
   evaluate(sys, s);
-  factor(sys, "stage", s.t);
+  factor(sys, "stage", s.t, reweight);
   forces(sys, s, in, friction);
   solveKKT(sys, true, s.t);
   positionRates(sys.nb, x, u, xdot);
@@ -444,7 +471,8 @@ void Stepper::step(const System& sys, State& s, const Inputs& in, double h) {
   auto stage = [&](int k, double c, int from) {
     xs_ = x0_ + (c * h) * kx_[from];
     us_ = u0_ + (c * h) * ku_[from];
-    rates(sys, s, in, s.friction, xs_.data(), us_.data(), kx_[k].data(), ku_[k].data());
+    // the row weights only precondition: computed at the first stage, kept for the step
+    rates(sys, s, in, s.friction, xs_.data(), us_.data(), kx_[k].data(), ku_[k].data(), k == 1);
   };
   if (sys.options.method == "rk2") {  // Heun
     stage(1, 1.0, 0);
@@ -460,12 +488,12 @@ void Stepper::step(const System& sys, State& s, const Inputs& in, double h) {
   for (int b = 0; b < sys.nb; ++b) s.x.segment<4>(7 * b + 3).normalize();
   s.t += h;
   ++s.steps;
-  finishStep(sys, s, in);
+  finishStep(sys, s, in, true);
 }
 
 void Stepper::settle(const System& sys, State& s, const Inputs& in) {
   for (int b = 0; b < sys.nb; ++b) s.x.segment<4>(7 * b + 3).normalize();
-  finishStep(sys, s, in);
+  finishStep(sys, s, in, false);
 }
 
 bool Stepper::frictionActs(const System& sys) const {
@@ -482,12 +510,17 @@ bool Stepper::frictionActs(const System& sys) const {
 //  4. velocities onto Phi_q v = 0, mass-orthogonal;
 //  5. tracked angles move on; accelerations and multipliers are solved at the final state
 //     (refined on its own Jacobian) and stored in the State; limits that would pull let go.
-void Stepper::finishStep(const System& sys, State& s, const Inputs& in) {
+void Stepper::finishStep(const System& sys, State& s, const Inputs& in, bool after_stages) {
   load(sys, s.x.data(), s.u.data());
-  updateLimits(sys, s);
+  // After the stages, H and Phi_q of the last stage are a consistent pair: the Newton
+  // steps use them frozen (the correction's direction is off by O(h) in a step of the
+  // size of the local error: below RK4's truncation). A limit that just became active
+  // is not in them: then full Newton, H refactored each iteration.
+  const bool frozen = after_stages && !updateLimits(sys, s);
+  if (frozen) std::swap(J_, J_frozen_);
   evaluate(sys, s);
-  factor(sys, "projection", s.t);
-  projectPositions(sys, s);
+  const bool moved = projectPositions(sys, s, frozen);
+  if (moved || !frozen) factor(sys, "projection", s.t, !frozen);  // velocities need H at this Phi_q
   projectVelocities(sys, s);
   load(sys, s.x.data(), s.u.data());
   const EvalContext ctx = s.context();
@@ -569,7 +602,7 @@ double Stepper::positionResidual(const System& sys) const {
   for (int ci = 0; ci < sys.numConstraints(); ++ci) {
     const ConstraintLayout& L = sys.layout[ci];
     const Constraint& c = *sys.constraints[ci];
-    const Eigen::MatrixXd& J = J_[ci];
+    const Jacobian& J = J_[ci];
     for (int e = 0; e < L.size; ++e)
       if (dropped_.empty() || !dropped_[L.row + e])
         worst = std::max(worst, relative(Phi_[L.row + e], rowScale(c, J, e)));
@@ -579,10 +612,11 @@ double Stepper::positionResidual(const System& sys) const {
 
 // max_e |(Phi_q v)_e| / (size of its terms): |J_r| |v|_max + |J_theta| |w'|_max per body.
 double Stepper::velocityResidual(const System& sys, const Eigen::VectorXd& u) const {
+  const double floor = kFloor * motionScale(sys, u);
   double worst = 0;
   for (int ci = 0; ci < sys.numConstraints(); ++ci) {
     const ConstraintLayout& L = sys.layout[ci];
-    const Eigen::MatrixXd& J = J_[ci];
+    const Jacobian& J = J_[ci];
     for (int e = 0; e < L.size; ++e) {
       if (!dropped_.empty() && dropped_[L.row + e]) continue;
       double value = 0, scale = 0;
@@ -591,13 +625,22 @@ double Stepper::velocityResidual(const System& sys, const Eigen::VectorXd& u) co
         const auto ub = u.segment<6>(6 * L.bodies[k]);
         value += J.block<1, 6>(e, 6 * k).dot(ub);
         const double v0 = ub.head<3>().cwiseAbs().maxCoeff(), w0 = ub.tail<3>().cwiseAbs().maxCoeff();
-        scale += J.block<1, 3>(e, 6 * k).cwiseAbs().sum() * std::max(v0, w0 * length_scale_) +
-                 J.block<1, 3>(e, 6 * k + 3).cwiseAbs().sum() * std::max(w0, v0 / length_scale_);
+        scale += J.block<1, 3>(e, 6 * k).cwiseAbs().sum() * std::max({v0, w0 * length_scale_, floor}) +
+                 J.block<1, 3>(e, 6 * k + 3).cwiseAbs().sum() * std::max({w0, v0 / length_scale_, floor / length_scale_});
       }
       worst = std::max(worst, relative(value, scale));
     }
   }
   return worst;
+}
+
+// max over bodies of max(|v|, |w'| L) (or of accelerations): the system's motion scale.
+double Stepper::motionScale(const System& sys, const Eigen::VectorXd& u) const {
+  double V = 0;
+  for (int b = 0; b < sys.nb; ++b)
+    V = std::max({V, u.segment<3>(6 * b).cwiseAbs().maxCoeff(),
+                  u.segment<3>(6 * b + 3).cwiseAbs().maxCoeff() * length_scale_});
+  return V;
 }
 
 double Stepper::positionViolation() const { return Phi_.size() ? Phi_.cwiseAbs().maxCoeff() : 0.0; }
@@ -637,16 +680,21 @@ void displace(const System& sys, Eigen::VectorXd& x, const double* dq) {
 // Mass-orthogonal projection of positions, simplified Newton:
 //   dq = -H^-1 Phi_q^T W Phi  (H = M + Phi_q^T W Phi_q: the least-squares step, dependent
 // equations included), renewing H when progress is slow.
-void Stepper::projectPositions(const System& sys, State& s) {
+bool Stepper::projectPositions(const System& sys, State& s, bool frozen) {
   const double tol = sys.options.position_tol;
   double err = positionResidual(sys), previous = HUGE_VAL;
   int it = 0;
   for (; err > tol && it < kMaxNewton; ++it) {
-    if (it > 0 && err > 0.1 * previous) factor(sys, "position projection", s.t);
+    if (!frozen || (it > 1 && err > 0.1 * previous)) {  // full Newton
+      factor(sys, "position projection", s.t);
+      frozen = false;
+    }
     previous = err;
     for (int e = 0; e < sys.m; ++e) dm_[e] = -kKappa * W_[e] * Phi_[e];
     dn_.setZero();
+    if (frozen) std::swap(J_, J_frozen_);
     addJt(sys, dm_.data(), dn_.data());
+    if (frozen) std::swap(J_, J_frozen_);
     chol_.solve(dn_.data());
     displace(sys, s.x, dn_.data());
     load(sys, s.x.data(), s.u.data());
@@ -654,10 +702,12 @@ void Stepper::projectPositions(const System& sys, State& s) {
     err = positionResidual(sys);
   }
   ++stats_.position_projections;
-  if (err <= tol) return;
-  ++stats_.position_shortfalls;
-  stats_.worst_position = std::max(stats_.worst_position, err);
-  if (err > 1e-6) leftConstraints(sys, s.t, err);
+  if (err > tol) {
+    ++stats_.position_shortfalls;
+    stats_.worst_position = std::max(stats_.worst_position, err);
+    if (err > 1e-6) leftConstraints(sys, s.t, err);
+  }
+  return it > 0;
 }
 
 // Mass-orthogonal projection of velocities onto Phi_q v = 0:

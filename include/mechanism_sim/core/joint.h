@@ -24,7 +24,11 @@ struct JointParams {
   double phi0 = 0.0;   // screw: relative angle at which B_i and B_j coincide
 };
 
-// The joint frames' axes and the gap d_ij in one evaluation.
+// The joint frames' axes and the gap d_ij in one evaluation; a joint computes only those
+// it uses (Joint::equationAxes), the others stay unset.
+enum GeometryPart : unsigned {
+  kBxI = 1, kByI = 2, kBzI = 4, kBxJ = 8, kByJ = 16, kBzJ = 32, kGap = 64, kAllParts = 127
+};
 struct JointGeometry {
   FixedVector bx_i, by_i, bz_i, bx_j, by_j, bz_j;
   Gap d;
@@ -59,13 +63,15 @@ class Joint : public Constraint {
   void evaluate(const BodyKin* const* kin, const EvalContext& ctx, Eigen::Ref<Eigen::VectorXd> Phi,
                 Eigen::Ref<Eigen::MatrixXd> J, Eigen::Ref<Eigen::VectorXd> gamma) const final {
     RowWriter out(Phi, J, gamma);
-    equations(geometry(*kin[0], *kin[1]), *kin[0], *kin[1], ctx.tracked[id()], out);
+    equations(geometry(*kin[0], *kin[1], equationAxes()), *kin[0], *kin[1], ctx.tracked[id()], out);
   }
   void track(const BodyKin* const* kin, const EvalContext&, Tracked& t) const final {
     trackAngles(*kin[0], *kin[1], t);
   }
 
-  JointGeometry geometry(const BodyKin& ki, const BodyKin& kj) const;
+  JointGeometry geometry(const BodyKin& ki, const BodyKin& kj, unsigned parts = kAllParts) const;
+  // The parts of JointGeometry that equations() reads (GeometryPart bits).
+  virtual unsigned equationAxes() const { return kAllParts; }
 
  protected:
   virtual void equations(const JointGeometry& g, const BodyKin& ki, const BodyKin& kj,

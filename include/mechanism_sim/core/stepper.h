@@ -25,7 +25,7 @@ struct SolverStats {
   long solves = 0, solve_shortfalls = 0;
   long position_projections = 0, position_shortfalls = 0;
   long velocity_projections = 0, velocity_shortfalls = 0;
-  long evaluations = 0, factorizations = 0;
+  long evaluations = 0, factorizations = 0, solve_passes = 0;
   double worst_solve = 0, worst_position = 0, worst_velocity = 0;
   long shortfalls() const { return solve_shortfalls + position_shortfalls + velocity_shortfalls; }
   std::string describe() const;  // one line
@@ -52,7 +52,7 @@ class Stepper {
   const std::vector<BodyKin>& kin() const { return kin_; }
   const Eigen::VectorXd& Phi() const { return Phi_; }
   const Eigen::VectorXd& gamma() const { return gamma_; }
-  const Eigen::MatrixXd& jacobian(int c) const { return J_[c]; }
+  Eigen::Ref<const Eigen::MatrixXd> jacobian(int c) const { return J_[c].topRows(sizes_[c]); }
   // max over equations of |Phi_e| and |Phi_q v|_e
   double positionViolation() const;
   double velocityViolation(const System& sys, const Eigen::VectorXd& u) const;
@@ -85,27 +85,30 @@ class Stepper {
  private:
   void forces(const System& sys, const State& s, const Inputs& in,
               const std::vector<std::array<double, 3>>& friction);
-  void factor(const System& sys, const char* where, double t);
+  void factor(const System& sys, const char* where, double t, bool reweight = true);
   // Refines s.acc/lambda-warm-started a_, lam_; factors H here first if it must iterate
   // and `factored` is false.
   bool solveKKT(const System& sys, bool factored, double t);
   bool frictionActs(const System& sys) const;
   void rates(const System& sys, const State& s, const Inputs& in,
              const std::vector<std::array<double, 3>>& friction, const double* x, const double* u,
-             double* xdot, double* udot);
+             double* xdot, double* udot, bool reweight);
   void frictionFor(const System& sys, State& s, const Inputs& in, double h);
-  void finishStep(const System& sys, State& s, const Inputs& in);
-  void projectPositions(const System& sys, State& s);
+  void finishStep(const System& sys, State& s, const Inputs& in, bool after_stages);
+  bool projectPositions(const System& sys, State& s, bool frozen);  // whether it moved
   void projectVelocities(const System& sys, State& s);
   bool updateLimits(const System& sys, State& s);
   bool releaseLimits(const System& sys, State& s);
   void jointRows(const System& sys, const State& s, int j, Row* rows) const;
+  double motionScale(const System& sys, const Eigen::VectorXd& u) const;
   [[noreturn]] void leftConstraints(const System& sys, double t, double err) const;
 
   std::vector<BodyKin> kin_;
   std::vector<char> dropped_;
   double length_scale_ = 1.0;  // of the last evaluation (State::dropped)
-  std::vector<Eigen::MatrixXd> J_;
+  using Jacobian = Eigen::Matrix<double, 6, Eigen::Dynamic>;  // 6 rows, zero past the size
+  std::vector<Jacobian> J_, J_frozen_;  // J_frozen_: the last stage's, during projection
+  std::vector<int> sizes_;
   mutable Eigen::VectorXd query_;
   Eigen::VectorXd Phi_, gamma_, W_, Q_, a_, lam_, r1_, r2_, s1_, s2_, dn_, dm_;
   std::vector<Eigen::Matrix<double, 6, 6>> Minv_;  // per moving body, with stand-ins

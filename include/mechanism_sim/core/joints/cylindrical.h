@@ -13,6 +13,7 @@ class CylindricalJoint : public Joint {
   static Eigen::Isometry3d relativePose(const double* q, const JointParams& params);
   std::string type() const override { return "cylindrical"; }
   int size() const override { return 4; }
+  unsigned equationAxes() const override { return kBxI | kByI | kBzJ | kGap; }
   int trackedSlot(int k) const override { return k == 0 ? 0 : -1; }
   int dof() const override { return 2; }
   void coordinates(const BodyKin& ki, const BodyKin& kj, const Tracked& t, Row* out) const override;

@@ -12,6 +12,7 @@ class FixedJoint : public Joint {
   static Eigen::Isometry3d relativePose(const double* q, const JointParams& params);
   std::string type() const override { return "fixed"; }
   int size() const override { return 6; }
+  unsigned equationAxes() const override { return kBxI | kByI | kBzJ | kBxJ | kGap; }
   int dof() const override { return 0; }
   void coordinates(const BodyKin&, const BodyKin&, const Tracked&, Row*) const override {}
 

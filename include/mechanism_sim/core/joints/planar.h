@@ -14,6 +14,7 @@ class PlanarJoint : public Joint {
   static Eigen::Isometry3d relativePose(const double* q, const JointParams& params);
   std::string type() const override { return "planar"; }
   int size() const override { return 3; }
+  unsigned equationAxes() const override { return kBxI | kByI | kBzI | kBzJ | kGap; }
   int trackedSlot(int k) const override { return k == 2 ? 0 : -1; }
   int dof() const override { return 3; }
   void coordinates(const BodyKin& ki, const BodyKin& kj, const Tracked& t, Row* out) const override;

@@ -13,6 +13,7 @@ class PrismaticJoint : public Joint {
   static Eigen::Isometry3d relativePose(const double* q, const JointParams& params);
   std::string type() const override { return "prismatic"; }
   int size() const override { return 5; }
+  unsigned equationAxes() const override { return kBxI | kByI | kBzJ | kBxJ | kGap; }
   int dof() const override { return 1; }
   void coordinates(const BodyKin& ki, const BodyKin& kj, const Tracked& t, Row* out) const override;
 

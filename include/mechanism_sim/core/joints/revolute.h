@@ -13,6 +13,7 @@ class RevoluteJoint : public Joint {
   static Eigen::Isometry3d relativePose(const double* q, const JointParams& params);
   std::string type() const override { return "revolute"; }
   int size() const override { return 5; }
+  unsigned equationAxes() const override { return kBxI | kByI | kBzJ | kGap; }
   int trackedSlot(int k) const override { return k == 0 ? 0 : -1; }
   int dof() const override { return 1; }
   void coordinates(const BodyKin& ki, const BodyKin& kj, const Tracked& t, Row* out) const override;

@@ -17,6 +17,7 @@ class ScrewJoint : public Joint {
   static Eigen::Isometry3d relativePose(const double* q, const JointParams& params);
   std::string type() const override { return "screw"; }
   int size() const override { return 5; }
+  unsigned equationAxes() const override { return kBxI | kByI | kBzI | kBxJ | kBzJ | kGap; }
   int trackedSlot(int k) const override { return k == 0 ? 0 : -1; }
   int dof() const override { return 1; }
   double alpha() const { return alpha_; }

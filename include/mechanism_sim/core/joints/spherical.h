@@ -14,6 +14,7 @@ class SphericalJoint : public Joint {
   static Eigen::Isometry3d relativePose(const double* q, const JointParams& params);
   std::string type() const override { return "spherical"; }
   int size() const override { return 3; }
+  unsigned equationAxes() const override { return kGap; }
   int dof() const override { return 3; }
   bool holonomicCoordinates() const override { return false; }
   void coordinates(const BodyKin& ki, const BodyKin& kj, const Tracked& t, Row* out) const override;

@@ -14,6 +14,7 @@ class UniversalJoint : public Joint {
   static Eigen::Isometry3d relativePose(const double* q, const JointParams& params);
   std::string type() const override { return "universal"; }
   int size() const override { return 4; }
+  unsigned equationAxes() const override { return kBxI | kByJ | kGap; }
   int trackedSlot(int k) const override { return k; }
   int dof() const override { return 2; }
   void coordinates(const BodyKin& ki, const BodyKin& kj, const Tracked& t, Row* out) const override;
