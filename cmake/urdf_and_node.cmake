@@ -1,6 +1,8 @@
 # The URDF loader (urdfdom + tinyxml2, no roscpp), the batch simulator and the node.
 add_library(mechanism_sim_urdf
   src/urdf/xml_input.cpp
+  src/urdf/joint_specs.cpp
+  src/urdf/rigid_bodies.cpp
   src/urdf/loader.cpp
   src/urdf/model.cpp
   src/urdf/run_loop.cpp

@@ -8,6 +8,7 @@
 
 #include <Eigen/Eigenvalues>
 
+#include "mechanism_sim/core/joint.h"
 #include "mechanism_sim/urdf/model.h"
 
 namespace mechanism_sim {
@@ -234,9 +235,11 @@ ExtJoint readExtJoint(const XMLElement* e, const XmlReader& r) {
   if (!e->Attribute("type")) r.fail(e, "missing attribute 'type'");
   j.name = e->Attribute("name");
   j.type = e->Attribute("type");
-  static const std::set<std::string> types = {"revolute", "continuous", "prismatic", "cylindrical", "screw",
-                                              "universal", "spherical", "planar", "fixed"};
-  if (!types.count(j.type)) r.fail(e, "unknown joint type '" + j.type + "'");
+  try {
+    jointTypeInfo(j.type == "continuous" ? "revolute" : j.type);  // the core's joint types
+  } catch (const std::invalid_argument&) {
+    r.fail(e, "unknown joint type '" + j.type + "'");
+  }
   if (j.type == "screw") {
     const double lead = r.number(e, "lead", std::nullopt, 1e3);
     if (lead == 0.0) r.fail(e, "screw lead is zero (a screw of zero lead is a revolute joint)");

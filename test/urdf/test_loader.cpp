@@ -323,6 +323,28 @@ TEST(RunLoop, SamplesEveryNStepsAndKeepsTheLargestViolation) {
   EXPECT_EQ(loop.worstPositionViolation(), m->positionViolation());
 }
 
+// Degree-of-freedom names come from the core's joint type registry: "joint" for one-dof
+// joints, "joint.dof" otherwise; fixed and floating joints have none.
+TEST(Loader, InitialValuesNameDofsAsTheRegistryDoes) {
+  auto named = [](const std::string& dof) {
+    return load("test/urdf/floating_and_planar.urdf", LoadOptions{{{dof, 0.25}}, {}, ""});
+  };
+  for (const std::string dof : {"table.y", "table.rotation"}) {
+    auto m = named(dof);
+    EXPECT_NEAR(m->position(m->dofIndex(dof)), 0.25, 1e-12) << dof;
+  }
+  EXPECT_THROW(named("table"), LoadError);      // a planar joint has three
+  EXPECT_THROW(named("table.z"), LoadError);    // but no z
+  EXPECT_THROW(named("free"), LoadError);       // floating: none
+  EXPECT_THROW(named("free.x"), LoadError);
+  auto cardan = load("urdf/cardan_shaft.urdf", LoadOptions{{{"input_joint", 0.5}}, {}, ""});
+  EXPECT_NEAR(cardan->position(cardan->dofIndex("input_joint")), 0.5, 1e-12);
+  EXPECT_THROW(load("urdf/cardan_shaft.urdf", LoadOptions{{{"input_joint.", 0.5}}, {}, ""}), LoadError);
+  std::vector<std::string> names;
+  for (const Dof& d : cardan->dofs()) names.push_back(d.name);
+  EXPECT_EQ(names, (std::vector<std::string>{"input_joint", "output_joint", "cross.axis1", "cross.axis2"}));
+}
+
 // urdfdom speaks through console_bridge; the loader quiets it only while urdfdom parses.
 TEST(Loader, LeavesTheConsoleBridgeLevelAsItWas) {
   const console_bridge::LogLevel before = console_bridge::getLogLevel();

@@ -1,0 +1,42 @@
+// Links joined by fixed tree joints move as one rigid body. Each group of links becomes one
+// body of the core: its reference point is the group's centre of mass, its axes are those
+// of the group's first link (the one nearest the root), and its mass properties combine
+// the links' <inertial>s about that point. The root link's group is ground. Internal to
+// the loader.
+#pragma once
+#include <map>
+#include <string>
+#include <vector>
+
+#include <Eigen/Geometry>
+#include <urdf_model/model.h>
+
+#include "joint_specs.h"
+
+namespace mechanism_sim {
+namespace urdf_input {
+
+struct RigidGroup {
+  std::string first_link;                           // nearest the root (names the body)
+  double mass = 0.0;
+  Matrix3d Jp = Matrix3d::Zero();                   // about the centre of mass, body axes
+  Isometry3d link_T_body = Isometry3d::Identity();  // body frame in the first link's frame
+};
+
+class RigidBodies {
+ public:
+  RigidBodies(const LinkTree& tree, const urdf::ModelInterface& urdf);
+  // Groups in depth-first order from the root along the file's joint order; [0] is ground.
+  const std::vector<RigidGroup>& groups() const { return groups_; }
+  int groupOf(const std::string& link) const { return group_of_.at(link); }
+  // A link's pose in its group's body frame.
+  const Isometry3d& bodyTLink(const std::string& link) const { return body_T_link_.at(link); }
+
+ private:
+  std::vector<RigidGroup> groups_;
+  std::map<std::string, int> group_of_;
+  std::map<std::string, Isometry3d> body_T_link_;
+};
+
+}  // namespace urdf_input
+}  // namespace mechanism_sim
