@@ -256,7 +256,7 @@ AssemblyReport assemble(const System& sys, State& s, Stepper& st,
   // augmented Lagrangian, starting from the bodies' own velocities.
   st.factorHere(sys, s.t);
   const Eigen::VectorXd W = st.rowWeights(sys);
-  constexpr double kKappa = 1e8;  // as in the stepper
+  constexpr double kKappa = Stepper::kKappa;
   std::vector<Row> rows;
   std::vector<double> wt;
   for (const auto& t : velocities) {

@@ -4,8 +4,6 @@
 #include <algorithm>
 #include <cmath>
 #include <sstream>
-#include <cstdio>
-#include <cstdlib>
 
 #include "mechanism_sim/core/couplers.h"
 
@@ -15,15 +13,17 @@ namespace {
 // Dimensionless weight of the equations in H = M + kappa Phi_q^T W Phi_q (W: rowWeights).
 // Each refinement pass contracts the KKT error by about 1/(kappa sigma), sigma the
 // smallest eigenvalue of the row-scaled W^1/2 Phi_q M^-1 Phi_q^T W^1/2 (1 for one joint,
-// about 1/N^2 along a chain of N bodies), while H's condition number grows like kappa;
-// 1e8 balances the two (README "Integration method": measured).
-static double kKappa = getenv("MS_KAPPA") ? atof(getenv("MS_KAPPA")) : 1e7;
+// about 1/N^2 along a chain of N bodies), while H's condition number, and with it the
+// round-off a single solve leaves, grows like kappa. Measured on the 10-link chain
+// (README "Integration method"): 1e6 and 1e7 agree to 3e-10 m, 1e8 drifts by 1e-8 m.
+constexpr double kKappa = Stepper::kKappa;
 constexpr int kMaxSolvePasses = 12;
 // Residual scales have a floor of kFloor times the largest motion (force) in the system,
 // so that a body at rest beside moving ones is not judged on round-off alone.
 constexpr double kFloor = 1e-6;
 constexpr int kMaxNewton = 20;
 constexpr int kMaxVelocityPasses = 8;
+constexpr int kMaxHalvings = 6;
 
 std::string fmt(double x) {
   std::ostringstream os;
@@ -61,6 +61,7 @@ std::string SolverStats::describe() const {
   if (shortfalls() == 0) {
     os << "every iteration met its tolerance (" << solves << " solves, " << position_projections
        << " position and " << velocity_projections << " velocity projections)";
+    if (halved_steps) os << "; " << halved_steps << " steps were retaken as two halves";
     return os.str();
   }
   os << "iterations short of tolerance:";
@@ -69,6 +70,7 @@ std::string SolverStats::describe() const {
     os << " " << position_shortfalls << " of " << position_projections << " position projections (worst " << worst_position << ")";
   if (velocity_shortfalls)
     os << " " << velocity_shortfalls << " of " << velocity_projections << " velocity projections (worst " << worst_velocity << ")";
+  if (halved_steps) os << "; " << halved_steps << " steps were retaken as two halves";
   return os.str();
 }
 
@@ -88,6 +90,15 @@ Stepper::Stepper(const System& sys) {
   for (int s = 0; s < 4; ++s) zeros(kx_[s], 7 * sys.nb), zeros(ku_[s], sys.n);
   chol_.analyze(sys.nb, sys.block_edges);
   length_scale_ = sys.length_scale;
+  // everything a step writes is sized here: a step allocates nothing
+  backup_.assign(kMaxHalvings + 1, initialState(sys));
+  zeros(loaded_x_, 7 * sys.nb), zeros(evaluated_x_, 7 * sys.nb);
+  factored_x_ = Eigen::VectorXd::Constant(7 * sys.nb, NAN);  // nothing factored yet
+  evaluated_side_.assign(sys.limits.size(), 0);
+  factored_side_.assign(sys.limits.size(), 1);
+  dropped_.assign(sys.m, 0);
+  eval_x_ = loaded_x_, eval_u_ = u0_;
+  eval_side_ = evaluated_side_;
   // Inverse masses with stand-ins: a massless body weighs the mean mass, a missing
   // principal moment the mean moment (System scales); they only scale W.
   Minv_.assign(sys.nb, Eigen::Matrix<double, 6, 6>::Zero());
@@ -102,7 +113,10 @@ Stepper::Stepper(const System& sys) {
   eval_side_.clear();
 }
 
-void Stepper::load(const System& sys, const double* x, const double* u) { loadKinematics(sys, x, u, kin_); }
+void Stepper::load(const System& sys, const double* x, const double* u) {
+  loadKinematics(sys, x, u, kin_);
+  loaded_x_ = Eigen::Map<const Eigen::VectorXd>(x, 7 * sys.nb);
+}
 
 void Stepper::evaluate(const System& sys, const State& st) {
   const EvalContext ctx = st.context();
@@ -124,6 +138,8 @@ void Stepper::evaluate(const System& sys, const State& st) {
       for (int e = 0; e < L.size; ++e)
         if (dropped_[L.row + e]) J_[ci].row(e).setZero(), gamma_[L.row + e] = 0.0;
     }
+  evaluated_x_ = loaded_x_;
+  evaluated_side_ = st.limit_side;
   ++stats_.evaluations;
 }
 
@@ -243,6 +259,8 @@ void Stepper::factor(const System& sys, const char* where, double t, bool reweig
   if (reweight) rowWeights(sys);
   assembleH(sys, kKappa, 1.0, 0.0);
   ++stats_.factorizations;
+  factored_x_ = evaluated_x_;
+  factored_side_ = evaluated_side_;
   if (chol_.factorize(0.0, false) != 0) {
     std::ostringstream os;
     os << "at t = " << t << " s (" << where
@@ -445,6 +463,25 @@ void Stepper::frictionFor(const System& sys, State& s, const Inputs& in, double 
 
 void Stepper::step(const System& sys, State& s, const Inputs& in, double h) {
   if (!(h > 0) || !std::isfinite(h)) throw std::invalid_argument("step must be positive and finite");
+  advance(sys, s, in, h, 0);
+}
+
+// A step whose projection cannot bring the state back onto the constraints is taken
+// again as two half steps (at most kMaxHalvings deep); SolverStats counts them.
+void Stepper::advance(const System& sys, State& s, const Inputs& in, double h, int depth) {
+  backup_[depth] = s;
+  try {
+    stepOnce(sys, s, in, h);
+  } catch (const StepFailure&) {
+    if (depth >= kMaxHalvings) throw;
+    s = backup_[depth];
+    ++stats_.halved_steps;
+    advance(sys, s, in, 0.5 * h, depth + 1);
+    advance(sys, s, in, 0.5 * h, depth + 1);
+  }
+}
+
+void Stepper::stepOnce(const System& sys, State& s, const Inputs& in, double h) {
   // Stage 1 at the accepted state. Its accelerations and multipliers are in the State (the
   // last step solved them there); the evaluation left by that step is reused when it
   // describes this very state (compared by content). A solve runs, on a fresh
@@ -474,7 +511,11 @@ void Stepper::step(const System& sys, State& s, const Inputs& in, double h) {
     // the row weights only precondition: computed at the first stage, kept for the step
     rates(sys, s, in, s.friction, xs_.data(), us_.data(), kx_[k].data(), ku_[k].data(), k == 1);
   };
-  if (sys.options.method == "rk2") {  // Heun
+  if (sys.options.method == "euler") {  // semi-implicit: v1 = v0 + h a0, q1 = q0 + h v1
+    s.u = u0_ + h * ku_[0];
+    positionRates(sys.nb, x0_.data(), s.u.data(), kx_[1].data());
+    s.x = x0_ + h * kx_[1];
+  } else if (sys.options.method == "rk2") {  // Heun
     stage(1, 1.0, 0);
     s.x = x0_ + (0.5 * h) * (kx_[0] + kx_[1]);
     s.u = u0_ + (0.5 * h) * (ku_[0] + ku_[1]);
@@ -516,7 +557,9 @@ void Stepper::finishStep(const System& sys, State& s, const Inputs& in, bool aft
   // steps use them frozen (the correction's direction is off by O(h) in a step of the
   // size of the local error: below RK4's truncation). A limit that just became active
   // is not in them: then full Newton, H refactored each iteration.
-  const bool frozen = after_stages && !updateLimits(sys, s);
+  // (H consistent with the evaluation: factored at the same positions)
+  const bool consistent = factored_x_ == evaluated_x_ && factored_side_ == evaluated_side_;
+  const bool frozen = !updateLimits(sys, s) && after_stages && consistent;
   if (frozen) std::swap(J_, J_frozen_);
   evaluate(sys, s);
   const bool moved = projectPositions(sys, s, frozen);
@@ -674,7 +717,7 @@ void displace(const System& sys, Eigen::VectorXd& x, const double* dq) {
   os << "at t = " << t << " s: the step left the constraints (relative residual " << fmt(err)
      << ", largest at '" << sys.constraints[worst]->name() << "': " << fmt(worst_err)
      << "); try a smaller step";
-  throw std::runtime_error(os.str());
+  throw StepFailure(os.str());
 }
 
 // Mass-orthogonal projection of positions, simplified Newton:

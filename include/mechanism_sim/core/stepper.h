@@ -9,6 +9,7 @@
 //     Newton) and of velocities onto Phi_q v = 0, both to relative tolerances.
 // Every iteration that stops short of its tolerance is counted in SolverStats.
 #pragma once
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -26,6 +27,7 @@ struct SolverStats {
   long position_projections = 0, position_shortfalls = 0;
   long velocity_projections = 0, velocity_shortfalls = 0;
   long evaluations = 0, factorizations = 0, solve_passes = 0;
+  long halved_steps = 0;  // steps whose projection failed, retaken as two half steps
   double worst_solve = 0, worst_position = 0, worst_velocity = 0;
   long shortfalls() const { return solve_shortfalls + position_shortfalls + velocity_shortfalls; }
   std::string describe() const;  // one line
@@ -34,11 +36,18 @@ struct SolverStats {
 // r += dr, p <- p (x) exp(dtheta'/2) per moving body: a displacement in variation coordinates.
 void displace(const System& sys, Eigen::VectorXd& x, const double* dq);
 
+// A step that left the constraints beyond what projection can repair.
+class StepFailure : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
 // Body kinematics of a state, ground first.
 void loadKinematics(const System& sys, const double* x, const double* u, std::vector<BodyKin>& kin);
 
 class Stepper {
  public:
+  static constexpr double kKappa = 1e7;  // weight of the equations in H (stepper.cpp)
   explicit Stepper(const System& sys);
 
   // Advances s by h under the inputs. Throws std::runtime_error (naming the constraint)
@@ -94,6 +103,8 @@ class Stepper {
              const std::vector<std::array<double, 3>>& friction, const double* x, const double* u,
              double* xdot, double* udot, bool reweight);
   void frictionFor(const System& sys, State& s, const Inputs& in, double h);
+  void advance(const System& sys, State& s, const Inputs& in, double h, int depth);
+  void stepOnce(const System& sys, State& s, const Inputs& in, double h);
   void finishStep(const System& sys, State& s, const Inputs& in, bool after_stages);
   bool projectPositions(const System& sys, State& s, bool frozen);  // whether it moved
   void projectVelocities(const System& sys, State& s);
@@ -120,6 +131,11 @@ class Stepper {
   std::vector<signed char> eval_side_;
   bool have_eval_ = false;
   SolverStats stats_;
+  std::vector<State> backup_;  // per halving depth
+  // positions loaded, evaluated and factored at: H and Phi_q are a consistent pair when
+  // the last two agree
+  Eigen::VectorXd loaded_x_, evaluated_x_, factored_x_;
+  std::vector<signed char> evaluated_side_, factored_side_;
 };
 
 }  // namespace mechanism_sim

@@ -43,7 +43,10 @@ struct SpringDamper {
 };
 
 struct IntegratorOptions {
-  std::string method = "rk4";  // "rk4" (default) or "rk2" (Heun)
+  // "rk4" (classical Runge-Kutta, default), "rk2" (Heun) or "euler" (semi-implicit,
+  // symplectic Euler: first order, one solve a step, stable for oscillations up to
+  // omega h < 2: the cheap robust choice).
+  std::string method = "rk4";
   // Relative tolerances: of each equation against the size of its own terms (positions,
   // velocities, the equations of motion). Scale-free: metres or millimetres alike.
   double position_tol = 1e-13;
