@@ -13,6 +13,8 @@ unset PYTHONPATH PYENV_VERSION
 ws_setup() {
   mkdir -p "$WS/src"
   [ -L "$WS/src/mechanism_sim" ] || ln -sfn "$REPO" "$WS/src/mechanism_sim"
+  # rospack crawls the repository: it must not find the package again inside a workspace
+  touch "$WS/CATKIN_IGNORE" "$WS/rospack_nosubdirs"
 }
 
 ws_source() {

@@ -326,54 +326,88 @@ void Stepper::jointRows(const System& sys, const State& s, int j, Row* rows) con
 // Ledesma 1996); with H from a nearby state it still converges. It stops when every
 // equation's residual is within solve_tol of the size of the terms it was computed from
 // (componentwise backward error: independent of units); a shortfall is counted.
+// The size of the terms each residual was computed from, as inverses: per body, the
+// largest force (torque) term of its three components, forces and torques measured
+// against each other through the length scale; per equation, |gamma| + |J_r| |a_r|max +
+// |J_theta| |a_theta|max. Both have a floor at kFloor of the system's largest.
+void Stepper::residualScales(const System& sys) {
+  const double a_floor = kFloor * motionScale(sys, a_);
+  mulM(sys, a_.data(), s1_.data());
+  for (int i = 0; i < sys.n; ++i) s1_[i] = std::fabs(Q_[i]) + std::fabs(s1_[i]);
+  for (int e = 0; e < sys.m; ++e) s2_[e] = std::fabs(gamma_[e]);
+  for (int ci = 0; ci < sys.numConstraints(); ++ci) {
+    const ConstraintLayout& L = sys.layout[ci];
+    const Jacobian& J = J_[ci];
+    const Vec6 lam = padded(lam_.data() + L.row, L.size);
+    Vec6 jas = Vec6::Zero();
+    for (size_t s = 0; s < L.bodies.size(); ++s) {
+      if (L.bodies[s] < 0) continue;
+      const int col = 6 * L.bodies[s];
+      const auto Jb = J.middleCols<6>(6 * s);
+      const Eigen::Map<const Vec6> ab(a_.data() + col);
+      const double ar0 = ab.head<3>().cwiseAbs().maxCoeff();
+      const double at0 = ab.tail<3>().cwiseAbs().maxCoeff();
+      const double ar = std::max({ar0, at0 * length_scale_, a_floor});
+      const double at = std::max({at0, ar0 / length_scale_, a_floor / length_scale_});
+      jas += Jb.leftCols<3>().cwiseAbs().rowwise().sum() * ar + Jb.rightCols<3>().cwiseAbs().rowwise().sum() * at;
+      Eigen::Map<Vec6>(s1_.data() + col) += (Jb.transpose() * lam).cwiseAbs();
+    }
+    for (int e = 0; e < L.size; ++e) s2_[L.row + e] += jas[e];
+  }
+  double f_floor = 0;  // the largest force in the system (torques through the length scale)
+  for (int i = 0; i < sys.n; i += 6)
+    f_floor = std::max({f_floor, s1_[i], s1_[i + 1], s1_[i + 2],
+                        (s1_[i + 3] + s1_[i + 4] + s1_[i + 5]) / length_scale_});
+  f_floor *= kFloor;
+  for (int i = 0; i < sys.n; i += 6) {
+    const double f = std::max({s1_[i], s1_[i + 1], s1_[i + 2]});
+    const double n = std::max({s1_[i + 3], s1_[i + 4], s1_[i + 5]});
+    const double fs = std::max({f, n / length_scale_, f_floor});
+    const double ns = std::max({n, f * length_scale_, f_floor * length_scale_});
+    for (int c = 0; c < 3; ++c) s1_[i + c] = fs > 0 ? 1.0 / fs : HUGE_VAL, s1_[i + 3 + c] = ns > 0 ? 1.0 / ns : HUGE_VAL;
+  }
+  for (int e = 0; e < sys.m; ++e) s2_[e] = s2_[e] > 0 ? 1.0 / s2_[e] : HUGE_VAL;
+}
+
+// Iterative refinement of the KKT system  [M J^T; J 0] [a; lambda] = [Q; gamma]  with the
+// regularized matrix [M J^T; J -W^-1] as preconditioner (H = M + J^T W J factored):
+//   r1 = Q - M a - J^T lambda,  r2 = gamma - J a,
+//   H da = r1 + J^T W r2,  dlambda = W (J da - r2).
+// With H factored at the current J one pass is the augmented Lagrangian update (Bayo &
+// Ledesma 1996) made exact by also correcting r1 (the round-off of H, which grows with
+// kappa). It stops when every residual is within solve_tol of the size of the terms it
+// was computed from (a componentwise backward error: independent of units); the scales
+// are taken from the warm start (or, from a cold one, after the first update). A
+// shortfall is counted.
 bool Stepper::solveKKT(const System& sys, bool factored, double t) {
   const double tol = sys.options.solve_tol;
   double res = 0;
-  const double a_floor = kFloor * motionScale(sys, a_);
+  // warm (a, lambda from a nearby solve): their sizes are the solution's to O(h); cold
+  // (nothing yet): the scales are taken again after the first update
+  const bool cold = a_.cwiseAbs().maxCoeff() == 0.0 || (sys.m > 0 && lam_.cwiseAbs().maxCoeff() == 0.0);
+  residualScales(sys);
   for (int pass = 0;; ++pass) {
-    // The size of the terms: per body, the largest force (torque) term of its three
-    // components; per equation, |gamma| + |J_r| |a_r|_max + |J_theta| |a_theta|_max.
     mulM(sys, a_.data(), r1_.data());
-    for (int i = 0; i < sys.n; ++i) s1_[i] = std::fabs(Q_[i]) + std::fabs(r1_[i]), r1_[i] = Q_[i] - r1_[i];
-    for (int e = 0; e < sys.m; ++e) r2_[e] = gamma_[e], s2_[e] = std::fabs(gamma_[e]);
+    for (int i = 0; i < sys.n; ++i) r1_[i] = Q_[i] - r1_[i];
     for (int ci = 0; ci < sys.numConstraints(); ++ci) {
       const ConstraintLayout& L = sys.layout[ci];
       const Jacobian& J = J_[ci];
       const Vec6 lam = padded(lam_.data() + L.row, L.size);
-      const Vec6 lam_abs = lam.cwiseAbs();
-      Vec6 ja = Vec6::Zero(), jas = Vec6::Zero();
+      Vec6 ja = Vec6::Zero();
       for (size_t s = 0; s < L.bodies.size(); ++s) {
         if (L.bodies[s] < 0) continue;
         const int col = 6 * L.bodies[s];
         const auto Jb = J.middleCols<6>(6 * s);
-        const Eigen::Map<const Vec6> ab(a_.data() + col);
-        // linear and angular parts measured against each other through the length scale
-        const double ar0 = ab.head<3>().cwiseAbs().maxCoeff();
-        const double at0 = ab.tail<3>().cwiseAbs().maxCoeff();
-        const double ar = std::max({ar0, at0 * length_scale_, a_floor});
-        const double at = std::max({at0, ar0 / length_scale_, a_floor / length_scale_});
-        ja.noalias() += Jb * ab;
-        jas += Jb.leftCols<3>().cwiseAbs().rowwise().sum() * ar + Jb.rightCols<3>().cwiseAbs().rowwise().sum() * at;
+        ja.noalias() += Jb * Eigen::Map<const Vec6>(a_.data() + col);
         Eigen::Map<Vec6>(r1_.data() + col).noalias() -= Jb.transpose() * lam;
-        Eigen::Map<Vec6>(s1_.data() + col).noalias() += Jb.cwiseAbs().transpose() * lam_abs;
       }
-      for (int e = 0; e < L.size; ++e) r2_[L.row + e] -= ja[e], s2_[L.row + e] += jas[e];
+      for (int e = 0; e < L.size; ++e) r2_[L.row + e] = gamma_[L.row + e] - ja[e];
     }
-    res = 0;
-    double f_floor = 0;  // the largest force in the system (torques through the length scale)
-    for (int i = 0; i < sys.n; i += 6)
-      f_floor = std::max({f_floor, s1_[i], s1_[i + 1], s1_[i + 2],
-                          (s1_[i + 3] + s1_[i + 4] + s1_[i + 5]) / length_scale_});
-    f_floor *= kFloor;
-    for (int i = 0; i < sys.n; i += 6) {
-      const double f = std::max({s1_[i], s1_[i + 1], s1_[i + 2]});
-      const double n = std::max({s1_[i + 3], s1_[i + 4], s1_[i + 5]});
-      const double fs = std::max({f, n / length_scale_, f_floor});
-      const double ns = std::max({n, f * length_scale_, f_floor * length_scale_});
-      for (int c = 0; c < 3; ++c)
-        res = std::max({res, relative(r1_[i + c], fs), relative(r1_[i + 3 + c], ns)});
+    res = std::max(r1_.cwiseAbs().cwiseProduct(s1_).maxCoeff(), r2_.cwiseAbs().cwiseProduct(s2_).maxCoeff());
+    if (cold && pass == 1) {
+      residualScales(sys);
+      res = std::max(r1_.cwiseAbs().cwiseProduct(s1_).maxCoeff(), r2_.cwiseAbs().cwiseProduct(s2_).maxCoeff());
     }
-    for (int e = 0; e < sys.m; ++e) res = std::max(res, relative(r2_[e], s2_[e]));
     if (res <= tol) {
       ++stats_.solves;
       return true;

@@ -99,6 +99,7 @@ class Stepper {
   // and `factored` is false.
   bool solveKKT(const System& sys, bool factored, double t);
   bool frictionActs(const System& sys) const;
+  void residualScales(const System& sys);
   void rates(const System& sys, const State& s, const Inputs& in,
              const std::vector<std::array<double, 3>>& friction, const double* x, const double* u,
              double* xdot, double* udot, bool reweight);
