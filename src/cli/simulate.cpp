@@ -22,7 +22,7 @@ namespace {
 
 const char* kUsage =
     "usage: simulate MODEL.urdf [--duration S] [--dt S] [--output-every N]\n"
-    "                [--csv FILE] [--poses] [--integrator rk4|rk2]\n"
+    "                [--csv FILE] [--poses] [--integrator rk4|rk2|euler]\n"
     "                [--set JOINT=POSITION]... [--velocity JOINT=VALUE]...\n"
     "                [--effort JOINT=VALUE]... [--quiet]\n";
 
@@ -153,10 +153,11 @@ int main(int argc, char** argv) {
   if (!args.quiet) {
     std::fprintf(stderr,
                  "%s: assembled to %.1e; %ld steps of %g s in %.3f s wall (real-time factor %.1f); largest "
-                 "violation %.2e (position), %.2e (velocity); %s\n",
+                 "violation %.2e (position), %.2e (velocity); %s; solver: %s\n",
                  args.model.c_str(), model->assembly().position_residual, steps, args.dt, wall,
                  wall > 0 ? steps * args.dt / wall : 0.0, loop.worstPositionViolation(),
-                 loop.worstVelocityViolation(), model->dependencies().describe().c_str());
+                 loop.worstVelocityViolation(), model->dependencies().describe().c_str(),
+                 model->solverStats().describe().c_str());
   }
   return 0;
 }

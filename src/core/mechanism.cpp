@@ -228,6 +228,8 @@ Reaction Mechanism::reaction(int ci) const {
 
 double Mechanism::positionViolation() const { return stepper_->positionViolation(); }
 double Mechanism::velocityViolation() const { return stepper_->velocityViolation(*sys_, state_.u); }
+double Mechanism::relativePositionViolation() const { return stepper_->positionResidual(*sys_); }
+double Mechanism::relativeVelocityViolation() const { return stepper_->velocityResidual(*sys_, state_.u); }
 
 double Mechanism::kineticEnergy() const {
   double T = 0;

@@ -32,6 +32,15 @@ std::string fmt(double x) {
   return os.str();
 }
 
+// max of |r1| s1 and |r2| s2 (either may be empty: a mechanism without constraints).
+inline double scaledMax(const Eigen::VectorXd& r1, const Eigen::VectorXd& s1, const Eigen::VectorXd& r2,
+                        const Eigen::VectorXd& s2) {
+  double m = 0;
+  if (r1.size()) m = r1.cwiseAbs().cwiseProduct(s1).maxCoeff();
+  if (r2.size()) m = std::max(m, r2.cwiseAbs().cwiseProduct(s2).maxCoeff());
+  return m;
+}
+
 // |r| / scale, where scale is the size of the terms r was computed from; 0/0 = 0.
 inline double relative(double r, double scale) {
   r = std::fabs(r);
@@ -384,7 +393,7 @@ bool Stepper::solveKKT(const System& sys, bool factored, double t) {
   double res = 0;
   // warm (a, lambda from a nearby solve): their sizes are the solution's to O(h); cold
   // (nothing yet): the scales are taken again after the first update
-  const bool cold = a_.cwiseAbs().maxCoeff() == 0.0 || (sys.m > 0 && lam_.cwiseAbs().maxCoeff() == 0.0);
+  const bool cold = (sys.n > 0 && a_.cwiseAbs().maxCoeff() == 0.0) || (sys.m > 0 && lam_.cwiseAbs().maxCoeff() == 0.0);
   residualScales(sys);
   for (int pass = 0;; ++pass) {
     mulM(sys, a_.data(), r1_.data());
@@ -403,10 +412,10 @@ bool Stepper::solveKKT(const System& sys, bool factored, double t) {
       }
       for (int e = 0; e < L.size; ++e) r2_[L.row + e] = gamma_[L.row + e] - ja[e];
     }
-    res = std::max(r1_.cwiseAbs().cwiseProduct(s1_).maxCoeff(), r2_.cwiseAbs().cwiseProduct(s2_).maxCoeff());
+    res = scaledMax(r1_, s1_, r2_, s2_);
     if (cold && pass == 1) {
       residualScales(sys);
-      res = std::max(r1_.cwiseAbs().cwiseProduct(s1_).maxCoeff(), r2_.cwiseAbs().cwiseProduct(s2_).maxCoeff());
+      res = scaledMax(r1_, s1_, r2_, s2_);
     }
     if (res <= tol) {
       ++stats_.solves;

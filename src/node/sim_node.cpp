@@ -249,7 +249,11 @@ bool SimNode::onStep(StepSimulation::Request& req, StepSimulation::Response& res
 void SimNode::diagnose(diagnostic_updater::DiagnosticStatusWrapper& status) {
   std::lock_guard<std::mutex> lock(mutex_);
   const double p = model_->positionViolation(), v = model_->velocityViolation();
-  if (p > 1e-8 || v > 1e-8) status.summary(diagnostic_msgs::DiagnosticStatus::ERROR, "constraints violated");
+  const SolverStats& solver = model_->solverStats();
+  if (model_->relativePositionViolation() > 1e-8 || model_->relativeVelocityViolation() > 1e-8)
+    status.summary(diagnostic_msgs::DiagnosticStatus::ERROR, "constraints violated");
+  else if (solver.shortfalls() > 0)
+    status.summary(diagnostic_msgs::DiagnosticStatus::WARN, "solver iterations short of tolerance");
   else if (pacer_->behind()) status.summary(diagnostic_msgs::DiagnosticStatus::WARN, "falling behind real time");
   else if (paused_) status.summary(diagnostic_msgs::DiagnosticStatus::OK, "paused");
   else status.summary(diagnostic_msgs::DiagnosticStatus::OK, "running");
@@ -264,6 +268,8 @@ void SimNode::diagnose(diagnostic_updater::DiagnosticStatusWrapper& status) {
   status.add("real-time factor", pacer_->achieved());
   status.add("real-time factor target", pacer_->target());
   status.add("step time [s]", loop_->stepWallTime());
+  status.add("solver", solver.describe());
+  status.add("iterations short of tolerance", solver.shortfalls());
 }
 
 }  // namespace mechanism_sim

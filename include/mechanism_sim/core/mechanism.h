@@ -114,6 +114,10 @@ class Mechanism {
   Reaction reaction(int constraint) const;
   double positionViolation() const;  // max |Phi|
   double velocityViolation() const;  // max |Phi_q v|
+  // The same relative to the size of each equation's terms (scale-free; what the
+  // projections' tolerances bound).
+  double relativePositionViolation() const;
+  double relativeVelocityViolation() const;
   double kineticEnergy() const;
   double potentialEnergy() const;
   long stepsTaken() const { return state_.steps; }

@@ -76,6 +76,11 @@ class MechanismModel {
   int numEquations() const;                      // constraint equations, dependent ones included
   // Dependent equations and the joints they belong to (found at assembly).
   const DependencyReport& dependencies() const;
+  // Violations relative to the size of each equation's terms (scale-free).
+  double relativePositionViolation() const { return mechanism_->relativePositionViolation(); }
+  double relativeVelocityViolation() const { return mechanism_->relativeVelocityViolation(); }
+  // Iterations that stopped short of their tolerance (SolverStats::describe() says which).
+  const SolverStats& solverStats() const { return mechanism_->solverStats(); }
   const AssemblyReport& assembly() const { return assembly_; }
   const Eigen::Vector3d& gravity() const;
   void setGravity(const Eigen::Vector3d& g);  // overrides the file's <mechanism_sim:gravity>
