@@ -21,13 +21,13 @@ void CylindricalJoint::equations(const JointGeometry& g, const BodyKin&, const B
 }
 
 void CylindricalJoint::coordinates(const BodyKin& ki, const BodyKin& kj, const Tracked& t, Row* out) const {
-  const JointGeometry g = geometry(ki, kj);
+  const JointGeometry g = geometry(ki, kj, kBxI | kByI | kBzI | kBxJ | kGap);
   out[0] = relativeAngle(g.bx_i, g.by_i, g.bx_j, t[0]);
   out[1] = Cn2(g.bz_i, g.d);
 }
 
 void CylindricalJoint::trackAngles(const BodyKin& ki, const BodyKin& kj, Tracked& t) const {
-  const JointGeometry g = geometry(ki, kj);
+  const JointGeometry g = geometry(ki, kj, kBxI | kByI | kBxJ);
   t[0] = relativeAngle(g.bx_i, g.by_i, g.bx_j, t[0]).Phi;
 }
 

@@ -19,14 +19,14 @@ void PlanarJoint::equations(const JointGeometry& g, const BodyKin&, const BodyKi
 }
 
 void PlanarJoint::coordinates(const BodyKin& ki, const BodyKin& kj, const Tracked& t, Row* out) const {
-  const JointGeometry g = geometry(ki, kj);
+  const JointGeometry g = geometry(ki, kj, kBxI | kByI | kBxJ | kGap);
   out[0] = Cn2(g.bx_i, g.d);
   out[1] = Cn2(g.by_i, g.d);
   out[2] = relativeAngle(g.bx_i, g.by_i, g.bx_j, t[0]);
 }
 
 void PlanarJoint::trackAngles(const BodyKin& ki, const BodyKin& kj, Tracked& t) const {
-  const JointGeometry g = geometry(ki, kj);
+  const JointGeometry g = geometry(ki, kj, kBxI | kByI | kBxJ);
   t[0] = relativeAngle(g.bx_i, g.by_i, g.bx_j, t[0]).Phi;
 }
 

@@ -25,7 +25,7 @@ void PrismaticJoint::equations(const JointGeometry& g, const BodyKin&, const Bod
 }
 
 void PrismaticJoint::coordinates(const BodyKin& ki, const BodyKin& kj, const Tracked&, Row* out) const {
-  const JointGeometry g = geometry(ki, kj);
+  const JointGeometry g = geometry(ki, kj, kBzI | kGap);
   out[0] = Cn2(g.bz_i, g.d);
 }
 

@@ -19,12 +19,12 @@ void RevoluteJoint::equations(const JointGeometry& g, const BodyKin&, const Body
 }
 
 void RevoluteJoint::coordinates(const BodyKin& ki, const BodyKin& kj, const Tracked& t, Row* out) const {
-  const JointGeometry g = geometry(ki, kj);
+  const JointGeometry g = geometry(ki, kj, kBxI | kByI | kBxJ);
   out[0] = relativeAngle(g.bx_i, g.by_i, g.bx_j, t[0]);
 }
 
 void RevoluteJoint::trackAngles(const BodyKin& ki, const BodyKin& kj, Tracked& t) const {
-  const JointGeometry g = geometry(ki, kj);
+  const JointGeometry g = geometry(ki, kj, kBxI | kByI | kBxJ);
   t[0] = relativeAngle(g.bx_i, g.by_i, g.bx_j, t[0]).Phi;
 }
 

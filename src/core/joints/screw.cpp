@@ -30,12 +30,12 @@ void ScrewJoint::equations(const JointGeometry& g, const BodyKin&, const BodyKin
 }
 
 void ScrewJoint::coordinates(const BodyKin& ki, const BodyKin& kj, const Tracked& t, Row* out) const {
-  const JointGeometry g = geometry(ki, kj);
+  const JointGeometry g = geometry(ki, kj, kBxI | kByI | kBxJ);
   out[0] = relativeAngle(g.bx_i, g.by_i, g.bx_j, t[0]);
 }
 
 void ScrewJoint::trackAngles(const BodyKin& ki, const BodyKin& kj, Tracked& t) const {
-  const JointGeometry g = geometry(ki, kj);
+  const JointGeometry g = geometry(ki, kj, kBxI | kByI | kBxJ);
   t[0] = relativeAngle(g.bx_i, g.by_i, g.bx_j, t[0]).Phi;
 }
 

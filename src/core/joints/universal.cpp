@@ -24,13 +24,13 @@ void UniversalJoint::equations(const JointGeometry& g, const BodyKin&, const Bod
 // With R = Fi^T Fj = Rx(t1) Ry(t2): R(2,1) = sin t1, R(1,1) = cos t1, R(0,2) = sin t2,
 // R(0,0) = cos t2, each entry a C(n1) of one axis of each frame.
 void UniversalJoint::coordinates(const BodyKin& ki, const BodyKin& kj, const Tracked& t, Row* out) const {
-  const JointGeometry g = geometry(ki, kj);
+  const JointGeometry g = geometry(ki, kj, kBxI | kByI | kBzI | kBxJ | kByJ | kBzJ);
   out[0] = angleOf(Cn1(g.by_i, g.by_j), Cn1(g.bz_i, g.by_j), t[0]);
   out[1] = angleOf(Cn1(g.bx_i, g.bx_j), Cn1(g.bx_i, g.bz_j), t[1]);
 }
 
 void UniversalJoint::trackAngles(const BodyKin& ki, const BodyKin& kj, Tracked& t) const {
-  const JointGeometry g = geometry(ki, kj);
+  const JointGeometry g = geometry(ki, kj, kBxI | kByI | kBzI | kBxJ | kByJ | kBzJ);
   t[0] = angleOf(Cn1(g.by_i, g.by_j), Cn1(g.bz_i, g.by_j), t[0]).Phi;
   t[1] = angleOf(Cn1(g.bx_i, g.bx_j), Cn1(g.bx_i, g.bz_j), t[1]).Phi;
 }
