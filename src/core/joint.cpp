@@ -18,6 +18,17 @@ JointGeometry Joint::geometry(const BodyKin& ki, const BodyKin& kj, unsigned par
   return g;
 }
 
+void Joint::trackedRates(const BodyKin* const* kin, const EvalContext& ctx, Tracked& rate) const {
+  rate = Tracked{};
+  bool any = false;
+  for (int k = 0; k < dof(); ++k) any = any || trackedSlot(k) >= 0;
+  if (!any) return;
+  Row rows[3];
+  coordinates(*kin[0], *kin[1], ctx.tracked[id()], rows);
+  for (int k = 0; k < dof(); ++k)
+    if (trackedSlot(k) >= 0) rate[trackedSlot(k)] = rows[k].Phi_dot;
+}
+
 void Joint::putPoint(const JointGeometry& g, RowWriter& out) {
   const Rows3 p = Cpoint(g.d);
   for (int k = 0; k < 3; ++k) {

@@ -24,6 +24,7 @@ constexpr double kFloor = 1e-6;
 constexpr int kMaxNewton = 20;
 constexpr int kMaxVelocityPasses = 8;
 constexpr int kMaxHalvings = 6;
+constexpr double kMaxTurn = 0.25;  // rad a body may turn in one step (phase error < 1e-6 rad)
 
 std::string fmt(double x) {
   std::ostringstream os;
@@ -35,9 +36,11 @@ std::string fmt(double x) {
 // max of |r1| s1 and |r2| s2 (either may be empty: a mechanism without constraints).
 inline double scaledMax(const Eigen::VectorXd& r1, const Eigen::VectorXd& s1, const Eigen::VectorXd& r2,
                         const Eigen::VectorXd& s2) {
-  double m = 0;
-  if (r1.size()) m = r1.cwiseAbs().cwiseProduct(s1).maxCoeff();
-  if (r2.size()) m = std::max(m, r2.cwiseAbs().cwiseProduct(s2).maxCoeff());
+  double m = 0;  // a zero residual counts as met even where its scale is zero (1/0 = inf)
+  for (int i = 0; i < r1.size(); ++i)
+    if (r1[i] != 0.0) m = std::max(m, std::fabs(r1[i]) * s1[i]);
+  for (int i = 0; i < r2.size(); ++i)
+    if (r2[i] != 0.0) m = std::max(m, std::fabs(r2[i]) * s2[i]);
   return m;
 }
 
@@ -70,7 +73,7 @@ std::string SolverStats::describe() const {
   if (shortfalls() == 0) {
     os << "every iteration met its tolerance (" << solves << " solves, " << position_projections
        << " position and " << velocity_projections << " velocity projections)";
-    if (halved_steps) os << "; " << halved_steps << " steps were retaken as two halves";
+    if (halved_steps) os << "; " << halved_steps << " steps were taken as two halves";
     return os.str();
   }
   os << "iterations short of tolerance:";
@@ -79,7 +82,7 @@ std::string SolverStats::describe() const {
     os << " " << position_shortfalls << " of " << position_projections << " position projections (worst " << worst_position << ")";
   if (velocity_shortfalls)
     os << " " << velocity_shortfalls << " of " << velocity_projections << " velocity projections (worst " << worst_velocity << ")";
-  if (halved_steps) os << "; " << halved_steps << " steps were retaken as two halves";
+  if (halved_steps) os << "; " << halved_steps << " steps were taken as two halves";
   return os.str();
 }
 
@@ -101,6 +104,8 @@ Stepper::Stepper(const System& sys) {
   length_scale_ = sys.length_scale;
   // everything a step writes is sized here: a step allocates nothing
   backup_.assign(kMaxHalvings + 1, initialState(sys));
+  tracked0_ = backup_[0].tracked;
+  tracked_rate_ = backup_[0].tracked;
   zeros(loaded_x_, 7 * sys.nb), zeros(evaluated_x_, 7 * sys.nb);
   factored_x_ = Eigen::VectorXd::Constant(7 * sys.nb, NAN);  // nothing factored yet
   evaluated_side_.assign(sys.limits.size(), 0);
@@ -340,7 +345,11 @@ void Stepper::jointRows(const System& sys, const State& s, int j, Row* rows) con
 // against each other through the length scale; per equation, |gamma| + |J_r| |a_r|max +
 // |J_theta| |a_theta|max. Both have a floor at kFloor of the system's largest.
 void Stepper::residualScales(const System& sys) {
-  const double a_floor = kFloor * motionScale(sys, a_);
+  // accelerations: at least the centripetal scale V^2 / L of the motion
+  double V = 0;  // of the loaded state
+  for (int b = 1; b <= sys.nb; ++b)
+    V = std::max({V, kin_[b].v.cwiseAbs().maxCoeff(), kin_[b].w.cwiseAbs().maxCoeff() * length_scale_});
+  const double a_floor = kFloor * std::max(motionScale(sys, a_), V * V / length_scale_);
   mulM(sys, a_.data(), s1_.data());
   for (int i = 0; i < sys.n; ++i) s1_[i] = std::fabs(Q_[i]) + std::fabs(s1_[i]);
   for (int e = 0; e < sys.m; ++e) s2_[e] = std::fabs(gamma_[e]);
@@ -511,7 +520,31 @@ void Stepper::step(const System& sys, State& s, const Inputs& in, double h) {
 
 // A step whose projection cannot bring the state back onto the constraints is taken
 // again as two half steps (at most kMaxHalvings deep); SolverStats counts them.
+//
+// A body turning more than kMaxTurn rad in one step is beyond what RK4 follows accurately
+// (its phase error per step grows like (w h)^5): such a step is taken as halves, and
+// past kMaxHalvings the run stops naming the body and the step that would do.
 void Stepper::advance(const System& sys, State& s, const Inputs& in, double h, int depth) {
+  int fastest = 0;
+  double spin = 0;
+  for (int b = 0; b < sys.nb; ++b) {
+    const double w = s.u.segment<3>(6 * b + 3).norm();
+    if (w > spin) spin = w, fastest = b + 1;
+  }
+  if (spin * h > kMaxTurn) {
+    if (depth >= kMaxHalvings) {
+      const double asked = h * (1 << depth);
+      std::ostringstream os;
+      os << "body '" << sys.bodies[fastest].name << "' turns " << fmt(spin * asked) << " rad in one step of "
+         << asked << " s (" << (1 << depth) << " substeps still turn " << fmt(spin * h)
+         << " rad each); steps of at most " << fmt(kMaxTurn / spin) << " s follow it";
+      throw std::runtime_error(os.str());
+    }
+    ++stats_.halved_steps;
+    advance(sys, s, in, 0.5 * h, depth + 1);
+    advance(sys, s, in, 0.5 * h, depth + 1);
+    return;
+  }
   backup_[depth] = s;
   try {
     stepOnce(sys, s, in, h);
@@ -548,9 +581,26 @@ void Stepper::stepOnce(const System& sys, State& s, const Inputs& in, double h) 
   u0_ = s.u;
   positionRates(sys.nb, x0_.data(), u0_.data(), kx_[0].data());
   ku_[0] = a_;
+  // Branch references of tracked angles at each stage: predicted from their rates, so
+  // an angle may advance by more than pi in one step (a wheel at 4000 rad/s, 1 ms).
+  tracked0_ = s.tracked;
+  {
+    const EvalContext ctx = s.context();
+    const BodyKin* ptrs[8];
+    for (int ci = 0; ci < sys.numConstraints(); ++ci) {
+      const Constraint& c = *sys.constraints[ci];
+      for (size_t k = 0; k < c.bodies().size() && k < 8; ++k) ptrs[k] = &kin_[c.bodies()[k]];
+      c.trackedRates(ptrs, ctx, tracked_rate_[ci]);
+    }
+  }
+  auto predictTracked = [&](double dt) {
+    for (size_t ci = 0; ci < s.tracked.size(); ++ci)
+      for (int k = 0; k < 2; ++k) s.tracked[ci][k] = tracked0_[ci][k] + tracked_rate_[ci][k] * dt;
+  };
   auto stage = [&](int k, double c, int from) {
     xs_ = x0_ + (c * h) * kx_[from];
     us_ = u0_ + (c * h) * ku_[from];
+    predictTracked(c * h);
     // the row weights only precondition: computed at the first stage, kept for the step
     rates(sys, s, in, s.friction, xs_.data(), us_.data(), kx_[k].data(), ku_[k].data(), k == 1);
   };
@@ -570,6 +620,7 @@ void Stepper::stepOnce(const System& sys, State& s, const Inputs& in, double h) 
     s.u = u0_ + (h / 6.0) * (ku_[0] + 2.0 * ku_[1] + 2.0 * ku_[2] + ku_[3]);
   }
   for (int b = 0; b < sys.nb; ++b) s.x.segment<4>(7 * b + 3).normalize();
+  predictTracked(h);  // references near the new angles; finishStep tracks them exactly
   s.t += h;
   ++s.steps;
   finishStep(sys, s, in, true);

@@ -246,3 +246,52 @@ TEST(Solver, SnapshotRestoreContinuesBitIdentically) {
 
 }  // namespace
 }  // namespace mechanism_sim
+
+namespace mechanism_sim {
+namespace {
+
+// A wheel at 4000 rad/s with 1 ms steps turns 4 rad a step (more than pi, and beyond
+// what RK4 follows): the steps are taken in halves down to 0.25 rad and the tracked angle
+// follows its rate, so after 1 s it reads 4000 rad (to RK4's phase error, 5e-7 rad a
+// substep), and a nut on a screw spun as fast rises by lead x turns instead of running
+// backwards. Ten times faster is refused with
+// the body named.
+TEST(Solver, AngleTrackedThroughMoreThanPiPerStep) {
+  for (const char* type : {"revolute", "screw"}) {
+    Mechanism m;
+    Body b;
+    b.name = "wheel";
+    b.m = 1.0;
+    b.Jp = Vector3d(0.1, 0.1, 0.2).asDiagonal();
+    const int w = m.addBody(b);
+    JointParams params;
+    params.alpha = 1e-3 / (2 * M_PI);  // 1 mm per turn
+    m.addJoint(makeJoint(type, "axle", Mechanism::kGround, JointFrame(), w, JointFrame(), params));
+    m.setGravity(Vector3d::Zero());
+    m.build();
+    m.assemble({}, {CoordinateTarget{0, 0, 4000.0}});
+    for (int k = 0; k < 1000; ++k) m.step(1e-3);
+    EXPECT_NEAR(m.jointPosition(0, 0), 4000.0, 1e-2) << type;
+    if (std::string(type) == "screw") EXPECT_NEAR(m.position(w).z(), params.alpha * 4000.0, 1e-2 * params.alpha);
+    EXPECT_EQ(m.solverStats().shortfalls(), 0) << type << ": " << m.solverStats().describe();
+    EXPECT_EQ(m.solverStats().halved_steps, 1000 * 15) << type;  // 16 substeps a step
+  }
+  Mechanism m;
+  Body b;
+  b.name = "turbine";
+  b.m = 1.0;
+  b.Jp = Matrix3d::Identity();
+  const int w = m.addBody(b);
+  m.addJoint(makeJoint("revolute", "axle", Mechanism::kGround, JointFrame(), w, JointFrame()));
+  m.build();
+  m.assemble({}, {CoordinateTarget{0, 0, 4e4}});
+  try {
+    m.step(1e-3);
+    ADD_FAILURE() << "40 rad in a step taken";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("body 'turbine' turns 40 rad in one step"), std::string::npos) << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace mechanism_sim

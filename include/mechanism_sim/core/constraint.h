@@ -40,6 +40,11 @@ class Constraint {
   // The tracked angles of an accepted state, moved from those of the state before
   // (angle trackers count turns here). Stateless: the angles live in the State.
   virtual void track(const BodyKin* const* /*kin*/, const EvalContext& /*ctx*/, Tracked& /*t*/) const {}
+  // Rates of the tracked angles at (kin): a step predicts its stages' branch references
+  // from them, so a joint may turn more than pi in one step.
+  virtual void trackedRates(const BodyKin* const* /*kin*/, const EvalContext& /*ctx*/, Tracked& rate) const {
+    rate = Tracked{};
+  }
   // Tracked angles of the pose the constraint was defined in.
   virtual Tracked initialTracked() const { return Tracked{}; }
   // Position in its System's constraint list: where its tracked angles are in the State.

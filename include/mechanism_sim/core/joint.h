@@ -68,6 +68,7 @@ class Joint : public Constraint {
   void track(const BodyKin* const* kin, const EvalContext&, Tracked& t) const final {
     trackAngles(*kin[0], *kin[1], t);
   }
+  void trackedRates(const BodyKin* const* kin, const EvalContext& ctx, Tracked& rate) const final;
 
   JointGeometry geometry(const BodyKin& ki, const BodyKin& kj, unsigned parts = kAllParts) const;
   // The parts of JointGeometry that equations() reads (GeometryPart bits).

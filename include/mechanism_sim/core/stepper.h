@@ -133,6 +133,7 @@ class Stepper {
   bool have_eval_ = false;
   SolverStats stats_;
   std::vector<State> backup_;  // per halving depth
+  std::vector<Tracked> tracked0_, tracked_rate_;  // at the step's start
   // positions loaded, evaluated and factored at: H and Phi_q are a consistent pair when
   // the last two agree
   Eigen::VectorXd loaded_x_, evaluated_x_, factored_x_;
