@@ -245,6 +245,18 @@ AssemblyReport assemble(const System& sys, State& s, Stepper& st,
     throw ModelError(os.str());
   }
 
+  // An initial position outside a joint's limits is an error, never a jump.
+  for (const LimitSpec& L : sys.limits) {
+    const CoordinateTarget t{L.joint, L.k, 0.0};
+    const double q = coordinateRow(sys, s, st, t).Phi;
+    const double slack = 1e-9 * (std::fabs(L.lower) + std::fabs(L.upper) + sys.length_scale);
+    if (q < L.lower - slack || q > L.upper + slack) {
+      std::ostringstream os;
+      os << "joint '" << sys.joints[L.joint]->name() << "': initial position " << fmt(q)
+         << " is outside its limits [" << fmt(L.lower) << ", " << fmt(L.upper) << "]";
+      throw ModelError(os.str());
+    }
+  }
   checkMassRank(sys, st);
   std::fill(s.dropped.begin(), s.dropped.end(), 0);
   st.evaluate(sys, s);

@@ -220,8 +220,9 @@ Reaction Mechanism::reaction(int ci) const {
   const BodyKin& kb = kin(c.bodies()[k]);
   Reaction r;
   r.force = gen.head<3>();
-  Vector3d arm = Vector3d::Zero();
+  Vector3d arm = Vector3d::Zero();  // torque about the joint point B_j, not the centre of mass
   if (const auto* j = dynamic_cast<const Joint*>(&c)) arm = kb.A_Oi * j->frameJ().sp_B;
+  if (const auto* l = dynamic_cast<const LimitConstraint*>(&c)) arm = kb.A_Oi * l->joint().frameJ().sp_B;
   r.torque = kb.A_Oi * gen.tail<3>() - arm.cross(r.force);
   return r;
 }

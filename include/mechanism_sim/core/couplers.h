@@ -38,6 +38,7 @@ class LimitConstraint : public Constraint {
   std::string type() const override { return "limit"; }
   int size() const override { return 1; }
   int limit() const { return limit_; }
+  const Joint& joint() const { return joint_; }
   void evaluate(const BodyKin* const* kin, const EvalContext& ctx, Eigen::Ref<Eigen::VectorXd> Phi,
                 Eigen::Ref<Eigen::MatrixXd> J, Eigen::Ref<Eigen::VectorXd> gamma) const override;
 
