@@ -245,6 +245,23 @@ AssemblyReport assemble(const System& sys, State& s, Stepper& st,
     throw ModelError(os.str());
   }
 
+  // Dot-product equations also admit the mirror pose: axes held parallel can close
+  // opposed (bz_j = -bz_i), a twist lock can close turned by pi. Only the pose the joint was
+  // defined in is accepted.
+  for (int j = 0; j < sys.numJoints(); ++j) {
+    const Joint& jt = *sys.joints[j];
+    const unsigned uses = jt.equationAxes();
+    const JointGeometry g = jt.geometry(st.kin()[jt.bodyI()], st.kin()[jt.bodyJ()], kBxI | kBzI | kBxJ | kBzJ);
+    const bool parallel = (uses & kBzJ) && (uses & kByI);
+    const bool twist = parallel && (uses & kBxJ);
+    const double cz = g.bz_i.a.dot(g.bz_j.a), cx = g.bx_i.a.dot(g.bx_j.a);
+    if ((parallel && cz < 0) || (twist && cx < 0)) {
+      std::ostringstream os;
+      os << "joint '" << jt.name() << "': assembly closed it mirrored (" << (parallel && cz < 0 ? "axes opposed, bz_i . bz_j = " + fmt(cz) : "turned by pi, bx_i . bx_j = " + fmt(cx))
+         << "); start its bodies nearer the pose the joint defines";
+      throw ModelError(os.str());
+    }
+  }
   // An initial position outside a joint's limits is an error, never a jump.
   for (const LimitSpec& L : sys.limits) {
     const CoordinateTarget t{L.joint, L.k, 0.0};
