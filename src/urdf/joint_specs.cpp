@@ -144,7 +144,11 @@ JointSpecs collectJointSpecs(const tinyxml2::XMLElement* robot, const urdf::Mode
   const std::map<std::string, const ExtJoint*> overrides = typeOverrides(urdf, ext, reader);
   JointSpecs specs;
   for (auto* e = robot->FirstChildElement("joint"); e; e = e->NextSiblingElement("joint")) {
-    const urdf::Joint& j = *urdf.joints_.at(e->Attribute("name"));
+    const char* name = e->Attribute("name");
+    const auto found = urdf.joints_.find(name ? name : "");
+    if (found == urdf.joints_.end() || !found->second)  // tinyxml2 and urdfdom's TinyXML disagree
+      reader.fail(e, "urdfdom reads this joint's name differently (an unescaped '&' or '<'? write &amp; or &lt;)");
+    const urdf::Joint& j = *found->second;
     const auto o = overrides.find(j.name);
     specs.tree.push_back(treeJoint(j, e, o == overrides.end() ? nullptr : o->second, reader));
   }

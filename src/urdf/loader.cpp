@@ -76,7 +76,7 @@ class ModelBuilder {
     tinyxml2::XMLDocument doc;
     if (doc.Parse(xml_.c_str(), xml_.size()) != tinyxml2::XML_SUCCESS) {
       std::ostringstream os;
-      os << reader_.file << ":" << doc.ErrorLineNum() << ": malformed XML: " << doc.ErrorStr();
+      os << reader_.file << ":" << doc.ErrorLineNum() << ": malformed XML: " << doc.ErrorName();
       throw LoadError(os.str());
     }
     const tinyxml2::XMLElement* robot = doc.RootElement();

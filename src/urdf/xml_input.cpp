@@ -1,6 +1,7 @@
 #include "xml_input.h"
 
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <map>
 #include <set>
@@ -27,11 +28,28 @@ std::string XmlReader::describe(const XMLElement* e) const {
   return s;
 }
 
+std::string oneLine(const std::string& text, size_t limit) {
+  std::string out;
+  for (unsigned char c : text) {
+    if (out.size() >= limit) return out + "...";
+    if (c == '\n') out += "\\n";
+    else if (c == '\t') out += "\\t";
+    else if (c < 0x20 || c == 0x7f) {
+      char buf[8];
+      std::snprintf(buf, sizeof buf, "\\x%02x", c);
+      out += buf;
+    } else {
+      out += static_cast<char>(c);
+    }
+  }
+  return out;
+}
+
 void XmlReader::fail(const XMLElement* e, const std::string& what) const {
   std::ostringstream os;
   os << file;
-  if (e) os << ":" << e->GetLineNum() << ": " << describe(e);
-  os << ": " << what;
+  if (e) os << ":" << e->GetLineNum() << ": " << oneLine(describe(e));
+  os << ": " << oneLine(what, 400);
   throw LoadError(os.str());
 }
 

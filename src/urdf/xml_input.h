@@ -11,6 +11,10 @@
 namespace mechanism_sim {
 namespace urdf_input {
 
+// Text quoted from a file, made one line: control characters escaped (\n, \xNN) and at most
+// `limit` characters kept (then "...").
+std::string oneLine(const std::string& text, size_t limit = 200);
+
 using Eigen::Isometry3d;
 using Eigen::Vector3d;
 
