@@ -6,6 +6,7 @@
 // leak). A finding prints "FINDING: ..." and aborts, so libFuzzer keeps the input.
 // MECHANISM_SIM_FUZZ_IGNORE (an ECMAScript regex; scripts/fuzz --ignore) lets findings
 // already written down pass, so a campaign looks past them for new ones.
+// MECHANISM_SIM_FUZZ_VERBOSE=1 says what became of each input (to read a reproduction).
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
@@ -22,6 +23,11 @@
 namespace {
 
 const char* const kSource = "fuzz.urdf";
+const bool kVerbose = std::getenv("MECHANISM_SIM_FUZZ_VERBOSE") != nullptr;
+
+void say(const std::string& what) {
+  if (kVerbose) std::fprintf(stderr, "fuzz_loader: %s\n", what.c_str());
+}
 
 struct Ignored {};  // a known finding (MECHANISM_SIM_FUZZ_IGNORE): the input ends quietly
 
@@ -66,6 +72,7 @@ int fuzzOne(const uint8_t* data, size_t size) {
   try {
     model = mechanism_sim::loadModelString(xml, kSource);
   } catch (const mechanism_sim::LoadError& e) {
+    say(std::string("refused: ") + e.what());
     checkMessage(e.what());
     return 0;
   } catch (const std::exception& e) {
@@ -76,9 +83,11 @@ int fuzzOne(const uint8_t* data, size_t size) {
   for (int s = 0; s < 100; ++s) {
     try {
       model->step(1e-3);
-    } catch (const mechanism_sim::ModelError&) {
+    } catch (const mechanism_sim::ModelError& e) {
+      say("loaded; step " + std::to_string(s + 1) + " refused: " + e.what());
       return 0;
-    } catch (const std::runtime_error&) {
+    } catch (const std::runtime_error& e) {
+      say("loaded; step " + std::to_string(s + 1) + " refused: " + e.what());
       return 0;
     } catch (const std::exception& e) {
       finding("step: " + typeName(e) + " escaped: " + e.what());
@@ -88,6 +97,7 @@ int fuzzOne(const uint8_t* data, size_t size) {
       finding("step: non-finite state without an error (violation " + std::to_string(p) + ", " +
               std::to_string(v) + ")");
   }
+  say("loaded; 100 steps taken");
   return 0;
 }
 
