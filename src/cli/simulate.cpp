@@ -22,7 +22,7 @@ namespace {
 
 const char* kUsage =
     "usage: simulate MODEL.urdf [--duration S] [--dt S] [--output-every N]\n"
-    "                [--csv FILE] [--poses] [--integrator rk4|rk2|euler]\n"
+    "                [--csv FILE] [--poses] [--integrator rk4|rk2]\n"
     "                [--set JOINT=POSITION]... [--velocity JOINT=VALUE]...\n"
     "                [--effort JOINT=VALUE]... [--quiet]\n";
 

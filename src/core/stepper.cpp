@@ -399,7 +399,7 @@ void Stepper::residualScales(const System& sys) {
 // shortfall is counted.
 bool Stepper::solveKKT(const System& sys, bool factored, double t) {
   const double tol = sys.options.solve_tol;
-  double res = 0;
+  double res = 0, previous_res = HUGE_VAL;
   // warm (a, lambda from a nearby solve): their sizes are the solution's to O(h); cold
   // (nothing yet): the scales are taken again after the first update
   const bool cold = (sys.n > 0 && a_.cwiseAbs().maxCoeff() == 0.0) || (sys.m > 0 && lam_.cwiseAbs().maxCoeff() == 0.0);
@@ -430,7 +430,11 @@ bool Stepper::solveKKT(const System& sys, bool factored, double t) {
       ++stats_.solves;
       return true;
     }
-    if (pass == kMaxSolvePasses) break;
+    // No progress: what is left is inconsistent (equations that are dependent at this very
+    // configuration, e.g. a parallelogram passing flat). Further passes would only push
+    // the iterate along the nearly dependent direction: keep the best one, count it.
+    if (pass == kMaxSolvePasses || (pass >= 2 && res > 0.5 * previous_res)) break;
+    previous_res = res;
     if (!factored) factor(sys, "stage 1", t), factored = true;
     ++stats_.solve_passes;
     for (int e = 0; e < sys.m; ++e) dm_[e] = kKappa * W_[e] * r2_[e];
@@ -604,11 +608,7 @@ void Stepper::stepOnce(const System& sys, State& s, const Inputs& in, double h) 
     // the row weights only precondition: computed at the first stage, kept for the step
     rates(sys, s, in, s.friction, xs_.data(), us_.data(), kx_[k].data(), ku_[k].data(), k == 1);
   };
-  if (sys.options.method == "euler") {  // semi-implicit: v1 = v0 + h a0, q1 = q0 + h v1
-    s.u = u0_ + h * ku_[0];
-    positionRates(sys.nb, x0_.data(), s.u.data(), kx_[1].data());
-    s.x = x0_ + h * kx_[1];
-  } else if (sys.options.method == "rk2") {  // Heun
+  if (sys.options.method == "rk2") {  // Heun
     stage(1, 1.0, 0);
     s.x = x0_ + (0.5 * h) * (kx_[0] + kx_[1]);
     s.u = u0_ + (0.5 * h) * (ku_[0] + ku_[1]);

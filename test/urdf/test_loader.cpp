@@ -418,7 +418,7 @@ TEST(InvalidModels, ElementErrorsCarryTheLine) {
 TEST(InvalidModels, MissingFileAndUnknownInitialOption) {
   EXPECT_THROW(loadModelFile(kSource + "/test/invalid/does_not_exist.urdf"), LoadError);
   EXPECT_THROW(load("urdf/four_bar.urdf", LoadOptions{{{"crank", 1.0}}, {}, ""}), LoadError);
-  EXPECT_THROW(load("urdf/four_bar.urdf", LoadOptions{{}, {}, "leapfrog"}), LoadError);
+  EXPECT_THROW(load("urdf/four_bar.urdf", LoadOptions{{}, {}, "euler"}), LoadError);
 }
 
 }  // namespace

@@ -43,9 +43,7 @@ struct SpringDamper {
 };
 
 struct IntegratorOptions {
-  // "rk4" (classical Runge-Kutta, default), "rk2" (Heun) or "euler" (semi-implicit,
-  // symplectic Euler: first order, one solve a step, stable for oscillations up to
-  // omega h < 2: the cheap robust choice).
+  // "rk4" (classical Runge-Kutta, default) or "rk2" (Heun).
   std::string method = "rk4";
   // Relative tolerances: of each equation against the size of its own terms (positions,
   // velocities, the equations of motion). Scale-free: metres or millimetres alike.
