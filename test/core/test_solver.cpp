@@ -331,14 +331,19 @@ TEST(Friction, SliderOnSpinningTurntableSticks) {
 
 // Friction sized with the step being taken: a 1 kg slider at 5 mm/s against 10 N, run
 // with 10 ms steps, stops and stays (no reversal, no energy gained).
-TEST(Friction, LargeStepStopsWithoutReversal) {
-  Mechanism m;
+// A 1 kg block on a prismatic joint to ground along z.
+void addSlider(Mechanism& m, const std::string& name) {
   Body b;
-  b.name = "block";
+  b.name = name;
   b.m = 1.0;
   b.Jp = 1e-3 * Matrix3d::Identity();
   const int id = m.addBody(b);
   m.addJoint(makeJoint("prismatic", "slide", Mechanism::kGround, JointFrame(), id, JointFrame()));
+}
+
+TEST(Friction, LargeStepStopsWithoutReversal) {
+  Mechanism m;
+  addSlider(m, "block");
   m.setJointFriction(0, 0, 10.0);
   m.setGravity(Vector3d::Zero());
   m.build();
@@ -356,12 +361,7 @@ TEST(Friction, LargeStepStopsWithoutReversal) {
 // Starting outside a limit is an error naming the joint, not a jump.
 TEST(Limits, InitialPositionOutsideTheLimitsIsAnError) {
   Mechanism m;
-  Body b;
-  b.name = "carriage";
-  b.m = 1.0;
-  b.Jp = 1e-3 * Matrix3d::Identity();
-  const int id = m.addBody(b);
-  m.addJoint(makeJoint("prismatic", "slide", Mechanism::kGround, JointFrame(), id, JointFrame()));
+  addSlider(m, "carriage");
   m.setJointLimits(0, 0, -0.5, 0.5);
   m.build();
   try {
