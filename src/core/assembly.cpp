@@ -123,16 +123,6 @@ double rowDot(const System& sys, const CoordinateTarget& t, const Row& row, cons
   return v;
 }
 
-void trackAll(const System& sys, State& s, const Stepper& st) {
-  const EvalContext ctx = s.context();
-  const BodyKin* ptrs[8];
-  for (int ci = 0; ci < sys.numConstraints(); ++ci) {
-    const Constraint& c = *sys.constraints[ci];
-    for (size_t k = 0; k < c.bodies().size() && k < 8; ++k) ptrs[k] = &st.kin()[c.bodies()[k]];
-    c.track(ptrs, ctx, s.tracked[ci]);
-  }
-}
-
 }  // namespace
 
 AssemblyReport assemble(const System& sys, State& s, Stepper& st,
@@ -154,7 +144,7 @@ AssemblyReport assemble(const System& sys, State& s, Stepper& st,
   for (const auto& t : velocities) checkTarget(t, "velocity");
   // Tracked angles from the starting pose, then the targets' own (so that a target of
   // 5 rad means 5 rad, not 5 - 2 pi).
-  trackAll(sys, s, st);
+  st.trackAngles(sys, s);
   for (const auto& t : positions) {
     const int slot = sys.joints[t.joint]->trackedSlot(t.k);
     if (slot >= 0) s.tracked[sys.joints[t.joint]->id()][slot] = t.value;
@@ -212,7 +202,7 @@ AssemblyReport assemble(const System& sys, State& s, Stepper& st,
     saved_tracked = s.tracked;
     displace(sys, s.x, dq.data());
     st.load(sys, s.x.data(), s.u.data());
-    trackAll(sys, s, st);
+    st.trackAngles(sys, s);
     double trial_cost = 0;
     const double trial_worst = residual(&trial_cost);
     if (trial_cost < cost) {

@@ -18,15 +18,26 @@ JointGeometry Joint::geometry(const BodyKin& ki, const BodyKin& kj, unsigned par
   return g;
 }
 
+void Joint::track(const BodyKin* const* kin, const EvalContext&, Tracked& t) const {
+  Row rows[3];
+  if (!trackedRows(*kin[0], *kin[1], t, rows)) return;
+  for (int k = 0; k < dof(); ++k)
+    if (trackedSlot(k) >= 0) t[trackedSlot(k)] = rows[k].Phi;  // unwrapped near the old value
+}
+
 void Joint::trackedRates(const BodyKin* const* kin, const EvalContext& ctx, Tracked& rate) const {
   rate = Tracked{};
-  bool any = false;
-  for (int k = 0; k < dof(); ++k) any = any || trackedSlot(k) >= 0;
-  if (!any) return;
   Row rows[3];
-  coordinates(*kin[0], *kin[1], ctx.tracked[id()], rows);
+  if (!trackedRows(*kin[0], *kin[1], ctx.tracked[id()], rows)) return;
   for (int k = 0; k < dof(); ++k)
     if (trackedSlot(k) >= 0) rate[trackedSlot(k)] = rows[k].Phi_dot;
+}
+
+bool Joint::trackedRows(const BodyKin& ki, const BodyKin& kj, const Tracked& t, Row* rows) const {
+  bool any = false;
+  for (int k = 0; k < dof(); ++k) any = any || trackedSlot(k) >= 0;
+  if (any) coordinates(ki, kj, t, rows);
+  return any;
 }
 
 void Joint::putPoint(const JointGeometry& g, RowWriter& out) {

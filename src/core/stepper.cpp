@@ -124,7 +124,6 @@ Stepper::Stepper(const System& sys) {
     Minv_[b - 1].topLeftCorner<3, 3>() = Matrix3d::Identity() / m;
     Minv_[b - 1].bottomRightCorner<3, 3>() = Jp.inverse();
   }
-  eval_side_.clear();
 }
 
 void Stepper::load(const System& sys, const double* x, const double* u) {
@@ -132,14 +131,26 @@ void Stepper::load(const System& sys, const double* x, const double* u) {
   loaded_x_ = Eigen::Map<const Eigen::VectorXd>(x, 7 * sys.nb);
 }
 
+void Stepper::gather(const Constraint& c, const BodyKin** ptrs) const {
+  for (size_t k = 0; k < c.bodies().size(); ++k) ptrs[k] = &kin_[c.bodies()[k]];
+}
+
+void Stepper::trackAngles(const System& sys, State& s) const {
+  const EvalContext ctx = s.context();
+  const BodyKin* ptrs[kMaxConstraintBodies];
+  for (int ci = 0; ci < sys.numConstraints(); ++ci) {
+    gather(*sys.constraints[ci], ptrs);
+    sys.constraints[ci]->track(ptrs, ctx, s.tracked[ci]);
+  }
+}
+
 void Stepper::evaluate(const System& sys, const State& st) {
   const EvalContext ctx = st.context();
-  const BodyKin* ptrs[8];
+  const BodyKin* ptrs[kMaxConstraintBodies];
   for (int ci = 0; ci < sys.numConstraints(); ++ci) {
     const Constraint& c = *sys.constraints[ci];
     const ConstraintLayout& L = sys.layout[ci];
-    const int k = static_cast<int>(c.bodies().size());
-    for (int s = 0; s < k && s < 8; ++s) ptrs[s] = &kin_[c.bodies()[s]];
+    gather(c, ptrs);
     c.evaluate(ptrs, ctx, Phi_.segment(L.row, L.size), J_[ci].topRows(L.size), gamma_.segment(L.row, L.size));
   }
   // Dependent equations (assembly found them) are implied by the others near the
@@ -590,11 +601,10 @@ void Stepper::stepOnce(const System& sys, State& s, const Inputs& in, double h) 
   tracked0_ = s.tracked;
   {
     const EvalContext ctx = s.context();
-    const BodyKin* ptrs[8];
+    const BodyKin* ptrs[kMaxConstraintBodies];
     for (int ci = 0; ci < sys.numConstraints(); ++ci) {
-      const Constraint& c = *sys.constraints[ci];
-      for (size_t k = 0; k < c.bodies().size() && k < 8; ++k) ptrs[k] = &kin_[c.bodies()[k]];
-      c.trackedRates(ptrs, ctx, tracked_rate_[ci]);
+      gather(*sys.constraints[ci], ptrs);
+      sys.constraints[ci]->trackedRates(ptrs, ctx, tracked_rate_[ci]);
     }
   }
   auto predictTracked = [&](double dt) {
@@ -660,13 +670,7 @@ void Stepper::finishStep(const System& sys, State& s, const Inputs& in, bool aft
   if (moved || !frozen) factor(sys, "projection", s.t, !frozen);  // velocities need H at this Phi_q
   projectVelocities(sys, s);
   load(sys, s.x.data(), s.u.data());
-  const EvalContext ctx = s.context();
-  const BodyKin* ptrs[8];
-  for (int ci = 0; ci < sys.numConstraints(); ++ci) {
-    const Constraint& c = *sys.constraints[ci];
-    for (size_t k = 0; k < c.bodies().size() && k < 8; ++k) ptrs[k] = &kin_[c.bodies()[k]];
-    c.track(ptrs, ctx, s.tracked[ci]);
-  }
+  trackAngles(sys, s);
   evaluate(sys, s);
   for (int pass = 0;; ++pass) {
     forces(sys, s, in, s.friction);

@@ -56,7 +56,12 @@ void System::finalize() {
     constraints.push_back(std::make_shared<LimitConstraint>(*joints[L.joint], L.k,
                                                             static_cast<int>(l), L.lower, L.upper));
   }
-  for (int c = 0; c < numConstraints(); ++c) constraints[c]->setId(c);
+  for (int c = 0; c < numConstraints(); ++c) {
+    constraints[c]->setId(c);
+    if (static_cast<int>(constraints[c]->bodies().size()) > kMaxConstraintBodies)
+      throw ModelError("constraint '" + constraints[c]->name() + "' couples more than " +
+                       std::to_string(kMaxConstraintBodies) + " bodies");
+  }
   n = 6 * nb;
 
   // Body graph of H = M + Phi_q^T W Phi_q and the factorization's schedule.

@@ -10,6 +10,9 @@
 
 namespace mechanism_sim {
 
+// A constraint couples at most this many bodies (a coupler: the bodies of two joints).
+constexpr int kMaxConstraintBodies = 4;
+
 // Angles a constraint tracks through turns (the branch references): part of the State.
 using Tracked = std::array<double, 2>;
 

@@ -65,9 +65,9 @@ class Joint : public Constraint {
     RowWriter out(Phi, J, gamma);
     equations(geometry(*kin[0], *kin[1], equationAxes()), *kin[0], *kin[1], ctx.tracked[id()], out);
   }
-  void track(const BodyKin* const* kin, const EvalContext&, Tracked& t) const final {
-    trackAngles(*kin[0], *kin[1], t);
-  }
+  // Tracked angles are the coordinates k with trackedSlot(k) >= 0: track() stores their
+  // values, trackedRates() their rates.
+  void track(const BodyKin* const* kin, const EvalContext& ctx, Tracked& t) const final;
   void trackedRates(const BodyKin* const* kin, const EvalContext& ctx, Tracked& rate) const final;
 
   JointGeometry geometry(const BodyKin& ki, const BodyKin& kj, unsigned parts = kAllParts) const;
@@ -77,8 +77,9 @@ class Joint : public Constraint {
  protected:
   virtual void equations(const JointGeometry& g, const BodyKin& ki, const BodyKin& kj,
                          const Tracked& t, RowWriter& out) const = 0;
-  // Joints with tracked angles move them to the pose (ki, kj) here.
-  virtual void trackAngles(const BodyKin& /*ki*/, const BodyKin& /*kj*/, Tracked& /*t*/) const {}
+
+  // The coordinate rows (at branch references t) when the joint tracks any angle.
+  bool trackedRows(const BodyKin& ki, const BodyKin& kj, const Tracked& t, Row* rows) const;
 
   // C(p1)(bz_i, bz_j) = tilde(bz_i) bz_j = 0 (A8.1): of its three rows the one along bz_i
   // vanishes identically; its components along by_i and -bx_i are the two independent

@@ -79,6 +79,8 @@ class Stepper {
   // ---- building blocks (assembly.cpp uses them)
   void load(const System& sys, const double* x, const double* u);
   void evaluate(const System& sys, const State& s);
+  // Moves the State's tracked angles to the loaded pose (after a step or an assembly move).
+  void trackAngles(const System& sys, State& s) const;
   // H = diag * M + shift I + sum_e w_e J_e^T J_e over the rows, w_e = kappa * (row weight),
   // plus extra rows (Jx: rows over the bodies of constraint `extra_constraint`).
   void assembleH(const System& sys, double kappa, double mass, double shift);
@@ -113,6 +115,8 @@ class Stepper {
   bool releaseLimits(const System& sys, State& s);
   void jointRows(const System& sys, const State& s, int j, Row* rows) const;
   double motionScale(const System& sys, const Eigen::VectorXd& u) const;
+  // The loaded states of c's bodies in c.bodies() order, as Constraint calls take them.
+  void gather(const Constraint& c, const BodyKin** ptrs) const;
   [[noreturn]] void leftConstraints(const System& sys, double t, double err) const;
 
   std::vector<BodyKin> kin_;

@@ -26,9 +26,5 @@ void CylindricalJoint::coordinates(const BodyKin& ki, const BodyKin& kj, const T
   out[1] = Cn2(g.bz_i, g.d);
 }
 
-void CylindricalJoint::trackAngles(const BodyKin& ki, const BodyKin& kj, Tracked& t) const {
-  const JointGeometry g = geometry(ki, kj, kBxI | kByI | kBxJ);
-  t[0] = relativeAngle(g.bx_i, g.by_i, g.bx_j, t[0]).Phi;
-}
 
 }  // namespace mechanism_sim

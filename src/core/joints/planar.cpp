@@ -25,9 +25,5 @@ void PlanarJoint::coordinates(const BodyKin& ki, const BodyKin& kj, const Tracke
   out[2] = relativeAngle(g.bx_i, g.by_i, g.bx_j, t[0]);
 }
 
-void PlanarJoint::trackAngles(const BodyKin& ki, const BodyKin& kj, Tracked& t) const {
-  const JointGeometry g = geometry(ki, kj, kBxI | kByI | kBxJ);
-  t[0] = relativeAngle(g.bx_i, g.by_i, g.bx_j, t[0]).Phi;
-}
 
 }  // namespace mechanism_sim

@@ -23,9 +23,5 @@ void RevoluteJoint::coordinates(const BodyKin& ki, const BodyKin& kj, const Trac
   out[0] = relativeAngle(g.bx_i, g.by_i, g.bx_j, t[0]);
 }
 
-void RevoluteJoint::trackAngles(const BodyKin& ki, const BodyKin& kj, Tracked& t) const {
-  const JointGeometry g = geometry(ki, kj, kBxI | kByI | kBxJ);
-  t[0] = relativeAngle(g.bx_i, g.by_i, g.bx_j, t[0]).Phi;
-}
 
 }  // namespace mechanism_sim

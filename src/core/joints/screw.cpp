@@ -34,9 +34,5 @@ void ScrewJoint::coordinates(const BodyKin& ki, const BodyKin& kj, const Tracked
   out[0] = relativeAngle(g.bx_i, g.by_i, g.bx_j, t[0]);
 }
 
-void ScrewJoint::trackAngles(const BodyKin& ki, const BodyKin& kj, Tracked& t) const {
-  const JointGeometry g = geometry(ki, kj, kBxI | kByI | kBxJ);
-  t[0] = relativeAngle(g.bx_i, g.by_i, g.bx_j, t[0]).Phi;
-}
 
 }  // namespace mechanism_sim

@@ -29,10 +29,5 @@ void UniversalJoint::coordinates(const BodyKin& ki, const BodyKin& kj, const Tra
   out[1] = angleOf(Cn1(g.bx_i, g.bx_j), Cn1(g.bx_i, g.bz_j), t[1]);
 }
 
-void UniversalJoint::trackAngles(const BodyKin& ki, const BodyKin& kj, Tracked& t) const {
-  const JointGeometry g = geometry(ki, kj, kBxI | kByI | kBzI | kBxJ | kByJ | kBzJ);
-  t[0] = angleOf(Cn1(g.by_i, g.by_j), Cn1(g.bz_i, g.by_j), t[0]).Phi;
-  t[1] = angleOf(Cn1(g.bx_i, g.bx_j), Cn1(g.bx_i, g.bz_j), t[1]).Phi;
-}
 
 }  // namespace mechanism_sim

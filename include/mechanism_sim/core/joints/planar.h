@@ -22,7 +22,6 @@ class PlanarJoint : public Joint {
  protected:
   void equations(const JointGeometry& g, const BodyKin& ki, const BodyKin& kj,
                  const Tracked& t, RowWriter& out) const override;
-  void trackAngles(const BodyKin& ki, const BodyKin& kj, Tracked& t) const override;
 
 };
 

@@ -21,7 +21,6 @@ class RevoluteJoint : public Joint {
  protected:
   void equations(const JointGeometry& g, const BodyKin& ki, const BodyKin& kj,
                  const Tracked& t, RowWriter& out) const override;
-  void trackAngles(const BodyKin& ki, const BodyKin& kj, Tracked& t) const override;
 
 };
 

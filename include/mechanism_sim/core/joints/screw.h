@@ -26,7 +26,6 @@ class ScrewJoint : public Joint {
  protected:
   void equations(const JointGeometry& g, const BodyKin& ki, const BodyKin& kj,
                  const Tracked& t, RowWriter& out) const override;
-  void trackAngles(const BodyKin& ki, const BodyKin& kj, Tracked& t) const override;
 
  private:
   double alpha_, phi0_;
