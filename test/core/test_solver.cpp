@@ -244,11 +244,6 @@ TEST(Solver, SnapshotRestoreContinuesBitIdentically) {
   EXPECT_EQ(a.tracked, b.tracked);
 }
 
-}  // namespace
-}  // namespace mechanism_sim
-
-namespace mechanism_sim {
-namespace {
 
 // A wheel at 4000 rad/s with 1 ms steps turns 4 rad a step (more than pi, and beyond
 // what RK4 follows): the steps are taken in halves down to 0.25 rad and the tracked angle
@@ -259,11 +254,7 @@ namespace {
 TEST(Solver, AngleTrackedThroughMoreThanPiPerStep) {
   for (const char* type : {"revolute", "screw"}) {
     Mechanism m;
-    Body b;
-    b.name = "wheel";
-    b.m = 1.0;
-    b.Jp = Vector3d(0.1, 0.1, 0.2).asDiagonal();
-    const int w = m.addBody(b);
+    const int w = m.addBody(body("wheel", 1.0, Vector3d(0.1, 0.1, 0.2).asDiagonal(), Vector3d::Zero()));
     JointParams params;
     params.alpha = 1e-3 / (2 * M_PI);  // 1 mm per turn
     m.addJoint(makeJoint(type, "axle", Mechanism::kGround, JointFrame(), w, JointFrame(), params));
@@ -277,11 +268,7 @@ TEST(Solver, AngleTrackedThroughMoreThanPiPerStep) {
     EXPECT_EQ(m.solverStats().halved_steps, 1000 * 15) << type;  // 16 substeps a step
   }
   Mechanism m;
-  Body b;
-  b.name = "turbine";
-  b.m = 1.0;
-  b.Jp = Matrix3d::Identity();
-  const int w = m.addBody(b);
+  const int w = m.addBody(body("turbine", 1.0, Matrix3d::Identity(), Vector3d::Zero()));
   m.addJoint(makeJoint("revolute", "axle", Mechanism::kGround, JointFrame(), w, JointFrame()));
   m.build();
   m.assemble({}, {CoordinateTarget{0, 0, 4e4}});
@@ -293,28 +280,14 @@ TEST(Solver, AngleTrackedThroughMoreThanPiPerStep) {
   }
 }
 
-}  // namespace
-}  // namespace mechanism_sim
-
-namespace mechanism_sim {
-namespace {
 
 // A heavy turntable spinning at 20 rad/s carries a 1 kg slider on a radial prismatic
 // joint at 0.5 m with Coulomb friction 2000 N: m W^2 q = 200 N, so it must stick. The
 // sticking effort includes the coordinate's own velocity term (gamma of q).
 TEST(Friction, SliderOnSpinningTurntableSticks) {
   Mechanism m;
-  Body table;
-  table.name = "table";
-  table.m = 1000.0;
-  table.Jp = Vector3d(1e6, 1e6, 2e6).asDiagonal();
-  const int t = m.addBody(table);
-  Body slider;
-  slider.name = "slider";
-  slider.m = 1.0;
-  slider.Jp = 1e-3 * Matrix3d::Identity();
-  slider.r = Vector3d(0.5, 0, 0);
-  const int s = m.addBody(slider);
+  const int t = m.addBody(body("table", 1000.0, Vector3d(1e6, 1e6, 2e6).asDiagonal(), Vector3d::Zero()));
+  const int s = m.addBody(body("slider", 1.0, 1e-3 * Matrix3d::Identity(), Vector3d(0.5, 0, 0)));
   m.addJoint(makeJoint("revolute", "spindle", Mechanism::kGround, JointFrame(), t, JointFrame()));
   JointFrame radial;  // z along x of the table
   radial.Rp = Eigen::AngleAxisd(M_PI / 2, Vector3d::UnitY()).toRotationMatrix();
@@ -333,11 +306,7 @@ TEST(Friction, SliderOnSpinningTurntableSticks) {
 // with 10 ms steps, stops and stays (no reversal, no energy gained).
 // A 1 kg block on a prismatic joint to ground along z.
 void addSlider(Mechanism& m, const std::string& name) {
-  Body b;
-  b.name = name;
-  b.m = 1.0;
-  b.Jp = 1e-3 * Matrix3d::Identity();
-  const int id = m.addBody(b);
+  const int id = m.addBody(body(name, 1.0, 1e-3 * Matrix3d::Identity(), Vector3d::Zero()));
   m.addJoint(makeJoint("prismatic", "slide", Mechanism::kGround, JointFrame(), id, JointFrame()));
 }
 
@@ -372,21 +341,12 @@ TEST(Limits, InitialPositionOutsideTheLimitsIsAnError) {
   }
 }
 
-}  // namespace
-}  // namespace mechanism_sim
-
-namespace mechanism_sim {
-namespace {
 
 // A revolute whose frames start 170 degrees apart closes mirrored (axes opposed) under its
 // dot-product equations: refused, naming the joint.
 TEST(Assembly, MirroredClosureIsRefused) {
   Mechanism m;
-  Body b;
-  b.name = "arm";
-  b.m = 1.0;
-  b.Jp = 0.01 * Matrix3d::Identity();
-  b.r = Vector3d(0.5, 0, 0);
+  Body b = body("arm", 1.0, 0.01 * Matrix3d::Identity(), Vector3d(0.5, 0, 0));
   b.p = Quaterniond(Eigen::AngleAxisd(170.0 * M_PI / 180.0, Vector3d::UnitX()));
   const int id = m.addBody(b);
   JointFrame on_arm;
