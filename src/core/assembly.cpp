@@ -308,13 +308,14 @@ AssemblyReport assemble(const System& sys, State& s, Stepper& st,
     vres = velocityError();
     if (vres <= sys.options.velocity_tol) break;
     s.u = Mu;
-    for (int e = 0; e < sys.m; ++e) y[e] = -mu_c[e];
+    // Phi_q v = nu: the drives' rates (zero for scleronomic equations)
+    for (int e = 0; e < sys.m; ++e) y[e] = kKappa * W[e] * st.nu()[e] - mu_c[e];
     st.addJt(sys, y.data(), s.u.data());
     for (size_t k = 0; k < velocities.size(); ++k)
       addRowT(sys, velocities[k], rows[k], wt[k] * velocities[k].value - mu_t[k], s.u.data());
     st.cholesky().solve(s.u.data());
     st.mulJ(sys, s.u.data(), Ju.data());
-    for (int e = 0; e < sys.m; ++e) mu_c[e] += kKappa * W[e] * Ju[e];
+    for (int e = 0; e < sys.m; ++e) mu_c[e] += kKappa * W[e] * (Ju[e] - st.nu()[e]);
     for (size_t k = 0; k < velocities.size(); ++k)
       mu_t[k] += wt[k] * (rowDot(sys, velocities[k], rows[k], s.u) - velocities[k].value);
   }

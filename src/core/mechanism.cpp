@@ -95,6 +95,43 @@ void Mechanism::setJointLimits(int joint, int k, double lower, double upper) {
   sys_->limits.push_back(LimitSpec{joint, k, lower, upper, 0});
 }
 
+int Mechanism::addDrive(int joint, int k, const DriveProfile& profile, double q0) {
+  requireUnbuilt("addDrive");
+  checkCoordinate(joint, k);
+  const Joint& j = *sys_->joints[joint];
+  if (!j.holonomicCoordinates())
+    throw ModelError("joint '" + j.name() + "': a drive needs a position coordinate");
+  for (const DriveSpec& D : sys_->drives)
+    if (D.joint == joint && D.k == k) throw ModelError("joint '" + j.name() + "': the coordinate is already driven");
+  if (!std::isfinite(q0)) throw ModelError("joint '" + j.name() + "': drive start position not finite");
+  sys_->drives.push_back(DriveSpec{joint, k, profile, q0, 0});
+  return numDrives() - 1;
+}
+
+int Mechanism::driveOf(int joint, int k) const {
+  for (int d = 0; d < numDrives(); ++d)
+    if (sys_->drives[d].joint == joint && sys_->drives[d].k == k) return d;
+  return -1;
+}
+
+void Mechanism::driveTarget(int drive, double* q, double* q_dot, double* q_ddot) const {
+  const DriveSpec& D = sys_->drives.at(drive);
+  D.profile.eval(state_.t, state_.drive.at(drive), q, q_dot, q_ddot);
+}
+
+void Mechanism::commandDriveVelocity(int drive, double v, double acc) {
+  if (!built_) throw std::logic_error("Mechanism::commandDriveVelocity before build()");
+  const DriveSpec& D = sys_->drives.at(drive);
+  const std::string who = "joint '" + sys_->joints[D.joint]->name() + "': ";
+  if (D.profile.kind() != DriveProfile::Kind::kVelocity)
+    throw std::invalid_argument(who + "its drive follows a profile; only a velocity drive takes commands");
+  if (!std::isfinite(v)) throw std::invalid_argument(who + "drive velocity must be finite");
+  if (!(acc > 0)) throw std::invalid_argument(who + "drive acceleration must be positive");
+  double q, q_dot, q_ddot;
+  driveTarget(drive, &q, &q_dot, &q_ddot);
+  state_.drive[drive] = DriveRamp{state_.t, q, q_dot, v, std::isfinite(acc) ? acc : 0.0};
+}
+
 void Mechanism::setGravity(const Vector3d& g) {
   if (!g.allFinite()) throw ModelError("gravity must be finite");
   editable().gravity = g;
@@ -207,6 +244,8 @@ double Mechanism::jointEffort(int joint, int k) const {
   for (size_t l = 0; l < sys_->limits.size(); ++l)
     if (sys_->limits[l].joint == joint && sys_->limits[l].k == k && state_.limit_side[l])
       tau -= state_.lambda[sys_->layout[sys_->limits[l].constraint].row];
+  const int d = driveOf(joint, k);
+  if (d >= 0) tau -= state_.lambda[sys_->layout[sys_->drives[d].constraint].row];
   return tau;
 }
 

@@ -95,7 +95,7 @@ Stepper::Stepper(const System& sys) {
   sizes_.clear();
   for (const auto& c : sys.constraints) sizes_.push_back(c->size());
   auto zeros = [](Eigen::VectorXd& v, int size) { v = Eigen::VectorXd::Zero(size); };
-  zeros(Phi_, sys.m), zeros(gamma_, sys.m), zeros(W_, sys.m), zeros(lam_, sys.m);
+  zeros(Phi_, sys.m), zeros(nu_, sys.m), zeros(gamma_, sys.m), zeros(W_, sys.m), zeros(lam_, sys.m);
   zeros(r2_, sys.m), zeros(s2_, sys.m), zeros(dm_, sys.m), zeros(query_, sys.m);
   zeros(Q_, sys.n), zeros(a_, sys.n), zeros(r1_, sys.n), zeros(s1_, sys.n), zeros(dn_, sys.n);
   zeros(x0_, 7 * sys.nb), zeros(u0_, sys.n), zeros(xs_, 7 * sys.nb), zeros(us_, sys.n);
@@ -153,6 +153,7 @@ void Stepper::evaluate(const System& sys, const State& st) {
     gather(c, ptrs);
     c.evaluate(ptrs, ctx, Phi_.segment(L.row, L.size), J_[ci].topRows(L.size), gamma_.segment(L.row, L.size));
   }
+  for (int ci : sys.rheonomic) sys.constraints[ci]->velocityTerm(ctx, nu_.data() + sys.layout[ci].row);
   // Dependent equations (assembly found them) are implied by the others near the
   // constraint manifold; off it they are nearly dependent and make the KKT system
   // ill-posed, so they leave the solve (their Phi is still reported).
@@ -161,7 +162,7 @@ void Stepper::evaluate(const System& sys, const State& st) {
     for (int ci = 0; ci < sys.numConstraints(); ++ci) {
       const ConstraintLayout& L = sys.layout[ci];
       for (int e = 0; e < L.size; ++e)
-        if (dropped_[L.row + e]) J_[ci].row(e).setZero(), gamma_[L.row + e] = 0.0;
+        if (dropped_[L.row + e]) J_[ci].row(e).setZero(), gamma_[L.row + e] = 0.0, nu_[L.row + e] = 0.0;
     }
   evaluated_x_ = loaded_x_;
   evaluated_side_ = st.limit_side;
@@ -579,7 +580,8 @@ void Stepper::stepOnce(const System& sys, State& s, const Inputs& in, double h) 
   // factorization, only when the inputs changed, so a restored State continues
   // bit-identically.
   load(sys, s.x.data(), s.u.data());
-  if (!(have_eval_ && eval_x_ == s.x && eval_u_ == s.u && eval_side_ == s.limit_side))
+  if (!(have_eval_ && eval_x_ == s.x && eval_u_ == s.u && eval_side_ == s.limit_side && eval_t_ == s.t &&
+        eval_drive_ == s.drive))
     evaluate(sys, s);
   bool factored = false;
   if (frictionActs(sys)) {
@@ -611,10 +613,12 @@ void Stepper::stepOnce(const System& sys, State& s, const Inputs& in, double h) 
     for (size_t ci = 0; ci < s.tracked.size(); ++ci)
       for (int k = 0; k < 2; ++k) s.tracked[ci][k] = tracked0_[ci][k] + tracked_rate_[ci][k] * dt;
   };
+  const double t0 = s.t;
   auto stage = [&](int k, double c, int from) {
     xs_ = x0_ + (c * h) * kx_[from];
     us_ = u0_ + (c * h) * ku_[from];
     predictTracked(c * h);
+    s.t = t0 + c * h;  // rheonomic equations (drives) are evaluated at the stage's time
     // the row weights only precondition: computed at the first stage, kept for the step
     rates(sys, s, in, s.friction, xs_.data(), us_.data(), kx_[k].data(), ku_[k].data(), k == 1);
   };
@@ -631,7 +635,7 @@ void Stepper::stepOnce(const System& sys, State& s, const Inputs& in, double h) 
   }
   for (int b = 0; b < sys.nb; ++b) s.x.segment<4>(7 * b + 3).normalize();
   predictTracked(h);  // references near the new angles; finishStep tracks them exactly
-  s.t += h;
+  s.t = t0 + h;
   ++s.steps;
   finishStep(sys, s, in, true);
 }
@@ -681,7 +685,8 @@ void Stepper::finishStep(const System& sys, State& s, const Inputs& in, bool aft
   }
   s.acc = a_;
   s.lambda = lam_;
-  eval_x_ = s.x, eval_u_ = s.u, eval_side_ = s.limit_side, have_eval_ = true;
+  eval_x_ = s.x, eval_u_ = s.u, eval_side_ = s.limit_side, eval_t_ = s.t, eval_drive_ = s.drive;
+  have_eval_ = true;
 }
 
 // Activates a limit whose coordinate has passed its bound; returns whether any did.
@@ -695,6 +700,14 @@ bool Stepper::updateLimits(const System& sys, State& s) {
     const double q = rows[L.k].Phi;
     const int side = q < L.lower ? -1 : q > L.upper ? 1 : 0;
     if (!side) continue;
+    for (const DriveSpec& D : sys.drives)
+      if (D.joint == L.joint && D.k == L.k) {
+        std::ostringstream os;
+        os << "at t = " << s.t << " s: the drive of joint '" << sys.joints[L.joint]->name()
+           << "' moves it to " << fmt(q) << ", past its limits [" << fmt(L.lower) << ", "
+           << fmt(L.upper) << "]; change the drive or the limits";
+        throw std::runtime_error(os.str());
+      }
     s.limit_side[l] = static_cast<signed char>(side);
     changed = true;
   }
@@ -760,7 +773,7 @@ double Stepper::velocityResidual(const System& sys, const Eigen::VectorXd& u) co
     const Jacobian& J = J_[ci];
     for (int e = 0; e < L.size; ++e) {
       if (!dropped_.empty() && dropped_[L.row + e]) continue;
-      double value = 0, scale = 0;
+      double value = -nu_[L.row + e], scale = std::fabs(nu_[L.row + e]);
       for (size_t k = 0; k < L.bodies.size(); ++k) {
         if (L.bodies[k] < 0) continue;
         const auto ub = u.segment<6>(6 * L.bodies[k]);
@@ -788,6 +801,7 @@ double Stepper::positionViolation() const { return Phi_.size() ? Phi_.cwiseAbs()
 
 double Stepper::velocityViolation(const System& sys, const Eigen::VectorXd& u) const {
   mulJ(sys, u.data(), query_.data());
+  query_ -= nu_;
   return query_.size() ? query_.cwiseAbs().maxCoeff() : 0.0;
 }
 
@@ -858,7 +872,7 @@ void Stepper::projectVelocities(const System& sys, State& s) {
   double err = velocityResidual(sys, s.u);
   for (int it = 0; err > tol && it < kMaxVelocityPasses; ++it) {
     mulJ(sys, s.u.data(), dm_.data());
-    for (int e = 0; e < sys.m; ++e) dm_[e] *= -kKappa * W_[e];
+    for (int e = 0; e < sys.m; ++e) dm_[e] = -kKappa * W_[e] * (dm_[e] - nu_[e]);
     dn_.setZero();
     addJt(sys, dm_.data(), dn_.data());
     chol_.solve(dn_.data());

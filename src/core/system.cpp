@@ -42,12 +42,28 @@ void System::finalize() {
   if (!(options.position_tol > 0) || !(options.velocity_tol > 0) || !(options.solve_tol > 0))
     throw ModelError("integrator tolerances must be positive");
 
-  // Limits become constraints after all others, free until reached.
+  // Drives become constraints after joints and couplers, limits after all others (free
+  // until reached).
   constraints.erase(std::remove_if(constraints.begin(), constraints.end(),
                                    [](const std::shared_ptr<Constraint>& c) {
-                                     return dynamic_cast<const LimitConstraint*>(c.get()) != nullptr;
+                                     return dynamic_cast<const LimitConstraint*>(c.get()) != nullptr ||
+                                            dynamic_cast<const DriveConstraint*>(c.get()) != nullptr;
                                    }),
                     constraints.end());
+  for (size_t d = 0; d < drives.size(); ++d) {
+    DriveSpec& D = drives[d];
+    if (D.joint < 0 || D.joint >= numJoints() || D.k < 0 || D.k >= joints[D.joint]->dof())
+      throw ModelError("drive " + std::to_string(d) + ": no such joint coordinate");
+    const Joint& j = *joints[D.joint];
+    if (!j.holonomicCoordinates())
+      throw ModelError("joint '" + j.name() + "': a drive needs a position coordinate (this joint's rates are not the derivatives of its coordinates)");
+    for (size_t e = 0; e < d; ++e)
+      if (drives[e].joint == D.joint && drives[e].k == D.k)
+        throw ModelError("joint '" + j.name() + "': the coordinate is already driven");
+    if (!std::isfinite(D.q0)) throw ModelError("joint '" + j.name() + "': drive start position not finite");
+    D.constraint = numConstraints();
+    constraints.push_back(std::make_shared<DriveConstraint>(j, D.k, static_cast<int>(d), D.profile));
+  }
   m_eq = 0;
   for (const auto& c : constraints) m_eq += c->size();
   for (size_t l = 0; l < limits.size(); ++l) {
@@ -56,8 +72,10 @@ void System::finalize() {
     constraints.push_back(std::make_shared<LimitConstraint>(*joints[L.joint], L.k,
                                                             static_cast<int>(l), L.lower, L.upper));
   }
+  rheonomic.clear();
   for (int c = 0; c < numConstraints(); ++c) {
     constraints[c]->setId(c);
+    if (constraints[c]->rheonomic()) rheonomic.push_back(c);
     if (static_cast<int>(constraints[c]->bodies().size()) > kMaxConstraintBodies)
       throw ModelError("constraint '" + constraints[c]->name() + "' couples more than " +
                        std::to_string(kMaxConstraintBodies) + " bodies");
@@ -137,6 +155,10 @@ State initialState(const System& sys) {
   s.lambda = Eigen::VectorXd::Zero(sys.m);
   s.acc = Eigen::VectorXd::Zero(sys.n);
   s.friction.assign(sys.joints.size(), {0, 0, 0});
+  for (const DriveSpec& D : sys.drives) {
+    const double v = D.profile.kind() == DriveProfile::Kind::kVelocity ? D.profile.velocity() : 0.0;
+    s.drive.push_back(DriveRamp{0.0, D.q0, v, v, 0.0});
+  }
   return s;
 }
 

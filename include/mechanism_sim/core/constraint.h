@@ -16,11 +16,16 @@ constexpr int kMaxConstraintBodies = 4;
 // Angles a constraint tracks through turns (the branch references): part of the State.
 using Tracked = std::array<double, 2>;
 
+struct DriveRamp;  // drive.h
+
 // What constraints read besides the bodies: the State's tracked angles (indexed by
-// constraint id) and the sides of the position limits (indexed by limit id).
+// constraint id), the sides of the position limits (indexed by limit id), the time and
+// the velocity drives' references (indexed by drive id), for rheonomic equations.
 struct EvalContext {
   const Tracked* tracked = nullptr;
   const signed char* limit_side = nullptr;
+  double t = 0.0;
+  const DriveRamp* drive = nullptr;
 };
 
 class Constraint {
@@ -47,6 +52,12 @@ class Constraint {
   // from them, so a joint may turn more than pi in one step.
   virtual void trackedRates(const BodyKin* const* /*kin*/, const EvalContext& /*ctx*/, Tracked& rate) const {
     rate = Tracked{};
+  }
+  // Rheonomic equations Phi(q, t) = 0 (drives) have a velocity equation Phi_q v = nu with
+  // nu = -Phi_t; velocityTerm writes nu (size()). Scleronomic ones: nu = 0.
+  virtual bool rheonomic() const { return false; }
+  virtual void velocityTerm(const EvalContext& /*ctx*/, double* nu) const {
+    for (int e = 0; e < size(); ++e) nu[e] = 0.0;
   }
   // Tracked angles of the pose the constraint was defined in.
   virtual Tracked initialTracked() const { return Tracked{}; }

@@ -63,6 +63,10 @@ class Mechanism {
   // Position limits of a coordinate: unilateral, activated on contact with no rebound,
   // released when the joint pulls away.
   void setJointLimits(int joint, int k, double lower, double upper);
+  // Prescribed motion of coordinate k (drive.h): q_k = f(t), an exact rheonomic
+  // constraint whose multiplier is the driving effort. q0: a velocity drive's position at
+  // t = 0 (f = q0 + v t). Returns the drive's index.
+  int addDrive(int joint, int k, const DriveProfile& profile, double q0 = 0.0);
   // These may also change after build() (the System is rebuilt, the State kept).
   void setGravity(const Vector3d& g);
   void setJointDamping(int joint, int k, double c);
@@ -81,6 +85,14 @@ class Mechanism {
   void setJointEffort(int joint, int k, double tau);
   void setBodyWrench(int body, const Vector3d& force, const Vector3d& torque_body);
   void setSpringActuation(int spring, double f_act);
+  // A velocity drive moves to velocity v from now, at acceleration at most acc (> 0; inf:
+  // at once), position and velocity continuous. Throws for a profile drive.
+  void commandDriveVelocity(int drive, double v, double acc);
+  int numDrives() const { return static_cast<int>(sys_->drives.size()); }
+  // The drive of a joint coordinate, or -1.
+  int driveOf(int joint, int k) const;
+  // What the drive prescribes now: position, velocity, acceleration.
+  void driveTarget(int drive, double* q, double* q_dot, double* q_ddot) const;
   Snapshot snapshot() const { return state_; }
   void restore(const Snapshot& s);
 
@@ -107,7 +119,8 @@ class Mechanism {
   Matrix3d rotation(int b) const;
   Quaterniond orientation(int b) const;
   // Joint coordinate k: position, rate, and the effort the joint applies along it
-  // (commanded effort minus damping plus friction, plus a limit's reaction).
+  // (commanded effort minus damping plus friction, plus a limit's reaction and a drive's
+  // effort).
   double jointPosition(int joint, int k) const;
   double jointVelocity(int joint, int k) const;
   double jointEffort(int joint, int k) const;

@@ -61,8 +61,10 @@ class Stepper {
   const std::vector<BodyKin>& kin() const { return kin_; }
   const Eigen::VectorXd& Phi() const { return Phi_; }
   const Eigen::VectorXd& gamma() const { return gamma_; }
+  // Right-hand side of the velocity equations Phi_q v = nu (nu = -Phi_t: drives' rates).
+  const Eigen::VectorXd& nu() const { return nu_; }
   Eigen::Ref<const Eigen::MatrixXd> jacobian(int c) const { return J_[c].topRows(sizes_[c]); }
-  // max over equations of |Phi_e| and |Phi_q v|_e
+  // max over equations of |Phi_e| and |Phi_q v - nu|_e
   double positionViolation() const;
   double velocityViolation(const System& sys, const Eigen::VectorXd& u) const;
   // Relative residuals: each equation against the size of its terms (scale-free).
@@ -126,7 +128,7 @@ class Stepper {
   std::vector<Jacobian> J_, J_frozen_;  // J_frozen_: the last stage's, during projection
   std::vector<int> sizes_;
   mutable Eigen::VectorXd query_;
-  Eigen::VectorXd Phi_, gamma_, W_, Q_, a_, lam_, r1_, r2_, s1_, s2_, dn_, dm_;
+  Eigen::VectorXd Phi_, nu_, gamma_, W_, Q_, a_, lam_, r1_, r2_, s1_, s2_, dn_, dm_;
   std::vector<Eigen::Matrix<double, 6, 6>> Minv_;  // per moving body, with stand-ins
   BlockCholesky chol_;
   Eigen::VectorXd x0_, u0_, xs_, us_, kx_[4], ku_[4];
@@ -134,6 +136,8 @@ class Stepper {
   // flag has to be kept in step with anything).
   Eigen::VectorXd eval_x_, eval_u_;
   std::vector<signed char> eval_side_;
+  double eval_t_ = 0.0;
+  std::vector<DriveRamp> eval_drive_;
   bool have_eval_ = false;
   SolverStats stats_;
   std::vector<State> backup_;  // per halving depth

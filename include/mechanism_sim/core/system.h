@@ -13,6 +13,7 @@
 #include <Eigen/Core>
 
 #include "mechanism_sim/core/block_cholesky.h"
+#include "mechanism_sim/core/drive.h"
 #include "mechanism_sim/core/joint.h"
 
 namespace mechanism_sim {
@@ -59,6 +60,14 @@ struct LimitSpec {
   int constraint = 0;
 };
 
+// Prescribed motion of joint coordinate k; `constraint` is its DriveConstraint.
+struct DriveSpec {
+  int joint = 0, k = 0;
+  DriveProfile profile;
+  double q0 = 0.0;  // a velocity drive's position at t = 0
+  int constraint = 0;
+};
+
 // Where a constraint's equations and Jacobian columns sit.
 struct ConstraintLayout {
   int row = 0, size = 0;
@@ -78,6 +87,7 @@ class System {
   std::vector<int> joint_constraint;
   std::vector<SpringDamper> springs;
   std::vector<LimitSpec> limits;
+  std::vector<DriveSpec> drives;
   std::vector<std::array<double, 3>> damping, friction;  // per joint coordinate
   Vector3d gravity = Vector3d(0, 0, -9.81);
   IntegratorOptions options;
@@ -89,6 +99,7 @@ class System {
   int m_eq = 0;        // rows of the equality constraints (without limits)
   std::vector<ConstraintLayout> layout;
   std::vector<std::pair<int, int>> block_edges;  // body graph of H
+  std::vector<int> rheonomic;                    // constraints with a velocity term (drives)
   // Scales: a length (largest lever arm / joint offset / body distance), a mass and a
   // rotational inertia (means over bodies that have them); the stand-ins for what massless
   // bodies lack in the row weights.
@@ -113,7 +124,8 @@ struct State {
   Eigen::VectorXd lambda;                  // multipliers at this state (and warm start)
   Eigen::VectorXd acc;                     // accelerations at this state
   std::vector<std::array<double, 3>> friction;  // friction effort of the step that led here
-  EvalContext context() const { return EvalContext{tracked.data(), limit_side.data()}; }
+  std::vector<DriveRamp> drive;            // per drive: a velocity drive's reference
+  EvalContext context() const { return EvalContext{tracked.data(), limit_side.data(), t, drive.data()}; }
 };
 
 // What acts from outside; set between steps.

@@ -1,0 +1,75 @@
+// Prescribed motion of one joint coordinate (a drive, ADAMS' "motion"): the rheonomic
+// equation  Phi(q, t) = q_k(q) - f(t) = 0  among the other constraints. Its multiplier is
+// the effort the drive must supply along q_k (tau = -lambda, as for a limit).
+//   velocity:  Phi_q v = G_k v = f_dot(t)        (the velocity equation's right-hand side
+//                                                  nu = -Phi_t = f_dot)
+//   accel.:    Phi_q a = gamma_k + f_ddot(t)     (q_ddot = G_k a - gamma_k, joint.h)
+#pragma once
+#include <string>
+#include <vector>
+
+#include "mechanism_sim/core/joint.h"
+
+namespace mechanism_sim {
+
+// A velocity drive's reference, part of the State (it changes when a new velocity is
+// commanded): from t0 the coordinate leaves q0 at v0 and its velocity moves to v1 at
+// constant acceleration acc (acc <= 0: at once), then stays at v1. Position and velocity
+// are continuous across a command; the acceleration steps by at most acc.
+struct DriveRamp {
+  double t0 = 0.0, q0 = 0.0, v0 = 0.0, v1 = 0.0, acc = 0.0;
+  bool operator==(const DriveRamp& o) const {
+    return t0 == o.t0 && q0 == o.q0 && v0 == o.v0 && v1 == o.v1 && acc == o.acc;
+  }
+  // f(t), f_dot(t), f_ddot(t)
+  void eval(double t, double* f, double* f_dot, double* f_ddot) const;
+};
+
+// What a drive prescribes: a velocity (from the State's DriveRamp), a harmonic
+// q = offset + amplitude sin(2 pi frequency t + phase), or a natural cubic spline through
+// points (t_i, q_i) (C2; continued linearly past its ends, where its second derivative
+// is zero, so it stays C2).
+class DriveProfile {
+ public:
+  enum class Kind { kVelocity, kHarmonic, kSpline };
+  static DriveProfile velocity(double v);
+  static DriveProfile harmonic(double offset, double amplitude, double frequency, double phase);
+  // Throws std::invalid_argument: fewer than 2 points, times not increasing, not finite.
+  static DriveProfile spline(const std::vector<double>& t, const std::vector<double>& q);
+
+  Kind kind() const { return kind_; }
+  double velocity() const { return v_; }
+  // f, f_dot, f_ddot at t (the velocity kind reads the ramp).
+  void eval(double t, const DriveRamp& ramp, double* f, double* f_dot, double* f_ddot) const;
+
+ private:
+  Kind kind_ = Kind::kVelocity;
+  double v_ = 0.0;
+  double offset_ = 0.0, amplitude_ = 0.0, omega_ = 0.0, phase_ = 0.0;
+  std::vector<double> t_, q_, m_;  // knots, values, second derivatives
+};
+
+// Phi = q_k - f(t) on coordinate k of a joint (one row).
+class DriveConstraint : public Constraint {
+ public:
+  DriveConstraint(const Joint& joint, int k, int drive, DriveProfile profile)
+      : Constraint(joint.name() + " drive", {joint.bodyI(), joint.bodyJ()}),
+        joint_(joint), k_(k), drive_(drive), profile_(std::move(profile)) {}
+  std::string type() const override { return "drive"; }
+  int size() const override { return 1; }
+  bool rheonomic() const override { return true; }
+  void velocityTerm(const EvalContext& ctx, double* nu) const override;
+  void evaluate(const BodyKin* const* kin, const EvalContext& ctx, Eigen::Ref<Eigen::VectorXd> Phi,
+                Eigen::Ref<Eigen::MatrixXd> J, Eigen::Ref<Eigen::VectorXd> gamma) const override;
+  const Joint& joint() const { return joint_; }
+  int coordinate() const { return k_; }
+  int drive() const { return drive_; }
+  const DriveProfile& profile() const { return profile_; }
+
+ private:
+  const Joint& joint_;
+  int k_, drive_;
+  DriveProfile profile_;
+};
+
+}  // namespace mechanism_sim
