@@ -1,7 +1,11 @@
 # gtests of the loader and the simulate CLI; rostests of the node.
-catkin_add_gtest(test_loader test/urdf/test_loader.cpp)
+catkin_add_gtest(test_loader test/urdf/test_loader.cpp test/urdf/test_drive_files.cpp)
 target_link_libraries(test_loader mechanism_sim_urdf gtest_main)
 target_compile_definitions(test_loader PRIVATE MECHANISM_SIM_SOURCE_DIR="${PROJECT_SOURCE_DIR}")
+
+catkin_add_gtest(test_plot_cli test/urdf/test_plot_cli.cpp)
+target_link_libraries(test_plot_cli gtest_main)
+target_compile_definitions(test_plot_cli PRIVATE MECHANISM_SIM_SOURCE_DIR="${PROJECT_SOURCE_DIR}")
 
 catkin_add_gtest(test_simulate_cli test/urdf/test_simulate_cli.cpp)
 target_link_libraries(test_simulate_cli gtest_main)

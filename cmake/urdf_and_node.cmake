@@ -12,6 +12,8 @@ target_link_libraries(mechanism_sim_urdf mechanism_sim_core ${urdfdom_LIBRARIES}
 
 add_executable(simulate src/cli/simulate.cpp src/cli/csv_writer.cpp)
 target_link_libraries(simulate mechanism_sim_urdf)
+# --plot runs scripts/plot (matplotlib) from the source tree; MECHANISM_SIM_PLOT overrides it.
+target_compile_definitions(simulate PRIVATE MECHANISM_SIM_PLOT_SCRIPT="${PROJECT_SOURCE_DIR}/scripts/plot")
 
 if(EXISTS ${PROJECT_SOURCE_DIR}/src/node/main.cpp)
   add_executable(mechanism_sim_node src/node/main.cpp src/node/sim_node.cpp src/node/pacer.cpp

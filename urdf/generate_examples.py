@@ -129,6 +129,14 @@ write("four_bar.urdf", four_bar(f'''  <mechanism_sim:joint name="loop" type="rev
     <axis xyz="0 1 0"/>
   </mechanism_sim:joint>
 '''), "Planar four-bar (crank-rocker) of four revolute joints; the loop closes with a mechanism_sim:joint.")
+write("four_bar_driven.urdf", four_bar(f'''  <mechanism_sim:joint name="loop" type="revolute">
+    <parent link="base"/><child link="rocker"/>
+    <origin xyz="{v(D)}"/><child_origin xyz="{v(sub(D, C))}"/>
+    <axis xyz="0 1 0"/>
+  </mechanism_sim:joint>
+''').replace('  <mechanism_sim:initial joint="crank_joint" velocity="4.0"/>\n',
+             '  <mechanism_sim:drive joint="crank_joint" velocity="3.0"/>\n'),
+      "The four-bar with its crank driven at 3 rad/s: its bearing loads (joint reactions) are shown in rviz.")
 write("four_bar_gazebo.urdf", four_bar(f'''  <gazebo>
     <joint name="loop" type="revolute">
       <pose>{v(sub(D, C))} 0 0 0</pose>
@@ -159,9 +167,11 @@ s += f'''  <mechanism_sim:joint name="wrist_pin" type="revolute">
     <origin/><child_origin xyz="{v([Xs - r, 0, e])}"/>
     <axis xyz="0 -1 0"/>
   </mechanism_sim:joint>
-  <mechanism_sim:initial joint="crank_joint" velocity="14.0"/>
 '''
-write("slider_crank.urdf", s, f"Offset slider-crank with a flywheel: crank {r} m, rod {l} m, offset {e} m; the slider pin closes the loop.")
+write("slider_crank.urdf", s + '  <mechanism_sim:initial joint="crank_joint" velocity="14.0"/>\n',
+      f"Offset slider-crank with a flywheel: crank {r} m, rod {l} m, offset {e} m; the slider pin closes the loop.")
+write("slider_crank_driven.urdf", s + f'  <mechanism_sim:drive joint="crank_joint" velocity="{2 * math.pi!r}"/>\n',
+      "The slider-crank with its crank driven at 60 rpm (a drive: prescribed motion); the drive's effort is the torque the motor must give.")
 
 # ---- screw jack: the screw turns in the base's nut and lifts a platform kept from turning by a guide.
 lead = 0.005

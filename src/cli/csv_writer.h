@@ -1,5 +1,6 @@
 // CSV rows of a running model: time, each dof's position/velocity/effort, the largest
-// constraint violations, and (optionally) each link's world pose.
+// constraint violations, and (optionally) each joint's reaction on its child link (force
+// and torque in the joint frame on the child) and each link's world pose.
 #pragma once
 #include <ostream>
 
@@ -10,14 +11,14 @@ namespace mechanism_sim {
 
 class CsvWriter {
  public:
-  CsvWriter(std::ostream& out, const MechanismModel& model, bool poses);
+  CsvWriter(std::ostream& out, const MechanismModel& model, bool poses, bool reactions);
   void header();
   void row(const Sample& sample);
 
  private:
   std::ostream& out_;
   const MechanismModel& model_;
-  bool poses_;
+  bool poses_, reactions_;
 };
 
 }  // namespace mechanism_sim

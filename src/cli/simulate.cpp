@@ -1,4 +1,5 @@
 // simulate: runs a URDF mechanism without ROS and writes CSV (README "Batch simulator").
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -24,7 +25,8 @@ const char* kUsage =
     "usage: simulate MODEL.urdf [--duration S] [--dt S] [--output-every N]\n"
     "                [--csv FILE] [--poses] [--integrator rk4|rk2]\n"
     "                [--set JOINT=POSITION]... [--velocity JOINT=VALUE]...\n"
-    "                [--effort JOINT=VALUE]... [--quiet]\n";
+    "                [--effort JOINT=VALUE]... [--drive JOINT=VELOCITY]...\n"
+    "                [--reactions] [--plot FILE.png] [--plot-columns LIST] [--quiet]\n";
 
 struct UsageError : std::runtime_error {
   using std::runtime_error::runtime_error;
@@ -44,10 +46,10 @@ std::pair<std::string, double> parseAssignment(const std::string& text, const st
 }
 
 struct Args {
-  std::string model, csv, integrator;
+  std::string model, csv, integrator, plot, plot_columns;
   double duration = 10.0, dt = 1e-3;
   long every = 10;
-  bool poses = false, quiet = false;
+  bool poses = false, quiet = false, reactions = false;
   LoadOptions load;
   std::vector<std::pair<std::string, double>> efforts;
 };
@@ -69,6 +71,10 @@ Args parse(int argc, char** argv) {
     else if (arg == "--set") a.load.positions.push_back(parseAssignment(value(), arg));
     else if (arg == "--velocity") a.load.velocities.push_back(parseAssignment(value(), arg));
     else if (arg == "--effort") a.efforts.push_back(parseAssignment(value(), arg));
+    else if (arg == "--drive") a.load.drives.push_back(parseAssignment(value(), arg));
+    else if (arg == "--reactions") a.reactions = true;
+    else if (arg == "--plot") a.plot = value();
+    else if (arg == "--plot-columns") a.plot_columns = value();
     else if (arg == "--quiet") a.quiet = true;
     else if (arg == "-h" || arg == "--help") { std::cout << kUsage; std::exit(0); }
     else if (!arg.empty() && arg[0] == '-') throw UsageError("unknown option '" + arg + "'");
@@ -76,11 +82,33 @@ Args parse(int argc, char** argv) {
     else throw UsageError("more than one model file given");
   }
   if (a.model.empty()) throw UsageError("no model file given");
+  if (!a.plot_columns.empty() && a.plot.empty()) throw UsageError("--plot-columns needs --plot FILE.png");
   if (!(a.duration >= 0) || a.duration > 1e7) throw UsageError("--duration must be between 0 and 1e7 s");
   if (!(a.dt > 0) || a.dt > 1.0) throw UsageError("--dt must be in (0, 1] s");
   if (a.every < 1) throw UsageError("--output-every must be at least 1");
   if (a.duration / a.dt > 1e10) throw UsageError("--duration / --dt is more than 1e10 steps");
   return a;
+}
+
+// scripts/plot (matplotlib) on the run's CSV; its exit status, or -1 if it did not start.
+int plot(const std::string& csv, const Args& args, const std::string& title) {
+  const char* env = std::getenv("MECHANISM_SIM_PLOT");
+  const std::string script = env && *env ? env : MECHANISM_SIM_PLOT_SCRIPT;
+  std::vector<std::string> argv = {"/usr/bin/python3", script, csv, "-o", args.plot, "--title", title};
+  if (!args.plot_columns.empty()) argv.insert(argv.end(), {"--columns", args.plot_columns});
+  std::vector<char*> cargv;
+  for (std::string& a : argv) cargv.push_back(a.data());
+  cargv.push_back(nullptr);
+  std::cout.flush();
+  const pid_t pid = fork();
+  if (pid < 0) return -1;
+  if (pid == 0) {
+    execv(cargv[0], cargv.data());
+    _exit(127);
+  }
+  int status = 0;
+  if (waitpid(pid, &status, 0) < 0) return -1;
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
 }
 
 void progress(double fraction, double elapsed) {
@@ -112,19 +140,23 @@ int main(int argc, char** argv) {
     std::cerr << "simulate: " << e.what() << "\n";
     return 1;
   }
+  // --plot without --csv: the CSV goes to a file beside the picture (FILE.png.csv), kept
+  // so that scripts/plot can redraw it.
+  const std::string csv_path = !args.csv.empty() ? args.csv : !args.plot.empty() ? args.plot + ".csv" : "";
   std::ofstream file;
   std::ostream* out = &std::cout;
-  if (!args.csv.empty()) {
-    file.open(args.csv);
+  if (!csv_path.empty()) {
+    file.open(csv_path);
     if (!file) {
-      std::cerr << "simulate: cannot write '" << args.csv << "'\n";
+      std::cerr << "simulate: cannot write '" << csv_path << "'\n";
       return 1;
     }
     out = &file;
   }
-  CsvWriter csv(*out, *model, args.poses);
+  CsvWriter csv(*out, *model, args.poses, args.reactions);
   RunLoop loop(*model, args.dt, args.every);
-  const bool write = !args.csv.empty() || !isatty(STDOUT_FILENO) || !args.quiet;
+  loop.setReactions(args.reactions);
+  const bool write = !csv_path.empty() || !isatty(STDOUT_FILENO) || !args.quiet;
   if (write) csv.header(), csv.row(loop.sample());
   const long steps = std::lround(args.duration / args.dt);
   const auto start = std::chrono::steady_clock::now();
@@ -148,16 +180,33 @@ int main(int argc, char** argv) {
     return 1;
   }
   out->flush();
+  if (file.is_open()) file.close();
   const double wall = elapsed();
   if (bar && last_bar > 0) progress(1.0, wall), std::fputc('\n', stderr);
-  if (!args.quiet) {
-    std::fprintf(stderr,
-                 "%s: assembled to %.1e; %ld steps of %g s in %.3f s wall (real-time factor %.1f); largest "
-                 "violation %.2e (position), %.2e (velocity); %s; solver: %s\n",
-                 args.model.c_str(), model->assembly().position_residual, steps, args.dt, wall,
-                 wall > 0 ? steps * args.dt / wall : 0.0, loop.worstPositionViolation(),
-                 loop.worstVelocityViolation(), model->dependencies().describe().c_str(),
-                 model->solverStats().describe().c_str());
+  std::string drives;
+  for (const DrivePeak& p : loop.drivePeaks()) {
+    char buf[256];
+    std::snprintf(buf, sizeof buf, "; drive '%s': peak effort %.4g at t = %.4g s", model->dofs()[p.dof].name.c_str(),
+                  p.effort, p.time);
+    drives += buf;
+  }
+  char summary[1024];
+  std::snprintf(summary, sizeof summary,
+                "assembled to %.1e; %ld steps of %g s in %.3f s wall (real-time factor %.1f); largest "
+                "violation %.2e (position), %.2e (velocity); %s%s; solver: %s",
+                model->assembly().position_residual, steps, args.dt, wall, wall > 0 ? steps * args.dt / wall : 0.0,
+                loop.worstPositionViolation(), loop.worstVelocityViolation(),
+                model->dependencies().describe().c_str(), drives.c_str(), model->solverStats().describe().c_str());
+  if (!args.quiet) std::fprintf(stderr, "%s: %s\n", args.model.c_str(), summary);
+  if (!args.plot.empty()) {
+    char title[512];
+    std::snprintf(title, sizeof title, "%s (%s): %ld steps of %g s", model->name().c_str(), args.model.c_str(), steps, args.dt);
+    const int status = plot(csv_path, args, title);
+    if (status != 0) {
+      std::cerr << "simulate: " << args.model << ": plotting to '" << args.plot << "' failed"
+                << (status < 0 ? " (could not start python3)" : "") << "\n";
+      return 1;
+    }
   }
   return 0;
 }

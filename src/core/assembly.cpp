@@ -227,6 +227,12 @@ AssemblyReport assemble(const System& sys, State& s, Stepper& st,
       const double r = L.size ? st.Phi().segment(L.row, L.size).cwiseAbs().maxCoeff() : 0.0;
       if (r > 1e-8 * sys.length_scale) os << " '" << sys.constraints[ci]->name() << "' (" << fmt(r) << ")";
     }
+    for (const DriveSpec& D : sys.drives) {
+      const ConstraintLayout& L = sys.layout[D.constraint];
+      const double r = std::fabs(st.Phi()[L.row]);
+      if (r > 1e-8 * sys.length_scale)
+        os << "; the drive of '" << sys.joints[D.joint]->name() << "' asks for a position the mechanism cannot reach (off by " << fmt(r) << ")";
+    }
     for (const auto& t : positions) {
       const double r = coordinateRow(sys, s, st, t).Phi - t.value;
       if (std::fabs(r) > 1e-8 * (1 + std::fabs(t.value)))

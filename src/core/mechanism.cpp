@@ -266,6 +266,64 @@ Reaction Mechanism::reaction(int ci) const {
   return r;
 }
 
+std::vector<Reaction> Mechanism::jointReactions() const {
+  const System& sys = *sys_;
+  const State& s = state_;
+  Eigen::VectorXd lambda = s.lambda;
+  bool dependent = false;
+  for (char d : s.dropped) dependent = dependent || d;
+  if (dependent) {
+    if (!reaction_stepper_) reaction_stepper_ = std::make_unique<Stepper>(sys);
+    reaction_stepper_->minimumNormMultipliers(sys, s, inputs_, lambda);
+  }
+  std::vector<Reaction> out(sys.joints.size());
+  // wrench of a generalized force gen = [f; n'] on body b, moved to joint point sp_B of b
+  auto add = [&](int j, const Eigen::Matrix<double, 6, 1>& gen) {
+    const Joint& jt = *sys.joints[j];
+    const BodyKin& kb = kin(jt.bodyJ());
+    const Vector3d f = gen.head<3>();
+    out[j].force += f;
+    out[j].torque += kb.A_Oi * gen.tail<3>() - (kb.A_Oi * jt.frameJ().sp_B).cross(f);
+  };
+  // an effort tau along coordinate k of joint j acts on its body j as G_k,j^T tau
+  auto along = [&](int j, int k, double tau) {
+    if (tau == 0.0) return;
+    const Joint& jt = *sys.joints[j];
+    Row rows[3];
+    jt.coordinates(kin(jt.bodyI()), kin(jt.bodyJ()), s.tracked[jt.id()], rows);
+    add(j, rows[k].J.segment<6>(6).transpose() * tau);
+  };
+  std::vector<int> joint_of(sys.constraints.size(), -1);
+  for (int j = 0; j < numJoints(); ++j) joint_of[sys.joint_constraint[j]] = j;
+  for (int ci = 0; ci < numConstraints(); ++ci) {
+    const ConstraintLayout& L = sys.layout[ci];
+    const Constraint& c = *sys.constraints[ci];
+    if (joint_of[ci] >= 0) {  // the joint's own equations: -Phi_q^T lambda on body j
+      // (the dependent rows' Jacobian is in the reaction stepper's evaluation only)
+      const Eigen::MatrixXd J = (dependent ? *reaction_stepper_ : *stepper_).jacobian(ci);
+      Eigen::Matrix<double, 6, 1> gen = Eigen::Matrix<double, 6, 1>::Zero();
+      for (int e = 0; e < L.size; ++e) gen -= J.block<1, 6>(e, 6).transpose() * lambda[L.row + e];
+      add(joint_of[ci], gen);
+    } else if (const auto* l = dynamic_cast<const LimitConstraint*>(&c)) {
+      const LimitSpec& spec = sys.limits[l->limit()];
+      if (s.limit_side[l->limit()]) along(spec.joint, spec.k, -lambda[L.row]);
+    } else if (const auto* d = dynamic_cast<const DriveConstraint*>(&c)) {
+      const DriveSpec& spec = sys.drives[d->drive()];
+      along(spec.joint, spec.k, -lambda[L.row]);
+    } else if (const auto* cp = dynamic_cast<const CoordinateCoupler*>(&c)) {
+      // Phi = q_a - m q_b: efforts -lambda along q_a and m lambda along q_b
+      for (int j = 0; j < numJoints(); ++j) {
+        if (sys.joints[j] == &cp->jointA()) along(j, cp->coordinateA(), -lambda[L.row]);
+        if (sys.joints[j] == &cp->jointB()) along(j, cp->coordinateB(), cp->multiplier() * lambda[L.row]);
+      }
+    }
+  }
+  for (int j = 0; j < numJoints(); ++j)  // applied efforts: command, damping, friction
+    for (int k = 0; k < sys.joints[j]->dof(); ++k)
+      along(j, k, inputs_.effort[j][k] - sys.damping[j][k] * jointVelocity(j, k) + s.friction[j][k]);
+  return out;
+}
+
 double Mechanism::positionViolation() const { return stepper_->positionViolation(); }
 double Mechanism::velocityViolation() const { return stepper_->velocityViolation(*sys_, state_.u); }
 double Mechanism::relativePositionViolation() const { return stepper_->positionResidual(*sys_); }

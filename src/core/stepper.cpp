@@ -463,6 +463,56 @@ bool Stepper::solveKKT(const System& sys, bool factored, double t) {
   return false;
 }
 
+// Least-norm multipliers (stepper.h). With every row in J (the dependent ones too) and H =
+// M + kappa J^T W J factored, the iteration
+//   r = g - J^T lambda,  lambda += kappa W J H^-1 r,   from lambda = 0,   g = Q - M a,
+// keeps lambda in the range of W J, where the solution of J^T lambda = g with the least
+// sum lambda_e^2 / W_e lies; in W-scaled coordinates it contracts the error by about
+// 1 / (kappa sigma) per pass on that range (sigma as in solveKKT) and leaves the null space
+// of J^T (the dependencies) alone, so it converges to the least-norm solution.
+double Stepper::minimumNormMultipliers(const System& sys, const State& s, const Inputs& in, Eigen::VectorXd& lambda) {
+  State all = s;
+  std::fill(all.dropped.begin(), all.dropped.end(), 0);
+  load(sys, all.x.data(), all.u.data());
+  evaluate(sys, all);
+  factor(sys, "reactions", s.t);
+  forces(sys, all, in, all.friction);
+  have_eval_ = false;
+  // g = Q - M a: the constraint forces (the limits' part taken out: they keep their own)
+  mulM(sys, s.acc.data(), dn_.data());
+  Eigen::VectorXd g = Q_ - dn_;
+  Eigen::VectorXd limit_lambda = Eigen::VectorXd::Zero(sys.m);
+  limit_lambda.tail(sys.m - sys.m_eq) = s.lambda.tail(sys.m - sys.m_eq);
+  dn_.setZero();
+  addJt(sys, limit_lambda.data(), dn_.data());
+  g -= dn_;
+  double g_scale = 0;  // forces and torques through the length scale
+  for (int i = 0; i < sys.n; i += 6)
+    g_scale = std::max({g_scale, g.segment<3>(i).cwiseAbs().maxCoeff(), g.segment<3>(i + 3).cwiseAbs().maxCoeff() / length_scale_});
+  lambda = Eigen::VectorXd::Zero(sys.m);
+  double res = 0;
+  for (int pass = 0; pass < kMaxSolvePasses + 8; ++pass) {
+    dn_ = g;
+    dm_ = -lambda;
+    addJt(sys, dm_.data(), dn_.data());  // r = g - J^T lambda
+    res = 0;
+    for (int i = 0; i < sys.n; i += 6)
+      res = std::max({res, dn_.segment<3>(i).cwiseAbs().maxCoeff(), dn_.segment<3>(i + 3).cwiseAbs().maxCoeff() / length_scale_});
+    res = g_scale > 0 ? res / g_scale : 0.0;
+    if (res <= sys.options.solve_tol * 100) break;
+    chol_.solve(dn_.data());
+    mulJ(sys, dn_.data(), dm_.data());
+    for (int e = 0; e < sys.m_eq; ++e) lambda[e] += kKappa * W_[e] * dm_[e];
+  }
+  lambda.tail(sys.m - sys.m_eq) = s.lambda.tail(sys.m - sys.m_eq);
+  ++stats_.solves;
+  if (res > sys.options.solve_tol * 100) {
+    ++stats_.solve_shortfalls;
+    stats_.worst_solve = std::max(stats_.worst_solve, res);
+  }
+  return res;
+}
+
 // (x, u) -> (x_dot, u_dot): r_dot = v, p_dot = p (x) (0, w) / 2, u_dot = a.
 static void positionRates(int nb, const double* x, const double* u, double* xdot) {
   for (int b = 0; b < nb; ++b) {

@@ -110,12 +110,14 @@ JointSpec loopJoint(const ExtJoint& e, const urdf::ModelInterface& urdf,
     const Matrix3d R = frameAxes(s.type, e.axis, e.axis2, e.element, reader);
     s.P_J = e.origin * rotation(R);
     s.C_J = e.child_origin * rotation(R);
+    s.C_U = e.child_origin;
     return s;
   }
   const Isometry3d W_J = nominal.at(e.child) * e.child_origin;
   auto inJoint = [&](const Vector3d& a) { return e.axis_in_model ? Vector3d(W_J.linear().transpose() * a) : a; };
   const Matrix3d R = frameAxes(s.type, inJoint(e.axis), inJoint(e.axis2), e.element, reader);
   s.C_J = e.child_origin * rotation(R);
+  s.C_U = e.child_origin;
   s.P_J = nominal.at(e.parent).inverse() * nominal.at(e.child) * s.C_J;
   return s;
 }

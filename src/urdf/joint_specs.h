@@ -23,6 +23,10 @@ struct JointSpec {
   std::string parent, child;                      // links
   Isometry3d P_J = Isometry3d::Identity();        // joint frame in the parent link
   Isometry3d C_J = Isometry3d::Identity();        // joint frame in the child link
+  // The joint frame as the file defines it, in the child link (a URDF joint's is the child
+  // link's frame; a loop closure's its child_origin): C_J without the turn to the axis.
+  // Joint reactions are reported in it.
+  Isometry3d C_U = Isometry3d::Identity();
   JointParams params;                             // the screw's alpha
   double damping = 0.0, friction = 0.0;
   double lower = 0.0, upper = 0.0;    // position limits of a revolute or prismatic joint (none unless lower < upper)

@@ -53,6 +53,7 @@ using Coordinate = std::pair<std::string, int>;
 struct InitialValues {
   std::map<Coordinate, double> positions;   // placed by forward kinematics, held in assembly
   std::map<Coordinate, double> velocities;  // held in assembly
+  std::map<Coordinate, bool> velocity_from_file;  // whether the file gave it (else the options)
   JointValues coordinates() const {
     JointValues q;
     for (const auto& p : positions) {
@@ -100,6 +101,7 @@ class ModelBuilder {
     for (const JointSpec& s : specs.tree) addJoint(s, bodies, true);
     for (const JointSpec& s : specs.loops) addJoint(s, bodies, false);
     for (const JointSpec& s : specs.tree) addMimic(s);
+    addDrives(specs, ext, initial);
     addSprings(ext, bodies, placed, *urdf);
     setGravityAndIntegrator(ext);
     assemble(initial);
@@ -138,7 +140,7 @@ class ModelBuilder {
     for (const ExtInitial& i : ext.initial) {
       const Coordinate at = locate(specs, i.dof, i.element);
       if (i.position) in.positions[at] = *i.position;
-      if (i.velocity) in.velocities[at] = *i.velocity;
+      if (i.velocity) in.velocities[at] = *i.velocity, in.velocity_from_file[at] = true;
     }
     for (const auto& p : options_.positions) {
       const Coordinate at = locate(specs, p.first, nullptr);
@@ -149,6 +151,7 @@ class ModelBuilder {
       const Coordinate at = locate(specs, v.first, nullptr);
       if (!std::isfinite(v.second)) fail("initial velocity of '" + v.first + "' is not finite");
       in.velocities[at] = v.second;
+      in.velocity_from_file[at] = false;
     }
     return in;
   }
@@ -203,6 +206,7 @@ class ModelBuilder {
     }
     const int index = mech().addJoint(std::move(joint));
     joint_index_[s.name] = index;
+    model_->reaction_frames_.push_back(bodies.bodyTLink(s.child) * s.C_U);
     if (!tree)
       model_->loops_.push_back(LoopJoint{s.name, s.type, model_->linkIndex(s.parent), model_->linkIndex(s.child),
                                          s.P_J.translation(), s.C_J.translation()});
@@ -230,6 +234,89 @@ class ModelBuilder {
         mech().joint(b->second).dof() != 1)
       fail(s.element, "mimic needs two one-dof joints ('" + s.name + "', '" + s.mimic + "')");
     mech().addCoupler(s.name + " mimic", a->second, 0, b->second, 0, s.mimic_multiplier, s.mimic_offset);
+  }
+
+  // <mechanism_sim:drive> and the options' velocity drives (which replace the file's
+  // drive of the same dof). A velocity drive starts from the dof's initial position (its
+  // initial value, else where the file's pose puts it); a profile fixes the position.
+  void addDrives(const JointSpecs& specs, const Extension& ext, const InitialValues& initial) {
+    std::vector<std::pair<Coordinate, ExtDrive>> drives;
+    auto put = [&](const Coordinate& at, const ExtDrive& d) {
+      for (auto& existing : drives)
+        if (existing.first == at) {
+          if (d.element) fail(d.element, "dof '" + d.dof + "' is already driven");
+          existing.second = d;  // the command line's drive replaces the file's
+          return;
+        }
+      drives.push_back({at, d});
+    };
+    for (const ExtDrive& d : ext.drives) put(locate(specs, d.dof, d.element), d);
+    for (const auto& o : options_.drives) {
+      if (!std::isfinite(o.second)) fail("drive velocity of '" + o.first + "' is not finite");
+      ExtDrive d;
+      d.dof = o.first;
+      d.velocity = o.second;
+      d.profile = "velocity";
+      put(locate(specs, o.first, nullptr), d);
+    }
+    for (const auto& [at, d] : drives) {
+      auto refuse = [&](const std::string& what) {
+        if (d.element) fail(d.element, what);  // both throw
+        fail("drive of '" + d.dof + "': " + what);
+      };
+      const auto index = joint_index_.find(at.first);
+      if (index == joint_index_.end()) {
+        refuse("joint '" + at.first + "' has no coordinate to drive");
+        continue;  // not reached
+      }
+      for (const JointSpec& s : specs.tree)
+        if (!s.mimic.empty() && (s.name == at.first || s.mimic == at.first))
+          refuse("dof '" + d.dof + "' is coupled by mimic ('" + s.name + "' mimics '" + s.mimic +
+                 "'); drive the joint it follows, or drop the mimic");
+      // a command-line drive overrides the file's initial velocity of its dof; any other
+      // pair contradicts itself
+      if (initial.velocities.count(at) && (d.element || !initial.velocity_from_file.at(at)))
+        refuse("dof '" + d.dof + "' is driven: its initial velocity is the drive's; remove the initial velocity");
+      if (d.profile != "velocity" && initial.positions.count(at))
+        refuse("dof '" + d.dof + "' follows a " + d.profile + " profile, which sets its position; remove the initial position");
+      std::string error;
+      try {
+        DriveProfile profile;
+        double q0 = 0.0;
+        if (d.profile == "velocity") {
+          profile = DriveProfile::velocity(d.velocity);
+          const auto p = initial.positions.find(at);
+          q0 = p != initial.positions.end() ? p->second : placedCoordinate(index->second, at.second);
+        } else {
+          profile = d.profile == "harmonic" ? DriveProfile::harmonic(d.offset, d.amplitude, d.frequency, d.phase)
+                                            : DriveProfile::spline(d.t, d.position);
+        }
+        const int drive = mech().addDrive(index->second, at.second, profile, q0);
+        for (Dof& dof : model_->dofs_)
+          if (dof.joint_index == index->second && dof.k == at.second) dof.drive = drive;
+      } catch (const std::invalid_argument& e) {
+        error = e.what();
+      } catch (const ModelError& e) {
+        error = e.what();
+      }
+      if (!error.empty()) refuse(error);
+    }
+  }
+
+  // Coordinate k of a core joint in the pose the bodies were placed in.
+  double placedCoordinate(int joint, int k) {
+    const Joint& j = mech().joint(joint);
+    auto kin = [&](int b) {
+      BodyKin kb;
+      if (b != Mechanism::kGround) {
+        kb.r = mech().body(b).r;
+        kb.A_Oi = mech().body(b).p.normalized().toRotationMatrix();
+      }
+      return kb;
+    };
+    Row rows[3];
+    j.coordinates(kin(j.bodyI()), kin(j.bodyJ()), j.initialTracked(), rows);
+    return rows[k].Phi;
   }
 
   void addSprings(const Extension& ext, const RigidBodies& bodies, const std::map<std::string, Isometry3d>& placed,
@@ -264,7 +351,10 @@ class ModelBuilder {
   void assemble(const InitialValues& initial) {
     std::vector<CoordinateTarget> positions, velocities;
     for (const auto& p : initial.positions) positions.push_back({joint_index_.at(p.first.first), p.first.second, p.second});
-    for (const auto& v : initial.velocities) velocities.push_back({joint_index_.at(v.first.first), v.first.second, v.second});
+    for (const auto& v : initial.velocities) {
+      const int joint = joint_index_.at(v.first.first);
+      if (mech().driveOf(joint, v.first.second) < 0) velocities.push_back({joint, v.first.second, v.second});
+    }
     try {
       mech().build();
       model_->assembly_ = mech().assemble(positions, velocities);

@@ -42,6 +42,20 @@ Eigen::Isometry3d MechanismModel::linkPose(int link) const {
   return W_B * l.body_T_link;
 }
 
+std::vector<JointReaction> MechanismModel::jointReactions() const {
+  const std::vector<Reaction> r = mechanism_->jointReactions();
+  std::vector<JointReaction> out(r.size());
+  for (size_t j = 0; j < r.size(); ++j) {
+    const Joint& jt = mechanism_->joint(static_cast<int>(j));
+    // the file's joint frame on the child (body j is the child's body)
+    const Eigen::Matrix3d R = mechanism_->rotation(jt.bodyJ()) * reaction_frames_.at(j).linear();
+    out[j].joint = jt.name();
+    out[j].force = R.transpose() * r[j].force;
+    out[j].torque = R.transpose() * r[j].torque;
+  }
+  return out;
+}
+
 double MechanismModel::position(int dof) const {
   return mechanism_->jointPosition(dofs_.at(dof).joint_index, dofs_[dof].k);
 }
@@ -50,6 +64,19 @@ double MechanismModel::velocity(int dof) const {
 }
 double MechanismModel::effort(int dof) const {
   return mechanism_->jointEffort(dofs_.at(dof).joint_index, dofs_[dof].k);
+}
+
+void MechanismModel::commandDriveVelocity(int dof, double v, double acc) {
+  if (dof < 0 || dof >= static_cast<int>(dofs_.size())) throw std::out_of_range("no such degree of freedom");
+  if (dofs_[dof].drive < 0) throw std::invalid_argument("dof '" + dofs_[dof].name + "' is not driven");
+  mechanism_->commandDriveVelocity(dofs_[dof].drive, v, acc);
+}
+
+double MechanismModel::driveVelocity(int dof) const {
+  if (dofs_.at(dof).drive < 0) throw std::invalid_argument("dof '" + dofs_[dof].name + "' is not driven");
+  double q, q_dot, q_ddot;
+  mechanism_->driveTarget(dofs_[dof].drive, &q, &q_dot, &q_ddot);
+  return q_dot;
 }
 
 void MechanismModel::setEffort(int dof, double tau) {

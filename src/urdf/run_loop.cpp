@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <stdexcept>
 
 namespace mechanism_sim {
@@ -26,6 +27,7 @@ void RunLoop::advance(long steps, const std::function<void()>& tick) {
     ++steps_;
     worst_position_ = std::max(worst_position_, model_.positionViolation());
     worst_velocity_ = std::max(worst_velocity_, model_.velocityViolation());
+    trackPeaks();
     if (tick && (steps_ & 63) == 0) tick();
   }
   if (steps > 0)
@@ -43,6 +45,22 @@ void RunLoop::reset() {
 void RunLoop::restartWorst() {
   worst_position_ = model_.positionViolation();
   worst_velocity_ = model_.velocityViolation();
+  peaks_.clear();
+  for (size_t d = 0; d < model_.dofs().size(); ++d)
+    if (model_.dofs()[d].drive >= 0) peaks_.push_back(DrivePeak{static_cast<int>(d), 0.0, model_.time()});
+  trackPeaks();
+}
+
+void RunLoop::trackPeaks() {
+  for (DrivePeak& p : peaks_) {
+    const double e = model_.effort(p.dof);
+    if (std::fabs(e) > std::fabs(p.effort)) p.effort = e, p.time = model_.time();
+  }
+}
+
+void RunLoop::setReactions(bool on) {
+  reactions_ = on;
+  takeSample();
 }
 
 void RunLoop::takeSample() {
@@ -56,6 +74,8 @@ void RunLoop::takeSample() {
   for (size_t l = 0; l < sample_.link_poses.size(); ++l) sample_.link_poses[l] = model_.linkPose(static_cast<int>(l));
   sample_.position_violation = model_.positionViolation();
   sample_.velocity_violation = model_.velocityViolation();
+  if (reactions_) sample_.reactions = model_.jointReactions();
+  else sample_.reactions.clear();
 }
 
 }  // namespace mechanism_sim

@@ -412,11 +412,56 @@ Extension readExtension(const XMLElement* robot, const XmlReader& r) {
       if (e->Attribute("position")) in.position = r.number(e, "position", std::nullopt);
       if (e->Attribute("velocity")) in.velocity = r.number(e, "velocity", std::nullopt);
       ext.initial.push_back(in);
+    } else if (what == "drive") {
+      r.onlyAttributes(e, {"joint", "dof", "velocity", "profile", "offset", "amplitude", "frequency", "phase"});
+      ExtDrive d;
+      d.element = e;
+      if (!e->Attribute("joint")) r.fail(e, "missing attribute 'joint'");
+      d.dof = e->Attribute("joint");
+      if (const char* dof = e->Attribute("dof")) d.dof += std::string(".") + dof;
+      const char* profile = e->Attribute("profile");
+      if (!profile && !e->Attribute("velocity")) r.fail(e, "a drive needs velocity=\"V\" or profile=\"harmonic|spline\"");
+      if (profile && e->Attribute("velocity")) r.fail(e, "a drive takes velocity or a profile, not both");
+      d.profile = profile ? profile : "velocity";
+      auto none = [&](std::initializer_list<const char*> attrs) {
+        for (const char* a : attrs)
+          if (e->Attribute(a)) r.fail(e, std::string("attribute '") + a + "' does not belong to a " + d.profile + " drive");
+      };
+      if (d.profile == "velocity") {
+        none({"offset", "amplitude", "frequency", "phase"});
+        d.velocity = r.number(e, "velocity", std::nullopt);
+      } else if (d.profile == "harmonic") {
+        d.offset = r.number(e, "offset", 0.0);
+        d.amplitude = r.number(e, "amplitude", std::nullopt);
+        d.frequency = r.number(e, "frequency", std::nullopt);
+        d.phase = r.number(e, "phase", 0.0);
+        if (d.frequency < 0) r.fail(e, "frequency must be >= 0");
+      } else if (d.profile == "spline") {
+        none({"offset", "amplitude", "frequency", "phase"});
+        for (const XMLElement* c = e->FirstChildElement(); c; c = c->NextSiblingElement()) {
+          if (std::string(c->Name()) != "point") r.fail(c, "unknown element in <mechanism_sim:drive> (point)");
+          r.onlyAttributes(c, {"t", "position"});
+          const double t = r.number(c, "t", std::nullopt);
+          if (!d.t.empty() && !(t > d.t.back()))
+          {
+            std::ostringstream os;
+            os << "spline points must be in increasing time (t = " << t << " after " << d.t.back() << ")";
+            r.fail(c, os.str());
+          }
+          d.t.push_back(t);
+          d.position.push_back(r.number(c, "position", std::nullopt));
+        }
+        if (d.t.size() < 2) r.fail(e, "a spline drive needs at least 2 <point t=... position=.../>");
+      } else {
+        r.fail(e, "unknown drive profile '" + oneLine(profile) + "' (harmonic, spline; or velocity=\"V\")");
+      }
+      if (d.profile != "spline" && e->FirstChildElement()) r.fail(e->FirstChildElement(), "only a spline drive has <point> elements");
+      ext.drives.push_back(d);
     } else if (what == "gravity") {
       r.onlyAttributes(e, {"xyz"});
       ext.gravity = r.vec3(e, "xyz", Vector3d(0, 0, -9.81), 1e4);
     } else {
-      r.fail(e, "unknown extension element (joint, spring, initial, gravity)");
+      r.fail(e, "unknown extension element (joint, spring, initial, drive, gravity)");
     }
   }
   return ext;

@@ -72,8 +72,19 @@ struct ExtInitial {
   std::optional<double> position, velocity;
 };
 
+// <mechanism_sim:drive joint dof? (velocity | profile="harmonic" offset amplitude
+// frequency phase | profile="spline" with <point t position/>)>
+struct ExtDrive {
+  const tinyxml2::XMLElement* element = nullptr;
+  std::string dof;  // "joint" or "joint.dof"
+  std::string profile;  // "velocity", "harmonic", "spline"
+  double velocity = 0, offset = 0, amplitude = 0, frequency = 0, phase = 0;
+  std::vector<double> t, position;
+};
+
 struct Extension {
   std::vector<ExtJoint> joints;
+  std::vector<ExtDrive> drives;
   std::vector<ExtSpring> springs;
   std::vector<ExtInitial> initial;
   std::optional<Vector3d> gravity;

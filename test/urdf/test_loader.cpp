@@ -47,7 +47,8 @@ TEST_P(Examples, LoadsAssemblesAndRuns10SecondsWithinTheBound) {
 INSTANTIATE_TEST_SUITE_P(Urdf, Examples,
                          ::testing::Values("four_bar.urdf", "four_bar_gazebo.urdf", "slider_crank.urdf",
                                            "screw_jack.urdf", "cylindrical_pendulum.urdf", "cardan_shaft.urdf",
-                                           "rssr_linkage.urdf", "parallel_gripper.urdf"),
+                                           "rssr_linkage.urdf", "parallel_gripper.urdf",
+                                           "slider_crank_driven.urdf", "four_bar_driven.urdf"),
                          [](const auto& info) { return info.param.substr(0, info.param.size() - 5); });
 
 // x = r cos(theta) + sqrt(l^2 - (r sin(theta) - e)^2) along a simulated run.

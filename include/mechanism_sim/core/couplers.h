@@ -18,6 +18,11 @@ class CoordinateCoupler : public Constraint {
   int size() const override { return 1; }
   void evaluate(const BodyKin* const* kin, const EvalContext& ctx, Eigen::Ref<Eigen::VectorXd> Phi,
                 Eigen::Ref<Eigen::MatrixXd> J, Eigen::Ref<Eigen::VectorXd> gamma) const override;
+  const Joint& jointA() const { return a_; }
+  const Joint& jointB() const { return b_; }
+  int coordinateA() const { return k_a_; }
+  int coordinateB() const { return k_b_; }
+  double multiplier() const { return multiplier_; }
 
  private:
   const Joint& a_;

@@ -125,6 +125,13 @@ class Mechanism {
   double jointVelocity(int joint, int k) const;
   double jointEffort(int joint, int k) const;
   Reaction reaction(int constraint) const;
+  // Per joint: the force and torque (global, torque about the joint point B_j) that the
+  // joint exerts on its body j: its constraint, its limits, its drives, its share of the
+  // couplers (along its own coordinate) and the efforts applied along its coordinates
+  // (command, damping, friction). Where equations are dependent the multipliers are the
+  // least-norm ones (Stepper::minimumNormMultipliers): the same state gives the same
+  // reactions whatever the history.
+  std::vector<Reaction> jointReactions() const;
   double positionViolation() const;  // max |Phi|
   double velocityViolation() const;  // max |Phi_q v|
   // The same relative to the size of each equation's terms (scale-free; what the
@@ -146,6 +153,7 @@ class Mechanism {
   State state_;
   Inputs inputs_;
   std::unique_ptr<Stepper> stepper_;
+  mutable std::unique_ptr<Stepper> reaction_stepper_;  // its own scratch: queries leave stepping alone
   DependencyReport dependencies_;
 };
 

@@ -77,6 +77,13 @@ class Stepper {
   // Re-solves accelerations and multipliers at the evaluated state (H factored there).
   void factorHere(const System& sys, double t) { factor(sys, "assembly", t); }
   const SolverStats& stats() const { return stats_; }
+  // Multipliers of the equality constraints with the least weighted norm sum_e lambda_e^2 /
+  // w_e (w_e the row weight) among all that give s's constraint forces Q - M a, dependent
+  // equations included: the same at the same state whatever the history (where the
+  // equations are independent: s.lambda itself). Limits keep s's multipliers. Loads,
+  // evaluates and factors s here (use a Stepper of its own). Returns the relative residual
+  // left (a shortfall is counted in stats()).
+  double minimumNormMultipliers(const System& sys, const State& s, const Inputs& in, Eigen::VectorXd& lambda);
 
   // ---- building blocks (assembly.cpp uses them)
   void load(const System& sys, const double* x, const double* u);

@@ -27,6 +27,8 @@ struct LoadOptions {
   // overriding the file's <mechanism_sim:initial>.
   std::vector<std::pair<std::string, double>> positions, velocities;
   std::string integrator;  // empty: the core's default
+  // Velocity drives by dof name (simulate --drive), replacing the file's drive of that dof.
+  std::vector<std::pair<std::string, double>> drives;
 };
 
 // One degree of freedom of a joint, tree or loop closure.
@@ -36,6 +38,7 @@ struct Dof {
   int joint_index = -1;   // Mechanism joint index
   int k = 0;              // coordinate of that joint
   double effort_limit = 0.0, velocity_limit = 0.0;  // 0: none
+  int drive = -1;         // Mechanism drive index, or -1 (not driven)
 };
 
 struct Link {
@@ -59,6 +62,14 @@ struct LoopJoint {
   std::string name, type;               // type as the core names it ("revolute", "spherical", ...)
   int parent_link = -1, child_link = -1;  // indices into links()
   Eigen::Vector3d parent_point = Eigen::Vector3d::Zero(), child_point = Eigen::Vector3d::Zero();
+};
+
+// The force and torque a joint exerts on its child link, at the joint origin, in the
+// joint frame on the child as the file defines it (a URDF joint: the child link's frame; a
+// loop closure: its child_origin) (Gazebo's JointWrench body2 convention).
+struct JointReaction {
+  std::string joint;
+  Eigen::Vector3d force = Eigen::Vector3d::Zero(), torque = Eigen::Vector3d::Zero();
 };
 
 class MechanismModel {
@@ -96,6 +107,12 @@ class MechanismModel {
   double effort(int dof) const;
   double kineticEnergy() const;
   double potentialEnergy() const;   // gravity and springs
+  // Every joint with equations (tree joints that are not fixed or floating, and loop
+  // closures; in the core's joint order): what it exerts on its child link, constraint,
+  // limits, drive, mimic share and applied efforts together. Where equations are dependent
+  // (two hinges on one axis, a planar loop) the least-norm reactions: the same state gives
+  // the same reactions whatever the history.
+  std::vector<JointReaction> jointReactions() const;
   double positionViolation() const;  // largest |Phi|
   double velocityViolation() const;  // largest |Phi_q v|
 
@@ -104,6 +121,11 @@ class MechanismModel {
   // command while it would drive the joint faster than the limit. Throws on a bad value.
   void setEffort(int dof, double tau);
   double commandedEffort(int dof) const { return command_[dof]; }
+  // A velocity-driven dof moves to velocity v from now, at acceleration at most acc (> 0).
+  // Throws std::invalid_argument naming the dof (not driven, a profile drive, bad value).
+  void commandDriveVelocity(int dof, double v, double acc);
+  // What the drive of a dof prescribes now (throws if the dof is not driven).
+  double driveVelocity(int dof) const;
   // One step of h seconds. Throws std::runtime_error when the step fails.
   void step(double h);
   // Back to the assembled initial state, commands zeroed.
@@ -121,6 +143,7 @@ class MechanismModel {
   std::vector<Link> links_;
   std::vector<TreeJoint> tree_;
   std::vector<LoopJoint> loops_;
+  std::vector<Eigen::Isometry3d> reaction_frames_;  // per core joint: its file frame in its child's body
   std::vector<double> command_;
   AssemblyReport assembly_;
   Mechanism::Snapshot initial_;

@@ -19,6 +19,13 @@ struct Sample {
   std::vector<double> position, velocity, effort;  // by dof, as MechanismModel::dofs()
   std::vector<Eigen::Isometry3d> link_poses;        // by link, as MechanismModel::links(); world frame
   double position_violation = 0.0, velocity_violation = 0.0;  // largest |Phi|, |Phi_q v|
+  std::vector<JointReaction> reactions;  // when RunLoop::setReactions(true)
+};
+
+// The largest |effort| a driven dof needed, and when.
+struct DrivePeak {
+  int dof = -1;
+  double effort = 0.0, time = 0.0;
 };
 
 class RunLoop {
@@ -44,12 +51,18 @@ class RunLoop {
   double worstPositionViolation() const { return worst_position_; }
   double worstVelocityViolation() const { return worst_velocity_; }
   double stepWallTime() const { return step_wall_; }  // seconds per step in the last advance
+  // Joint reactions in every sample (off by default: they cost a solve where equations
+  // are dependent).
+  void setReactions(bool on);
+  // Per driven dof, the largest |effort| at any step since construction or reset().
+  const std::vector<DrivePeak>& drivePeaks() const { return peaks_; }
   MechanismModel& model() { return model_; }
   const MechanismModel& model() const { return model_; }
 
  private:
   void takeSample();
   void restartWorst();
+  void trackPeaks();
 
   MechanismModel& model_;
   double h_;
@@ -57,6 +70,8 @@ class RunLoop {
   long steps_ = 0;
   double worst_position_ = 0.0, worst_velocity_ = 0.0, step_wall_ = 0.0;
   Sample sample_;
+  bool reactions_ = false;
+  std::vector<DrivePeak> peaks_;
 };
 
 }  // namespace mechanism_sim
