@@ -26,7 +26,8 @@ ws_source() {
 
 ws_build() {
   ws_setup
-  (cd "$WS" && catkin_make -DCMAKE_BUILD_TYPE=Release -j2 "$@" > "$WS/build.log" 2>&1) || {
+  # rosbag_storage pulls in ament_cmake (Debian), which runs the Python3 CMake finds: /usr/bin/python3
+  (cd "$WS" && catkin_make -DCMAKE_BUILD_TYPE=Release -DPython3_EXECUTABLE=/usr/bin/python3 -j2 "$@" > "$WS/build.log" 2>&1) || {
     tail -60 "$WS/build.log" >&2
     echo "build failed (full log: $WS/build.log)" >&2
     return 1

@@ -5,6 +5,7 @@ import argparse
 import sys
 import time
 
+import rosgraph
 import rospy
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Vector3Stamped
@@ -31,10 +32,17 @@ def on_diagnostics(msg):
         state["time"] = float(values.get("simulation time [s]", "0"))
 
 
+# roslaunch starts the master: wait for it quietly (rospy would warn "master may not be
+# running yet"), then for the node's first diagnostics before printing a line.
+start = time.time()
+while not rosgraph.is_master_online():
+    if time.time() - start > 30:
+        print("no ROS master after 30 s", file=sys.stderr)
+        sys.exit(1)
+    time.sleep(0.1)
 rospy.init_node("mechanism_sim_status", anonymous=True, disable_signals=True)
 rospy.Subscriber(args.node + "/constraint_violation", Vector3Stamped, on_violation)
 rospy.Subscriber("/diagnostics", DiagnosticArray, on_diagnostics)
-start = time.time()
 tty = sys.stdout.isatty()
 try:
     while not rospy.is_shutdown():
@@ -43,6 +51,9 @@ try:
         if not state["seen"] and time.time() - start > 30:
             print("no status from %s after 30 s" % args.node, file=sys.stderr)
             sys.exit(1)
+        if not state["seen"] or state["rtf"] != state["rtf"]:  # nothing measured yet: no line of nan
+            time.sleep(0.1)
+            continue
         line = "t %8.2f s   real-time factor %5.2f   violation %.1e (position) %.1e (velocity)   worst %.1e" % (
             state["time"], state["rtf"], state["p"], state["v"], state["worst"])
         print(("\r" + line) if tty else line, end="" if tty else "\n", flush=True)

@@ -6,8 +6,8 @@
 
 namespace mechanism_sim {
 
-ConstraintMarkers::ConstraintMarkers(ros::NodeHandle& pnh, const MechanismModel& model)
-    : model_(model), publisher_(pnh.advertise<visualization_msgs::MarkerArray>("constraint_markers", 2)) {}
+ConstraintMarkers::ConstraintMarkers(ros::NodeHandle& pnh, const MechanismModel& model, double arrow_scale)
+    : model_(model), arrow_scale_(arrow_scale), publisher_(pnh.advertise<visualization_msgs::MarkerArray>("constraint_markers", 2)) {}
 
 void ConstraintMarkers::publish(const Sample& sample, const std_msgs::Header& header) {
   visualization_msgs::MarkerArray ma;
@@ -43,6 +43,27 @@ void ConstraintMarkers::publish(const Sample& sample, const std_msgs::Header& he
     add(j.child_link, j.child_point);
   }
   if (!points.points.empty()) ma.markers.push_back(points);
+
+  // reaction forces: an arrow per joint from its origin along the force on the child
+  // (the sample's reactions are in the joint frame on the child; reactionFrame() is that
+  // frame now, and the sample is taken now)
+  for (size_t j = 0; j < sample.reactions.size() && arrow_scale_ > 0; ++j) {
+    visualization_msgs::Marker arrow;
+    arrow.header = header;
+    arrow.ns = "reactions";
+    arrow.id = static_cast<int>(j);
+    arrow.type = visualization_msgs::Marker::ARROW;
+    arrow.pose.orientation.w = 1.0;
+    arrow.scale.x = 0.006, arrow.scale.y = 0.012, arrow.scale.z = 0.015;  // shaft, head width, head length
+    arrow.color.r = 0.95, arrow.color.g = 0.3, arrow.color.b = 0.9, arrow.color.a = 1.0;
+    const Eigen::Isometry3d F = model_.reactionFrame(static_cast<int>(j));
+    const Eigen::Vector3d from = F.translation(), to = from + arrow_scale_ * (F.linear() * sample.reactions[j].force);
+    geometry_msgs::Point a, b;
+    a.x = from.x(), a.y = from.y(), a.z = from.z();
+    b.x = to.x(), b.y = to.y(), b.z = to.z();
+    arrow.points = {a, b};
+    ma.markers.push_back(arrow);
+  }
   publisher_.publish(ma);
 }
 

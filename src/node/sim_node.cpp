@@ -6,6 +6,7 @@
 #include <geometry_msgs/Vector3Stamped.h>
 #include <rosgraph_msgs/Clock.h>
 
+#include "mechanism_sim/JointReactions.h"
 #include "ros_conversions.h"
 
 namespace mechanism_sim {
@@ -17,8 +18,15 @@ bool NodeParams::read(const ros::NodeHandle& pnh) {
   pnh.param("publish_clock", publish_clock, false);
   pnh.param<std::string>("frame_prefix", frame_prefix, "");
   pnh.param("start_paused", start_paused, false);
+  pnh.param("drive_acceleration", drive_acceleration, 10.0);
+  pnh.param("reaction_arrow_scale", reaction_arrow_scale, 0.01);
   if (!(step > 0) || step > 0.1 || !(publish_rate > 0) || !(real_time_factor >= 0)) {
     ROS_FATAL("mechanism_sim: ~step must be in (0, 0.1] s, ~publish_rate > 0 and ~real_time_factor >= 0");
+    return false;
+  }
+  if (!(drive_acceleration > 0) || !std::isfinite(drive_acceleration) || !(reaction_arrow_scale >= 0) ||
+      !std::isfinite(reaction_arrow_scale)) {
+    ROS_FATAL("mechanism_sim: ~drive_acceleration must be finite and > 0, ~reaction_arrow_scale finite and >= 0");
     return false;
   }
   pnh.param<std::string>("integrator", load.integrator, "");
@@ -42,15 +50,18 @@ bool SimNode::init() {
   // A sample per publish period.
   const long per_publish = std::max(1L, std::lround(1.0 / (params_.publish_rate * params_.step)));
   loop_ = std::make_unique<RunLoop>(*model_, params_.step, per_publish);
+  loop_->setReactions(true);
   pacer_ = std::make_unique<Pacer>(params_.real_time_factor, model_->time());
   for (const TreeJoint& j : model_->treeJoints())
     tree_links_.emplace_back(model_->linkIndex(j.parent), model_->linkIndex(j.child));
 
   joint_states_ = nh_.advertise<sensor_msgs::JointState>("joint_states", 10);
   violation_ = pnh_.advertise<geometry_msgs::Vector3Stamped>("constraint_violation", 10);
-  markers_ = std::make_unique<ConstraintMarkers>(pnh_, *model_);
+  reactions_ = pnh_.advertise<JointReactions>("joint_reactions", 10);
+  markers_ = std::make_unique<ConstraintMarkers>(pnh_, *model_, params_.reaction_arrow_scale);
   if (params_.publish_clock) clock_ = nh_.advertise<rosgraph_msgs::Clock>("/clock", 10);
   effort_ = pnh_.subscribe("effort_command", 10, &SimNode::onEffort, this);
+  drive_ = pnh_.subscribe("drive_command", 10, &SimNode::onDriveCommand, this);
   reset_ = pnh_.advertiseService("reset", &SimNode::onReset, this);
   pause_ = pnh_.advertiseService("pause", &SimNode::onPause, this);
   unpause_ = pnh_.advertiseService("unpause", &SimNode::onUnpause, this);
@@ -141,6 +152,16 @@ void SimNode::publish(bool paused) {
   v.vector.x = s.position_violation;
   v.vector.y = s.velocity_violation;
   violation_.publish(v);
+  JointReactions r;
+  r.header = v.header;
+  for (const JointReaction& jr : s.reactions) {
+    r.name.push_back(jr.joint);
+    geometry_msgs::Wrench w;
+    w.force.x = jr.force.x(), w.force.y = jr.force.y(), w.force.z = jr.force.z();
+    w.torque.x = jr.torque.x(), w.torque.y = jr.torque.y(), w.torque.z = jr.torque.z();
+    r.wrench.push_back(w);
+  }
+  reactions_.publish(r);
   markers_->publish(s, v.header);
 
   if (params_.publish_clock) {
@@ -206,6 +227,35 @@ void SimNode::onEffort(const sensor_msgs::JointState::ConstPtr& msg) {
   }
   std::lock_guard<std::mutex> lock(mutex_);
   for (size_t i = 0; i < n; ++i) model_->setEffort(dofs[i], msg->effort[i]);
+}
+
+// ~drive_command: velocities of velocity-driven dofs, by name; each drive ramps to its new
+// velocity at ~drive_acceleration. A command naming an undriven dof, a profile drive, or a
+// non-finite value is rejected whole.
+void SimNode::onDriveCommand(const sensor_msgs::JointState::ConstPtr& msg) {
+  const size_t n = msg->name.size();
+  std::string problem;
+  if (msg->velocity.size() != n) problem = "name and velocity arrays differ in length";
+  std::vector<int> dofs;
+  for (size_t i = 0; problem.empty() && i < n; ++i) {
+    const int d = model_->dofIndex(msg->name[i]);  // dofs and drives are fixed after init
+    if (d < 0) problem = "unknown joint '" + msg->name[i] + "'";
+    else if (model_->dofs()[d].drive < 0) problem = "'" + msg->name[i] + "' is not driven";
+    else if (!std::isfinite(msg->velocity[i])) problem = "velocity for '" + msg->name[i] + "' is not finite";
+    dofs.push_back(d);
+  }
+  if (problem.empty()) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    // all or nothing: a profile drive refuses before any drive has changed
+    for (size_t i = 0; problem.empty() && i < n; ++i) {
+      const int k = model_->mechanism().driveOf(model_->dofs()[dofs[i]].joint_index, model_->dofs()[dofs[i]].k);
+      if (model_->mechanism().system().drives[k].profile.kind() != DriveProfile::Kind::kVelocity)
+        problem = "'" + msg->name[i] + "' follows a profile and takes no velocity command";
+    }
+    for (size_t i = 0; problem.empty() && i < n; ++i)
+      model_->commandDriveVelocity(dofs[i], msg->velocity[i], params_.drive_acceleration);
+  }
+  if (!problem.empty()) ROS_WARN_THROTTLE(1.0, "mechanism_sim: drive command rejected: %s", problem.c_str());
 }
 
 bool SimNode::onReset(std_srvs::Empty::Request&, std_srvs::Empty::Response&) {

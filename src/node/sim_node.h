@@ -31,6 +31,8 @@ struct NodeParams {
   double step = 1e-3, publish_rate = 100.0, real_time_factor = 1.0;
   bool publish_clock = false, start_paused = false;
   std::string frame_prefix;
+  double drive_acceleration = 10.0;  // [rad/s^2 or m/s^2] ramp of ~drive_command
+  double reaction_arrow_scale = 0.01;  // [m/N] reaction arrows in ~constraint_markers
   LoadOptions load;  // ~integrator, ~initial_positions, ~initial_velocities
   // Reads them; false (after logging why) when they are out of range.
   bool read(const ros::NodeHandle& pnh);
@@ -50,6 +52,7 @@ class SimNode {
   void publishStatic();
   geometry_msgs::TransformStamped treeTransform(size_t tree_joint, const ros::Time& time) const;
   void onEffort(const sensor_msgs::JointState::ConstPtr& msg);
+  void onDriveCommand(const sensor_msgs::JointState::ConstPtr& msg);
   bool onReset(std_srvs::Empty::Request&, std_srvs::Empty::Response&);
   bool onPause(std_srvs::Empty::Request&, std_srvs::Empty::Response&);
   bool onUnpause(std_srvs::Empty::Request&, std_srvs::Empty::Response&);
@@ -68,8 +71,8 @@ class SimNode {
   std::atomic<bool> paused_{false};
   ros::Time time_origin_{0};  // stamp of simulation time 0 (0 when the node owns /clock)
   std::vector<std::pair<int, int>> tree_links_;  // (parent, child) link of each tree joint
-  ros::Publisher joint_states_, clock_, violation_;
-  ros::Subscriber effort_;
+  ros::Publisher joint_states_, clock_, violation_, reactions_;
+  ros::Subscriber effort_, drive_;
   ros::ServiceServer reset_, pause_, unpause_, step_;
   tf2_ros::TransformBroadcaster tf_;
   tf2_ros::StaticTransformBroadcaster tf_static_;

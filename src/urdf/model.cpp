@@ -56,6 +56,16 @@ std::vector<JointReaction> MechanismModel::jointReactions() const {
   return out;
 }
 
+Eigen::Isometry3d MechanismModel::reactionFrame(int joint) const {
+  const Joint& jt = mechanism_->joint(joint);
+  Eigen::Isometry3d W_B = Eigen::Isometry3d::Identity();
+  if (jt.bodyJ() != Mechanism::kGround) {
+    W_B.linear() = mechanism_->rotation(jt.bodyJ());
+    W_B.translation() = mechanism_->position(jt.bodyJ());
+  }
+  return W_B * reaction_frames_.at(joint);
+}
+
 double MechanismModel::position(int dof) const {
   return mechanism_->jointPosition(dofs_.at(dof).joint_index, dofs_[dof].k);
 }

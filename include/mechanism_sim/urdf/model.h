@@ -113,6 +113,9 @@ class MechanismModel {
   // (two hinges on one axis, a planar loop) the least-norm reactions: the same state gives
   // the same reactions whatever the history.
   std::vector<JointReaction> jointReactions() const;
+  // World pose of the frame jointReactions() are given in: the joint frame on the child of
+  // core joint j (the order of jointReactions()).
+  Eigen::Isometry3d reactionFrame(int joint) const;
   double positionViolation() const;  // largest |Phi|
   double velocityViolation() const;  // largest |Phi_q v|
 
