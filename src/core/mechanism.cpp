@@ -262,6 +262,11 @@ Reaction Mechanism::reaction(int ci) const {
   Vector3d arm = Vector3d::Zero();  // torque about the joint point B_j, not the centre of mass
   if (const auto* j = dynamic_cast<const Joint*>(&c)) arm = kb.A_Oi * j->frameJ().sp_B;
   if (const auto* l = dynamic_cast<const LimitConstraint*>(&c)) arm = kb.A_Oi * l->joint().frameJ().sp_B;
+  if (const auto* d = dynamic_cast<const DriveConstraint*>(&c)) arm = kb.A_Oi * d->joint().frameJ().sp_B;
+  if (const auto* cp = dynamic_cast<const CoordinateCoupler*>(&c)) {  // the joint whose body j it is
+    const Joint& on = cp->jointB().bodyJ() == c.bodies()[k] ? cp->jointB() : cp->jointA();
+    if (on.bodyJ() == c.bodies()[k]) arm = kb.A_Oi * on.frameJ().sp_B;
+  }
   r.torque = kb.A_Oi * gen.tail<3>() - arm.cross(r.force);
   return r;
 }

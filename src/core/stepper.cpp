@@ -543,7 +543,10 @@ void Stepper::rates(const System& sys, const State& s, const Inputs& in,
 // The effective inertia along coordinate k is I = 1 / (G H^-1 G^T) (H^-1 is the
 // constrained inverse mass up to 1/kappa); the effort that leaves q_dot = 0 after the step
 // is I (q_dot / h + q_ddot_free) with q_ddot_free = G a_free - gamma_G (the coordinate's
-// own velocity term), and friction supplies it up to f.
+// own velocity term), and friction supplies it up to f. A planar joint's two in-plane
+// translations are taken together: the effort vector that stops both, from their 2x2
+// effective inertia, clamped radially to the friction disc (Coulomb's law in the plane:
+// the friction force has one magnitude limit whatever its direction).
 void Stepper::frictionFor(const System& sys, State& s, const Inputs& in, double h) {
   for (auto& f : s.friction) f = {0.0, 0.0, 0.0};
   forces(sys, s, in, s.friction);
@@ -551,30 +554,56 @@ void Stepper::frictionFor(const System& sys, State& s, const Inputs& in, double 
   lam_ = s.lambda;
   solveKKT(sys, true, s.t);
   Row rows[3];
+  Eigen::Matrix<double, 6, 3> HinvG;  // H^-1 G_k^T restricted to the joint's two bodies
   for (int j = 0; j < sys.numJoints(); ++j) {
     const auto& f = sys.friction[j];
-    const int dof = sys.joints[j]->dof();
+    const Joint& jt = *sys.joints[j];
+    const int dof = jt.dof();
     bool has = false;
     for (int k = 0; k < dof; ++k) has = has || f[k] > 0.0;
     if (!has) continue;
     jointRows(sys, s, j, rows);
-    const int bs[2] = {sys.joints[j]->bodyI(), sys.joints[j]->bodyJ()};
+    const int bs[2] = {jt.bodyI(), jt.bodyJ()};
+    // needed_k: the effort along q_k that stops the coordinate within the step, from the
+    // coupled effective inertia (G H^-1 G^T)^-1 of the coordinates that have friction
+    double needed[3] = {0, 0, 0}, gHg[3][3] = {{0}};
+    auto solveRow = [&](int k, Eigen::VectorXd& x) {
+      x.setZero();
+      for (int b = 0; b < 2; ++b)
+        if (bs[b] != System::kGround) x.segment<6>(6 * (bs[b] - 1)) = rows[k].J.segment<6>(6 * b).transpose();
+      chol_.solve(x.data());
+    };
+    auto dotRow = [&](int k, const Eigen::VectorXd& x) {
+      double d = 0;
+      for (int b = 0; b < 2; ++b)
+        if (bs[b] != System::kGround) d += rows[k].J.segment<6>(6 * b).dot(x.segment<6>(6 * (bs[b] - 1)));
+      return d;
+    };
+    double rate[3] = {0, 0, 0};  // q_dot / h + q_ddot_free (with the coordinate's own gamma)
     for (int k = 0; k < dof; ++k) {
       if (f[k] <= 0.0) continue;
-      dn_.setZero();
-      double qddot = -rows[k].gamma;
-      for (int b = 0; b < 2; ++b)
-        if (bs[b] != System::kGround) {
-          dn_.segment<6>(6 * (bs[b] - 1)) = rows[k].J.segment<6>(6 * b).transpose();
-          qddot += rows[k].J.segment<6>(6 * b).dot(a_.segment<6>(6 * (bs[b] - 1)));
-        }
-      chol_.solve(dn_.data());
-      double gHg = 0;
-      for (int b = 0; b < 2; ++b)
-        if (bs[b] != System::kGround) gHg += rows[k].J.segment<6>(6 * b).dot(dn_.segment<6>(6 * (bs[b] - 1)));
-      if (!(gHg > 0)) continue;
-      const double needed = (rows[k].Phi_dot / h + qddot) / gHg;
-      s.friction[j][k] = -std::max(-f[k], std::min(f[k], needed));
+      rate[k] = rows[k].Phi_dot / h - rows[k].gamma + dotRow(k, a_);
+      solveRow(k, dn_);
+      for (int l = 0; l < dof; ++l)
+        if (f[l] > 0.0) gHg[l][k] = dotRow(l, dn_);
+    }
+    const bool disc = jt.planarTranslation() && f[0] > 0.0 && f[1] > 0.0;
+    if (disc) {  // the two in-plane translations together: a 2x2 effective inertia
+      const double det = gHg[0][0] * gHg[1][1] - gHg[0][1] * gHg[1][0];
+      if (det > 0) {
+        needed[0] = (gHg[1][1] * rate[0] - gHg[0][1] * rate[1]) / det;
+        needed[1] = (-gHg[1][0] * rate[0] + gHg[0][0] * rate[1]) / det;
+        // clamp to the ellipse (needed_0 / f_0)^2 + (needed_1 / f_1)^2 <= 1, radially
+        const double r = std::hypot(needed[0] / f[0], needed[1] / f[1]);
+        const double scale = r > 1.0 ? 1.0 / r : 1.0;
+        s.friction[j][0] = -scale * needed[0];
+        s.friction[j][1] = -scale * needed[1];
+      }
+    }
+    for (int k = disc ? 2 : 0; k < dof; ++k) {
+      if (f[k] <= 0.0 || !(gHg[k][k] > 0)) continue;
+      needed[k] = rate[k] / gHg[k][k];
+      s.friction[j][k] = -std::max(-f[k], std::min(f[k], needed[k]));
     }
   }
 }

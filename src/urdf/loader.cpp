@@ -6,6 +6,7 @@
 //   5. the initial values, the bodies placed by forward kinematics, the joints, the
 //      degrees of freedom, springs and gravity in the core; then assembly.
 #include <cmath>
+#include <cstring>
 #include <fstream>
 #include <map>
 #include <sstream>
@@ -85,7 +86,18 @@ class ModelBuilder {
     validateStandard(robot, reader_);
     const Extension ext = readExtension(robot, reader_);
     const urdf::ModelInterfaceSharedPtr urdf = parseWithUrdfdom(xml_);
-    if (!urdf) throw LoadError(reader_.file + ": urdfdom could not parse the robot description");
+    if (!urdf) {
+      // urdfdom reads the XML with TinyXML 1, which takes a raw '&' or '<' in a name
+      // differently from tinyxml2: name the element instead of a bare refusal
+      for (const char* tag : {"link", "joint", "material"})
+        for (auto* e = robot->FirstChildElement(tag); e; e = e->NextSiblingElement(tag)) {
+          const char* name = e->Attribute("name");
+          if (name && std::strpbrk(name, "&<"))
+            reader_.fail(e, std::string("urdfdom could not parse the robot description: it reads this ") + tag +
+                                "'s name differently (an unescaped '&' or '<'? write &amp; or &lt;)");
+        }
+      throw LoadError(reader_.file + ": urdfdom could not parse the robot description");
+    }
 
     model_ = std::make_unique<MechanismModel>();
     model_->mechanism_ = std::make_unique<Mechanism>();

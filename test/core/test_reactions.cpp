@@ -138,3 +138,41 @@ TEST(Reactions, DrivenJointCarriesItsDrivingTorque) {
 
 }  // namespace
 }  // namespace mechanism_sim
+
+namespace mechanism_sim {
+namespace {
+
+// A coupler's reaction (Mechanism::reaction) is taken about the joint point of the joint
+// whose body it acts on: two sliders coupled by q_a = 2 q_b push along their axes through
+// their joint points, so the torque about those points is zero (about the centre of mass,
+// 0.3 m off the axis, it would not be).
+TEST(Reactions, CouplerAndDriveReactionsAreAboutTheJointPoint) {
+  Mechanism mech;
+  for (int i = 0; i < 2; ++i) {
+    Body b;
+    b.name = i ? "b" : "a";
+    b.m = 1.0 + i;
+    b.Jp = 0.01 * Matrix3d::Identity();
+    b.r = Vector3d(i, 0.3, 0);
+    const int id = mech.addBody(b);
+    JointFrame on_ground, on_body;
+    on_ground.sp_B = Vector3d(i, 0, 0);
+    on_body.sp_B = Vector3d(0, -0.3, 0);  // the joint point, 0.3 m from the centre of mass
+    mech.addJoint(makeJoint("prismatic", i ? "slide_b" : "slide_a", Mechanism::kGround, on_ground, id, on_body));
+  }
+  const int coupler = mech.addCoupler("mimic", 0, 0, 1, 0, 2.0, 0.0);
+  mech.addDrive(1, 0, DriveProfile::harmonic(0.0, 0.1, 1.0, 0.0));
+  mech.setGravity(Vector3d::Zero());
+  mech.build();
+  mech.assemble();
+  for (int k = 0; k < 200; ++k) mech.step(1e-3);
+  const Reaction rc = mech.reaction(coupler);
+  EXPECT_GT(rc.force.norm(), 1e-3);
+  EXPECT_LT(rc.torque.norm(), 1e-12 * (1 + rc.force.norm()));
+  const Reaction rd = mech.reaction(mech.system().drives[0].constraint);
+  EXPECT_GT(rd.force.norm(), 1e-3);
+  EXPECT_LT(rd.torque.norm(), 1e-12 * (1 + rd.force.norm()));
+}
+
+}  // namespace
+}  // namespace mechanism_sim

@@ -327,6 +327,33 @@ TEST(Friction, LargeStepStopsWithoutReversal) {
   EXPECT_NEAR(m.jointVelocity(0, 0), 0.0, 1e-12);
 }
 
+// A 1 kg puck on a planar joint slides at (3, 1) m/s against Coulomb friction 2 N: the
+// friction force has magnitude 2 N opposite the velocity (a disc, not a box), so the puck
+// decelerates at 2 m/s^2 along a straight line and stops after |v|^2 / (2 a) = 2.5 m at
+// (3, 1) / sqrt(10) * 2.5. A box (2 N per axis) would stop y first and bend the path.
+TEST(Friction, PlanarFrictionIsADiscNotABox) {
+  Mechanism m;
+  const int id = m.addBody(body("puck", 1.0, 1e-3 * Matrix3d::Identity(), Vector3d::Zero()));
+  m.addJoint(makeJoint("planar", "table", Mechanism::kGround, JointFrame(), id, JointFrame()));
+  for (int k = 0; k < 3; ++k) m.setJointFriction(0, k, 2.0);
+  m.setGravity(Vector3d::Zero());
+  m.build();
+  m.assemble({}, {CoordinateTarget{0, 0, 3.0}, CoordinateTarget{0, 1, 1.0}});
+  const Vector3d direction = Vector3d(3, 1, 0).normalized();
+  double off_line = 0;
+  for (int k = 0; k < 2000; ++k) {
+    m.step(1e-3);
+    const Vector3d p(m.jointPosition(0, 0), m.jointPosition(0, 1), 0);
+    off_line = std::max(off_line, p.cross(direction).norm());
+  }
+  const Vector3d end(m.jointPosition(0, 0), m.jointPosition(0, 1), 0);
+  std::printf("planar friction: end (%.9f, %.9f), off the line %.2e m\n", end.x(), end.y(), off_line);
+  EXPECT_LT((end - 2.5 * direction).norm(), 1e-6);
+  EXPECT_LT(off_line, 1e-9);
+  EXPECT_NEAR(m.jointVelocity(0, 0), 0.0, 1e-12);
+  EXPECT_NEAR(m.jointVelocity(0, 1), 0.0, 1e-12);
+}
+
 // Starting outside a limit is an error naming the joint, not a jump.
 TEST(Limits, InitialPositionOutsideTheLimitsIsAnError) {
   Mechanism m;

@@ -54,6 +54,9 @@ class Joint : public Constraint {
   // The tracked-angle slot (Constraint::tracked) behind coordinate k, or -1: assembly seeds
   // it so that a target of, say, 5 rad means 5 rad and not 5 - 2 pi.
   virtual int trackedSlot(int /*k*/) const { return -1; }
+  // Whether coordinates 0 and 1 are two translations in one plane (a planar joint): their
+  // Coulomb friction is then a disc (an ellipse for unequal values), not a box.
+  virtual bool planarTranslation() const { return false; }
   // Joint coordinates: out[k] (k < dof) holds q_k (Phi), its rate (Phi_dot), the row G_k
   // (J) with q_dot_k = G_k v, and gamma_k. A generalized effort tau_k along coordinate k
   // acts on the bodies as G_k^T tau_k.

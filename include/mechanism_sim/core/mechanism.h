@@ -33,7 +33,9 @@ struct DependencyReport {
   std::string describe() const;
 };
 
-// Force (global) and torque (global, about B_j) that a constraint applies to its body j.
+// Force (global) and torque (global, about B_j) that a constraint applies to its body j
+// (the last of its bodies; for a limit, drive or coupler, the joint point of the joint
+// whose body j that is).
 struct Reaction {
   Vector3d force = Vector3d::Zero(), torque = Vector3d::Zero();
 };

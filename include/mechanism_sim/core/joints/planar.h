@@ -13,6 +13,7 @@ class PlanarJoint : public Joint {
                                      int bj, const JointFrame& fj, const JointParams& params);
   static Eigen::Isometry3d relativePose(const double* q, const JointParams& params);
   std::string type() const override { return "planar"; }
+  bool planarTranslation() const override { return true; }
   int size() const override { return 3; }
   unsigned equationAxes() const override { return kBxI | kByI | kBzI | kBzJ | kGap; }
   int trackedSlot(int k) const override { return k == 2 ? 0 : -1; }
