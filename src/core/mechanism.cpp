@@ -1,6 +1,7 @@
 // Mechanism: the embedding facade over System, State, Inputs and Stepper.
 #include "mechanism_sim/core/mechanism.h"
 
+#include <algorithm>
 #include <cmath>
 #include <sstream>
 
@@ -269,6 +270,17 @@ Reaction Mechanism::reaction(int ci) const {
   }
   r.torque = kb.A_Oi * gen.tail<3>() - arm.cross(r.force);
   return r;
+}
+
+SolverStats Mechanism::solverStats() const {
+  SolverStats s = stepper_->stats();
+  if (reaction_stepper_) {
+    const SolverStats& r = reaction_stepper_->stats();
+    s.solves += r.solves;
+    s.solve_shortfalls += r.solve_shortfalls;
+    s.worst_solve = std::max(s.worst_solve, r.worst_solve);
+  }
+  return s;
 }
 
 std::vector<Reaction> Mechanism::jointReactions() const {

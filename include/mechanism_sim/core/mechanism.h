@@ -101,7 +101,8 @@ class Mechanism {
   // ---- the parts
   const System& system() const { return *sys_; }
   const State& state() const { return state_; }
-  const SolverStats& solverStats() const { return stepper_->stats(); }
+  // The stepper's, plus the reaction queries' least-norm solves (jointReactions).
+  SolverStats solverStats() const;
 
   // ---- model queries
   int numBodies() const { return sys_->numBodies(); }

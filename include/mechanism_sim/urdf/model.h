@@ -91,7 +91,7 @@ class MechanismModel {
   double relativePositionViolation() const { return mechanism_->relativePositionViolation(); }
   double relativeVelocityViolation() const { return mechanism_->relativeVelocityViolation(); }
   // Iterations that stopped short of their tolerance (SolverStats::describe() says which).
-  const SolverStats& solverStats() const { return mechanism_->solverStats(); }
+  SolverStats solverStats() const { return mechanism_->solverStats(); }
   const AssemblyReport& assembly() const { return assembly_; }
   const Eigen::Vector3d& gravity() const;
   void setGravity(const Eigen::Vector3d& g);  // overrides the file's <mechanism_sim:gravity>
