@@ -1,6 +1,7 @@
 #!/usr/bin/env python3
 """Screenshot of the X display rviz draws on; the slider-crank's green connecting rod and
-orange slider must be on screen (an empty scene has neither colour)."""
+orange slider must be on screen (an empty scene has neither colour), and the magenta
+reaction arrows of ~constraint_markers (namespace "reactions")."""
 import os
 import subprocess
 import tempfile
@@ -20,14 +21,16 @@ def read_ppm(path):
 
 
 def count_colours(pixels):
-    green = orange = 0
+    green = orange = magenta = 0
     for i in range(0, len(pixels) - 2, 3):
         r, g, b = pixels[i], pixels[i + 1], pixels[i + 2]
         if g > 140 and 20 < r < 130 and b < 140 and g - r > 60:
             green += 1   # rod: rgba 0.2 0.8 0.3, shaded
         elif r > 150 and 50 < g < 130 and b < 100 and r - g > 60:
             orange += 1  # slider: rgba 0.8 0.3 0.2, shaded
-    return green, orange
+        elif r > 150 and b > 140 and g < 120 and r - g > 80 and b - g > 60:
+            magenta += 1  # reaction arrows: rgba 0.95 0.3 0.9
+    return green, orange, magenta
 
 
 class RvizDrawsTheMechanism(unittest.TestCase):
@@ -35,7 +38,7 @@ class RvizDrawsTheMechanism(unittest.TestCase):
         self.assertTrue(os.environ.get("DISPLAY"), "no DISPLAY: scripts/test starts Xvfb")
         rospy.wait_for_message("/joint_states", JointState, 30.0)
         shot = os.path.join(tempfile.gettempdir(), "mechanism_sim_rviz.png")
-        best = (0, 0)
+        best = (0, 0, 0)
         deadline = time.time() + 60
         while time.time() < deadline:  # rviz takes a while to start under software GL
             time.sleep(3.0)
@@ -43,12 +46,14 @@ class RvizDrawsTheMechanism(unittest.TestCase):
             ppm = shot[:-4] + ".ppm"
             subprocess.run(["convert", shot, ppm], check=True, timeout=30)
             w, h, pixels = read_ppm(ppm)
-            best = max(best, count_colours(pixels))
-            if min(best) >= 150:
+            counts = count_colours(pixels)
+            best = tuple(max(a, b) for a, b in zip(best, counts))
+            if min(best[:2]) >= 150 and best[2] >= 40:
                 break
-        rospy.loginfo("rviz screenshot %s: %d rod pixels, %d slider pixels", shot, best[0], best[1])
+        rospy.loginfo("rviz screenshot %s: %d rod pixels, %d slider pixels, %d arrow pixels", shot, *best)
         self.assertGreaterEqual(best[0], 150, "the connecting rod is not drawn (screenshot: %s)" % shot)
         self.assertGreaterEqual(best[1], 150, "the slider is not drawn (screenshot: %s)" % shot)
+        self.assertGreaterEqual(best[2], 40, "the reaction arrows are not drawn (screenshot: %s)" % shot)
 
 
 if __name__ == "__main__":
