@@ -21,7 +21,8 @@
 // inelastic); the bench commands no efforts. Everything else is listed as the reason
 // the mechanism is not conservative.
 // µs/step is the wall time of the step() calls alone; "wall" includes the monitoring.
-// A step that throws ends that mechanism's run: the row says FAILED with the time and step
+// Progress, with E(t)-E(0) at every tenth of the run (a drift that grows steadily or not),
+// goes to standard error. A step that throws ends that mechanism's run: the row says FAILED with the time and step
 // reached and the message, and the run goes on with the next mechanism.
 #include <algorithm>
 #include <chrono>
@@ -203,8 +204,9 @@ Row soak(const std::string& path, const Options& o) {
     }
     if (limit_hit.empty()) watchLimits();
     if (k % report_every == 0) {
-      std::fprintf(stderr, "  %s: %ld%% (t = %.0f s, %.1f s wall)\n", r.model.c_str(), 100 * k / o.steps, m->time(),
-                   std::chrono::duration<double>(Clock::now() - start).count());
+      std::fprintf(stderr, "  %s: %ld%% (t = %.0f s, %.1f s wall): E-E0 %.2e J, KE %.3g J, |Phi| %.1e\n",
+                   r.model.c_str(), 100 * k / o.steps, m->time(),
+                   std::chrono::duration<double>(Clock::now() - start).count(), e - r.e0, ke, phi);
       std::fflush(stderr);
     }
   }
