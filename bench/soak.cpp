@@ -22,8 +22,9 @@
 // the mechanism is not conservative.
 // µs/step is the wall time of the step() calls alone; "wall" includes the monitoring.
 // Progress, with E(t)-E(0) at every tenth of the run (a drift that grows steadily or not),
-// goes to standard error. A step that throws ends that mechanism's run: the row says FAILED with the time and step
-// reached and the message, and the run goes on with the next mechanism.
+// goes to standard error. A step that throws ends that mechanism's run: the row says
+// FAILED with the time and step reached and the message, and the run goes on with the
+// next mechanism.
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -177,12 +178,15 @@ Row soak(const std::string& path, const Options& o) {
   const long report_every = std::max(1L, o.steps / 10);
   const auto start = Clock::now();
   for (long k = 1; k <= o.steps; ++k) {
+    const double t_before = m->time();
     const auto t0 = Clock::now();
     try {
       m->step(o.dt);
     } catch (const std::exception& e) {
       std::ostringstream os;
-      os << "step " << k << " (from t = " << m->time() << " s) threw: " << e.what();
+      os.precision(10);
+      os << "step " << k << " from t = " << t_before << " s threw: " << e.what() << " (time() afterwards: "
+         << m->time() << " s)";
       r.failure = os.str();
       break;
     }
