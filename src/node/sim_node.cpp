@@ -124,7 +124,9 @@ void SimNode::publishStatic() {
 // Publishes the run loop's sample. Without /clock, stamps follow wall time: a pause, a
 // reset, or a sample whose stamp would not follow the last one (~advance of 0 steps) moves
 // the origin so that they never repeat or run backwards. With /clock, a pause
-// freezes time and tf is not republished (a repeated stamp is an error for tf2 listeners).
+// freezes time and tf is not republished (a repeated stamp is an error for tf2 listeners),
+// nor is it when the stamp is that of the last tf sent (~advance of 0 steps while paused,
+// a second reset in a row).
 void SimNode::publish(bool paused) {
   if (!params_.publish_clock && (paused || stamp() < last_stamp_ + ros::Duration(0, 1000))) anchorStampsToWall();
   const ros::Time now = stamp();
@@ -141,7 +143,10 @@ void SimNode::publish(bool paused) {
   std::vector<geometry_msgs::TransformStamped> moving;
   for (size_t j = 0; j < model_->treeJoints().size(); ++j)
     if (!model_->treeJoints()[j].fixed) moving.push_back(treeTransform(j, now));
-  if (!moving.empty() && !(paused && params_.publish_clock)) tf_.sendTransform(moving);
+  if (!moving.empty() && !(paused && params_.publish_clock) && now != last_tf_stamp_) {
+    tf_.sendTransform(moving);
+    last_tf_stamp_ = now;
+  }
 
   geometry_msgs::Vector3Stamped v;
   v.header.stamp = now;
