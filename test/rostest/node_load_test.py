@@ -8,6 +8,12 @@ they never do); every joint_states message shows one whole command, never an old
 than it showed before, and the last command sent is the one applied; every tf listener
 has every frame and is current; every service call returned within call_timeout.
 
+A second instance, /clock/mechanism_sim, owns /clock (its tf remapped to /clock/tf), and a
+third client calls its services likewise. There a reset takes time back to 0 by design,
+so: its joint_states stamps never go back except to exactly 0, the i-th time with at least
+i resets called (they repeat while paused), and its tf stamps strictly increase per frame
+except for the same drops to 0.
+
 Commands: command k sets crank_joint to  s (k + 1) 2^-24  and rocker_joint to
 -s (k + 1) 2^-23  (s = +1 for even k, -1 for odd), names in alternating order. Both dofs
 have no damping, friction, limit or effort limit, so joint_states reports the command
@@ -43,7 +49,7 @@ from mechanism_sim.srv import StepSimulation
 
 PKG = "mechanism_sim"
 OPS = ("reset", "pause", "unpause", "advance")
-NODE = "/mechanism_sim"
+NODE, CLOCK_NODE = "/mechanism_sim", "/clock/mechanism_sim"  # wall-clock stamps; owns /clock
 ROOT, FRAMES = "base", ["crank", "coupler", "rocker"]  # four_bar.urdf: base -> crank -> coupler -> rocker
 DOF_A, DOF_B = "crank_joint", "rocker_joint"
 SCALE_A, SCALE_B = 2.0 ** -24, -(2.0 ** -23)
@@ -130,11 +136,12 @@ class Load:
         self.stop_load = threading.Event()
         self.problems = []  # found while running (a stuck call, a dead node)
         self.sent_k = -1  # the last command k handed to publish()
-        self.started = {op: 0 for op in OPS}  # calls started, by service
+        self.started = {n: {op: 0 for op in OPS} for n in (NODE, CLOCK_NODE)}  # calls started
         self.js = []  # (stamp ns, effort a, effort b, sent_k, resets started, receipt time, calls started)
         self.tf_backwards = []  # (frame, previous stamp, stamp, calls started between)
         self.tf_last, self.tf_messages = {}, 0
-        self.calls = {op: {"ok": 0, "refused": 0} for op in OPS}
+        self.clock_js, self.clock_tf = [], {}  # CLOCK_NODE: (stamp ns, calls started); by frame
+        self.calls = {n: {op: {"ok": 0, "refused": 0} for op in OPS} for n in (NODE, CLOCK_NODE)}
         self.errors, self.durations, self.inflight = [], [], {}
         self.publish_seconds = 0.0
 
@@ -146,19 +153,29 @@ class Load:
         a = msg.effort[msg.name.index(DOF_A)]
         b = msg.effort[msg.name.index(DOF_B)]
         with self.lock:
-            self.js.append((msg.header.stamp.to_nsec(), a, b, self.sent_k, self.started["reset"], time.monotonic(),
-                            tuple(self.started.values())))
+            calls = tuple(self.started[NODE].values())
+            self.js.append((msg.header.stamp.to_nsec(), a, b, self.sent_k, calls[0], time.monotonic(), calls))
 
     def on_tf(self, msg):
         with self.lock:
             self.tf_messages += 1
-            calls = tuple(self.started.values())
+            calls = tuple(self.started[NODE].values())
             for t in msg.transforms:
                 stamp = t.header.stamp.to_nsec()
                 last = self.tf_last.get(t.child_frame_id)
                 if last is not None and stamp <= last[0]:
                     self.tf_backwards.append((t.child_frame_id, last[0], stamp, calls_between(last[1], calls)))
                 self.tf_last[t.child_frame_id] = (stamp, calls)
+
+    def on_clock_joint_states(self, msg):
+        with self.lock:
+            self.clock_js.append((msg.header.stamp.to_nsec(), tuple(self.started[CLOCK_NODE].values())))
+
+    def on_clock_tf(self, msg):
+        with self.lock:
+            calls = tuple(self.started[CLOCK_NODE].values())
+            for t in msg.transforms:
+                self.clock_tf.setdefault(t.child_frame_id, []).append((t.header.stamp.to_nsec(), calls))
 
     # ---- what the test sends
     def publish_commands(self, pub):
@@ -175,12 +192,12 @@ class Load:
             k += 1
         self.publish_seconds = time.monotonic() - start
 
-    def call(self, who, op, fn, *args):
+    def call(self, who, node, op, fn, *args):
         """One service call, timed and watched; 'refused' when the node answers with an error."""
         t0 = time.monotonic()
         with self.lock:
             self.inflight[who] = (op, t0)
-            self.started[op] += 1
+            self.started[node][op] += 1
         outcome = "ok"
         try:
             fn(*args)
@@ -195,32 +212,39 @@ class Load:
         dt = time.monotonic() - t0
         with self.lock:
             del self.inflight[who]
-            self.calls[op][outcome] += 1
+            self.calls[node][op][outcome] += 1
             self.durations.append((dt, op))
 
-    def client(self, who):
+    def client(self, who, node):
         rnd = random.Random(who)
-        empty = {op: rospy.ServiceProxy(NODE + "/" + op, Empty) for op in ("reset", "pause", "unpause")}
-        advance = rospy.ServiceProxy(NODE + "/advance", StepSimulation)
+        empty = {op: rospy.ServiceProxy(node + "/" + op, Empty) for op in ("reset", "pause", "unpause")}
+        advance = rospy.ServiceProxy(node + "/advance", StepSimulation)
         while not self.stop_load.is_set():
             op = rnd.choice(["reset", "pause", "unpause", "advance"])
             if op == "advance":
-                self.call(who, op, advance, rnd.randint(0, 50))  # 0 steps: a sample again
+                self.call(who, node, op, advance, rnd.randint(0, 50))  # 0 steps: a sample again
             else:
-                self.call(who, op, empty[op])
+                self.call(who, node, op, empty[op])
             time.sleep(rnd.uniform(0.0, 0.01))
 
-    def node_pid(self):
-        uri = rosnode.get_api_uri(rosgraph.Master("/node_load_test"), NODE, skip_cache=True)
-        code, _, pid = xmlrpc.client.ServerProxy(uri).getPid("/node_load_test")
-        return pid if code == 1 else None
+    def node_pids(self):
+        pids = []
+        for node in (NODE, CLOCK_NODE):
+            uri = rosnode.get_api_uri(rosgraph.Master("/node_load_test"), node, skip_cache=True)
+            code, _, pid = xmlrpc.client.ServerProxy(uri).getPid("/node_load_test")
+            pids.append(pid if code == 1 else None)
+        return pids
 
     def alive(self):
-        try:
-            with open("/proc/%d/stat" % self.pid) as f:
-                return f.read().split(")")[-1].split()[0] != "Z"
-        except OSError:
-            return False
+        """Both node processes exist and are not zombies."""
+        for pid in self.pids:
+            try:
+                with open("/proc/%d/stat" % pid) as f:
+                    if f.read().split(")")[-1].split()[0] == "Z":
+                        return False
+            except (OSError, TypeError):
+                return False
+        return True
 
     def watch(self, until):
         """Until `until` (monotonic) or a problem: every call returns within call_timeout,
@@ -234,16 +258,19 @@ class Load:
                 self.problems.append("service call(s) not returned within %.0f s: %s" % (self.call_timeout, stuck))
                 return
             if not self.alive():
-                self.problems.append("the node process %d is gone" % self.pid)
+                self.problems.append("a node process is gone (%s)" % self.pids)
                 return
 
     def run(self):
-        for name in ("reset", "pause", "unpause", "advance"):
-            rospy.wait_for_service(NODE + "/" + name, self.remaining(30.0))
-        self.pid = self.node_pid()
-        assert self.pid and self.alive(), "no pid for %s" % NODE
+        for node in (NODE, CLOCK_NODE):
+            for name in OPS:
+                rospy.wait_for_service(node + "/" + name, self.remaining(30.0))
+        self.pids = self.node_pids()
+        assert self.alive(), "no live processes for the nodes: %s" % self.pids
         rospy.Subscriber("/joint_states", JointState, self.on_joint_states, queue_size=1000)
         rospy.Subscriber("/tf", TFMessage, self.on_tf, queue_size=1000)
+        rospy.Subscriber("/clock/joint_states", JointState, self.on_clock_joint_states, queue_size=1000)
+        rospy.Subscriber("/clock/tf", TFMessage, self.on_clock_tf, queue_size=1000)
         pub = rospy.Publisher(NODE + "/effort_command", JointState, queue_size=10000)
 
         # listeners: processes of listeners_per_process each
@@ -267,7 +294,8 @@ class Load:
         # the load
         self.load_start = time.monotonic()
         threads = [threading.Thread(target=self.publish_commands, args=(pub,), daemon=True)]
-        threads += [threading.Thread(target=self.client, args=(who,), daemon=True) for who in ("client1", "client2")]
+        threads += [threading.Thread(target=self.client, args=(who, node), daemon=True)
+                    for who, node in (("client1", NODE), ("client2", NODE), ("clock client", CLOCK_NODE))]
         for th in threads:
             th.start()
         self.watch(min(self.load_start + self.load_seconds, self.deadline - 40.0))
@@ -280,7 +308,7 @@ class Load:
         self.commands = self.sent_k + 1
 
         # the end: running, and one last command
-        self.call("final", "unpause", rospy.ServiceProxy(NODE + "/unpause", Empty))
+        self.call("final", NODE, "unpause", rospy.ServiceProxy(NODE + "/unpause", Empty))
         self.final_k = self.sent_k + 1
         a, b = encode(self.final_k)
         self.sent_k = self.final_k
@@ -310,13 +338,14 @@ class Load:
                 proc.kill()
             log.seek(0)
         self.listener_stderr = "".join(log.read() for log in self.listener_logs)
-        self.pid_at_end = self.node_pid()
+        self.pids_at_end = self.node_pids()
         self.run_seconds = time.monotonic() - self.start
         self.report()
 
     def report(self):
         d = sorted(self.durations)
-        ops = ", ".join("%s %d ok / %d refused" % (op, c["ok"], c["refused"]) for op, c in self.calls.items())
+        ops = "; ".join("%s: %s" % (node, ", ".join("%s %d ok / %d refused" % (op, c["ok"], c["refused"])
+                                                   for op, c in calls.items())) for node, calls in self.calls.items())
         msgs = [r["messages"] for r in self.listener_results] or [0]
         lines = [
             "commands: %d in %.1f s = %.0f Hz (target %.0f Hz), then the final command %d" % (
@@ -330,6 +359,8 @@ class Load:
                                                                       min(msgs), max(msgs)),
             "joint_states: %d messages, tf: %d messages; load %.1f s, whole test %.1f s" % (
                 len(self.js), self.tf_messages, self.load_end - self.load_start, self.run_seconds),
+            "/clock instance: %d joint_states messages, %d of them back to 0 after a reset" % (
+                len(self.clock_js), sum(1 for (s0, _), (s1, _) in zip(self.clock_js, self.clock_js[1:]) if s1 < s0)),
         ]
         sys.stderr.write("".join("node_load: %s\n" % line for line in lines))
         with open(os.path.join(os.environ.get("ROS_LOG_DIR", "/tmp"), "node_load_summary.txt"), "w") as f:
@@ -354,7 +385,7 @@ class NodeUnderLoad(unittest.TestCase):
         self.assertEqual(L.problems, [])
         self.assertTrue(L.clients_done, "a client or the publisher did not finish")
         self.assertTrue(L.alive(), "the node process is gone")
-        self.assertEqual(L.pid_at_end, L.pid, "the node is not the process it was")
+        self.assertEqual(L.pids_at_end, L.pids, "the nodes are not the processes they were")
         self.assertGreater(len(L.tail), 20, "joint_states stopped after the load (messages in its last second)")
         self.assertLess(L.run_seconds, 110.0)
 
@@ -365,8 +396,9 @@ class NodeUnderLoad(unittest.TestCase):
     def test_service_calls_all_returned(self):
         L = self.load
         self.assertEqual(L.errors, [])
-        for op, c in L.calls.items():
-            self.assertGreater(c["ok"], 0, op)
+        for node, calls in L.calls.items():
+            for op, c in calls.items():
+                self.assertGreater(c["ok"], 0, (node, op))
         self.assertLess(max(L.durations)[0], L.call_timeout)
 
     def test_joint_states_stamps_strictly_increase(self):
@@ -409,6 +441,34 @@ class NodeUnderLoad(unittest.TestCase):
         final = encode(L.final_k)
         others = [(a, b) for _, a, b, *_ in L.after_final if (a, b) != final]
         self.assertEqual(others[:5], [], "after the last command joint_states showed other efforts")
+
+    def test_clock_instance_time_goes_back_only_to_0_at_a_reset(self):
+        """Each drop goes to exactly 0, and by the i-th drop at least i resets were called
+        (a message from before a reset may arrive after the call went out, so a drop is
+        matched to resets in order, not to the calls between two messages)."""
+        L = self.load
+        reset = OPS.index("reset")
+
+        def wrong_drops(seq, repeats_allowed):
+            bad, drops = [], 0
+            for (s0, _), (s1, c1) in zip(seq, seq[1:]):
+                if s1 < s0:
+                    drops += 1
+                    if s1 != 0 or c1[reset] < drops:
+                        bad.append((s0, s1, "drop %d with %d resets called" % (drops, c1[reset])))
+                elif s1 == s0 and not repeats_allowed:
+                    bad.append((s0, s1, "repeat"))
+            return bad, drops
+
+        bad, drops = wrong_drops(L.clock_js, True)  # joint_states repeat while paused
+        self.assertFalse(bad, "%d of %d joint_states stamps go back, not to 0 at a reset: %s" % (
+            len(bad), len(L.clock_js), bad[:5]))
+        self.assertGreater(drops, 0, "no reset took the /clock instance's time back: not exercised")
+        self.assertEqual(set(L.clock_tf), set(FRAMES))
+        for frame, seq in L.clock_tf.items():
+            bad, _ = wrong_drops(seq, False)
+            self.assertFalse(bad, "%s: %d of %d tf stamps repeat or go back, not to 0 at a reset: %s" % (
+                frame, len(bad), len(seq), bad[:5]))
 
     def test_every_listener_has_every_frame_and_is_current(self):
         L = self.load
