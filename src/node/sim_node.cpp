@@ -102,9 +102,15 @@ bool SimNode::load() {
 
 ros::Time SimNode::stamp() const { return time_origin_ + ros::Duration(model_->time()); }
 
-// Without /clock: the current simulation time is stamped as the current wall time.
+// Without /clock: the current simulation time is stamped as the current wall time, or
+// 1 µs after the last stamp published when that is later: a running sample is published
+// up to a sample period ahead of wall time, and ~advance moves simulation time on while
+// wall time stands, so re-anchoring to the wall alone took stamps back. (1 µs, not 1 ns:
+// tf2's Python binding reads stamps as double seconds, which cannot tell 1 ns apart.)
 void SimNode::anchorStampsToWall() {
-  time_origin_ = ros::Time(ros::WallTime::now().toSec()) - ros::Duration(model_->time());
+  ros::Time now(ros::WallTime::now().toSec());
+  if (now <= last_stamp_ + ros::Duration(0, 1000)) now = last_stamp_ + ros::Duration(0, 1000);
+  time_origin_ = now - ros::Duration(model_->time());
 }
 
 // tf of a URDF tree joint: the child link in the parent link, frames prefixed.
@@ -126,12 +132,16 @@ void SimNode::publishStatic() {
   if (!fixed.empty()) tf_static_.sendTransform(fixed);
 }
 
-// Publishes the run loop's sample. Without /clock, stamps follow wall time: a pause or a
-// reset moves the origin so that they never repeat or run backwards. With /clock, a pause
-// freezes time and tf is not republished (a repeated stamp is an error for tf2 listeners).
+// Publishes the run loop's sample. Without /clock, stamps follow wall time: a pause, a
+// reset, or a sample whose stamp would not follow the last one (~advance of 0 steps) moves
+// the origin so that they never repeat or run backwards. With /clock, a pause
+// freezes time and tf is not republished (a repeated stamp is an error for tf2 listeners),
+// nor is it when the stamp is that of the last tf sent (~advance of 0 steps while paused,
+// a second reset in a row).
 void SimNode::publish(bool paused) {
-  if (!params_.publish_clock && paused) anchorStampsToWall();
+  if (!params_.publish_clock && (paused || stamp() < last_stamp_ + ros::Duration(0, 1000))) anchorStampsToWall();
   const ros::Time now = stamp();
+  last_stamp_ = now;
   const Sample& s = loop_->sample();
   sensor_msgs::JointState js;
   js.header.stamp = now;
@@ -144,7 +154,10 @@ void SimNode::publish(bool paused) {
   std::vector<geometry_msgs::TransformStamped> moving;
   for (size_t j = 0; j < model_->treeJoints().size(); ++j)
     if (!model_->treeJoints()[j].fixed) moving.push_back(treeTransform(j, now));
-  if (!moving.empty() && !(paused && params_.publish_clock)) tf_.sendTransform(moving);
+  if (!moving.empty() && !(paused && params_.publish_clock) && now != last_tf_stamp_) {
+    tf_.sendTransform(moving);
+    last_tf_stamp_ = now;
+  }
 
   geometry_msgs::Vector3Stamped v;
   v.header.stamp = now;

@@ -70,6 +70,8 @@ class SimNode {
   std::mutex mutex_;  // guards model_ and loop_
   std::atomic<bool> paused_{false};
   ros::Time time_origin_{0};  // stamp of simulation time 0 (0 when the node owns /clock)
+  ros::Time last_stamp_{0};   // the last stamp published (under mutex_)
+  ros::Time last_tf_stamp_{ros::TIME_MAX};  // of the last tf sent (TIME_MAX: none yet)
   std::vector<std::pair<int, int>> tree_links_;  // (parent, child) link of each tree joint
   ros::Publisher joint_states_, clock_, violation_, reactions_;
   ros::Subscriber effort_, drive_;
