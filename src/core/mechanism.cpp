@@ -135,7 +135,9 @@ void Mechanism::commandDriveVelocity(int drive, double v, double acc) {
 
 void Mechanism::setGravity(const Vector3d& g) {
   if (!g.allFinite()) throw ModelError("gravity must be finite");
-  editable().gravity = g;
+  System& sys = editable();
+  sys.gravity = g;
+  if (built_) sys.updateLoadScales();
 }
 
 void Mechanism::setJointDamping(int joint, int k, double c) {

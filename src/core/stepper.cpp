@@ -104,6 +104,7 @@ Stepper::Stepper(const System& sys) {
   length_scale_ = sys.length_scale;
   // everything a step writes is sized here: a step allocates nothing
   backup_.assign(kMaxHalvings + 1, initialState(sys));
+  start_ = backup_[0];
   tracked0_ = backup_[0].tracked;
   tracked_rate_ = backup_[0].tracked;
   zeros(loaded_x_, 7 * sys.nb), zeros(evaluated_x_, 7 * sys.nb);
@@ -361,9 +362,15 @@ void Stepper::residualScales(const System& sys) {
   double V = 0;  // of the loaded state
   for (int b = 1; b <= sys.nb; ++b)
     V = std::max({V, kin_[b].v.cwiseAbs().maxCoeff(), kin_[b].w.cwiseAbs().maxCoeff() * length_scale_});
-  const double a_floor = kFloor * std::max(motionScale(sys, a_), V * V / length_scale_);
   mulM(sys, a_.data(), s1_.data());
   for (int i = 0; i < sys.n; ++i) s1_[i] = std::fabs(Q_[i]) + std::fabs(s1_[i]);
+  // ... and at least what the loads alone would do (a mechanism at rest against stops has
+  // accelerations of round-off size: they are not the scale of its equations)
+  double F = 0;  // the largest applied force, torques through the length scale
+  for (int i = 0; i < sys.n; i += 6)
+    F = std::max({F, Q_.segment<3>(i).cwiseAbs().maxCoeff(), Q_.segment<3>(i + 3).cwiseAbs().maxCoeff() / length_scale_});
+  const double a_floor = kFloor * std::max({motionScale(sys, a_), V * V / length_scale_, sys.acceleration_scale,
+                                            F / sys.mass_scale});
   for (int e = 0; e < sys.m; ++e) s2_[e] = std::fabs(gamma_[e]);
   for (int ci = 0; ci < sys.numConstraints(); ++ci) {
     const ConstraintLayout& L = sys.layout[ci];
@@ -610,7 +617,16 @@ void Stepper::frictionFor(const System& sys, State& s, const Inputs& in, double 
 
 void Stepper::step(const System& sys, State& s, const Inputs& in, double h) {
   if (!(h > 0) || !std::isfinite(h)) throw std::invalid_argument("step must be positive and finite");
-  advance(sys, s, in, h, 0);
+  // A step that fails leaves the State where it was (the last accepted step), not part
+  // way through its substeps.
+  start_ = s;
+  try {
+    advance(sys, s, in, h, 0);
+  } catch (...) {
+    s = start_;
+    have_eval_ = false;
+    throw;
+  }
 }
 
 // A step whose projection cannot bring the state back onto the constraints is taken
@@ -845,7 +861,7 @@ double Stepper::positionResidual(const System& sys) const {
 
 // max_e |(Phi_q v)_e| / (size of its terms): |J_r| |v|_max + |J_theta| |w'|_max per body.
 double Stepper::velocityResidual(const System& sys, const Eigen::VectorXd& u) const {
-  const double floor = kFloor * motionScale(sys, u);
+  const double floor = kFloor * std::max(motionScale(sys, u), sys.velocity_scale);
   double worst = 0;
   for (int ci = 0; ci < sys.numConstraints(); ++ci) {
     const ConstraintLayout& L = sys.layout[ci];

@@ -132,9 +132,17 @@ void System::finalize() {
   L = std::max(L, (hi - lo).norm());
   length_scale = L > 0 ? L : 1.0;
   mass_scale = mcount ? msum / mcount : 1.0;
+  updateLoadScales();
   inertia_scale = icount ? isum / icount : mass_scale * length_scale * length_scale;
   damping.resize(joints.size(), {0, 0, 0});
   friction.resize(joints.size(), {0, 0, 0});
+}
+
+void System::updateLoadScales() {
+  acceleration_scale = gravity.norm();
+  for (const SpringDamper& s : springs)
+    acceleration_scale = std::max(acceleration_scale, (s.k * std::max(s.L0, length_scale) + std::fabs(s.f_act)) / mass_scale);
+  velocity_scale = std::sqrt(acceleration_scale * length_scale);
 }
 
 State initialState(const System& sys) {

@@ -280,6 +280,25 @@ TEST(Solver, AngleTrackedThroughMoreThanPiPerStep) {
   }
 }
 
+// A step that fails part way (here a turbine spun up past what 64 substeps follow during
+// the step, not at its start) leaves the State at the last accepted step, not after the
+// substeps it had taken.
+TEST(Solver, AFailedStepLeavesTheStateWhereItWas) {
+  Mechanism m;
+  const int w = m.addBody(body("turbine", 1.0, Matrix3d::Identity(), Vector3d::Zero()));
+  m.addJoint(makeJoint("revolute", "axle", Mechanism::kGround, JointFrame(), w, JointFrame()));
+  m.setGravity(Vector3d::Zero());
+  m.build();
+  m.assemble({}, {CoordinateTarget{0, 0, 15900.0}});  // 15.9 rad a step: 64 substeps of 0.248
+  m.setJointEffort(0, 0, 1e6);                          // +1000 rad/s within the step
+  const Mechanism::Snapshot before = m.snapshot();
+  EXPECT_THROW(m.step(1e-3), std::runtime_error);
+  EXPECT_EQ(m.time(), before.t);
+  EXPECT_EQ(m.stepsTaken(), before.steps);
+  EXPECT_EQ((m.state().x - before.x).cwiseAbs().maxCoeff(), 0.0);
+  EXPECT_EQ((m.state().u - before.u).cwiseAbs().maxCoeff(), 0.0);
+}
+
 
 // A heavy turntable spinning at 20 rad/s carries a 1 kg slider on a radial prismatic
 // joint at 0.5 m with Coulomb friction 2000 N: m W^2 q = 200 N, so it must stick. The

@@ -148,6 +148,7 @@ class Stepper {
   bool have_eval_ = false;
   SolverStats stats_;
   std::vector<State> backup_;  // per halving depth
+  State start_;                // the state a step started from (restored when it fails)
   std::vector<Tracked> tracked0_, tracked_rate_;  // at the step's start
   // positions loaded, evaluated and factored at: H and Phi_q are a consistent pair when
   // the last two agree

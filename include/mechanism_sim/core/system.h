@@ -104,9 +104,14 @@ class System {
   // rotational inertia (means over bodies that have them); the stand-ins for what massless
   // bodies lack in the row weights.
   double length_scale = 1.0, mass_scale = 1.0, inertia_scale = 1.0;
+  // What the loads alone would do: an acceleration (|g|, springs' k L + |f_act| over the
+  // mass scale) and the velocity sqrt(a L) it gives over the length scale. Residual floors
+  // use them, so a mechanism at rest is not judged on round-off divided by round-off.
+  double acceleration_scale = 0.0, velocity_scale = 0.0;
 
   // Validates and lays out; throws ModelError naming what is wrong.
   void finalize();
+  void updateLoadScales();  // acceleration_scale, velocity_scale (after gravity changes)
   int numBodies() const { return static_cast<int>(bodies.size()); }
   int numJoints() const { return static_cast<int>(joints.size()); }
   int numConstraints() const { return static_cast<int>(constraints.size()); }
