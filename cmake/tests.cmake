@@ -13,6 +13,13 @@ target_compile_definitions(test_simulate_cli PRIVATE MECHANISM_SIM_SOURCE_DIR="$
   SIMULATE_BIN="$<TARGET_FILE:simulate>")
 add_dependencies(test_simulate_cli simulate)
 
+catkin_add_gtest(test_bag test/urdf/test_bag.cpp)
+target_include_directories(test_bag PRIVATE ${catkin_INCLUDE_DIRS})
+target_link_libraries(test_bag gtest_main ${rosbag_storage_LIBRARIES} ${roscpp_serialization_LIBRARIES} ${rostime_LIBRARIES})
+target_compile_definitions(test_bag PRIVATE MECHANISM_SIM_SOURCE_DIR="${PROJECT_SOURCE_DIR}"
+  SIMULATE_BIN="$<TARGET_FILE:simulate>")
+add_dependencies(test_bag simulate ${PROJECT_NAME}_generate_messages_cpp)
+
 if(EXISTS ${PROJECT_SOURCE_DIR}/test/rostest/CMakeLists.txt)
   include(${PROJECT_SOURCE_DIR}/test/rostest/CMakeLists.txt)
 endif()

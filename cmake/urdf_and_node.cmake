@@ -10,8 +10,12 @@ add_library(mechanism_sim_urdf
 target_include_directories(mechanism_sim_urdf PUBLIC include ${urdfdom_INCLUDE_DIRS})
 target_link_libraries(mechanism_sim_urdf mechanism_sim_core ${urdfdom_LIBRARIES} ${TINYXML2_TARGET} console_bridge)
 
-add_executable(simulate src/cli/simulate.cpp src/cli/csv_writer.cpp)
-target_link_libraries(simulate mechanism_sim_urdf)
+add_executable(simulate src/cli/simulate.cpp src/cli/csv_writer.cpp src/cli/bag_writer.cpp)
+# --bag: librosbag_storage and the message headers (this package's JointReactions too), no roscpp.
+target_include_directories(simulate PRIVATE ${catkin_INCLUDE_DIRS})
+target_link_libraries(simulate mechanism_sim_urdf ${rosbag_storage_LIBRARIES} ${roscpp_serialization_LIBRARIES}
+  ${rostime_LIBRARIES})
+add_dependencies(simulate ${catkin_EXPORTED_TARGETS} ${PROJECT_NAME}_generate_messages_cpp)
 # --plot runs scripts/plot (matplotlib) from the source tree; MECHANISM_SIM_PLOT overrides it.
 target_compile_definitions(simulate PRIVATE MECHANISM_SIM_PLOT_SCRIPT="${PROJECT_SOURCE_DIR}/scripts/plot")
 

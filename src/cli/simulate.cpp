@@ -1,4 +1,5 @@
-// simulate: runs a URDF mechanism without ROS and writes CSV (README "Batch simulator").
+// simulate: runs a URDF mechanism without a ROS graph and writes CSV, and with --bag a ROS
+// bag of what the node would publish (README "Batch simulator").
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -13,6 +14,7 @@
 #include <memory>
 #include <string>
 
+#include "bag_writer.h"
 #include "csv_writer.h"
 #include "mechanism_sim/urdf/model.h"
 #include "mechanism_sim/urdf/run_loop.h"
@@ -26,11 +28,14 @@ const char* kUsage =
     "                [--csv FILE] [--poses] [--integrator rk4|rk2]\n"
     "                [--set JOINT=POSITION]... [--velocity JOINT=VALUE]...\n"
     "                [--effort JOINT=VALUE]... [--drive JOINT=VELOCITY]...\n"
-    "                [--reactions] [--plot FILE.png] [--plot-columns LIST] [--quiet]\n";
+    "                [--reactions] [--bag FILE.bag] [--plot FILE.png] [--plot-columns LIST]\n"
+    "                [--quiet]\n";
 
 struct UsageError : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
+
+struct BagFailure {};  // --bag FILE could not be written
 
 double parseNumber(const std::string& text, const std::string& what) {
   char* end = nullptr;
@@ -46,7 +51,7 @@ std::pair<std::string, double> parseAssignment(const std::string& text, const st
 }
 
 struct Args {
-  std::string model, csv, integrator, plot, plot_columns;
+  std::string model, csv, bag, integrator, plot, plot_columns;
   double duration = 10.0, dt = 1e-3;
   long every = 10;
   bool poses = false, quiet = false, reactions = false;
@@ -73,6 +78,7 @@ Args parse(int argc, char** argv) {
     else if (arg == "--effort") a.efforts.push_back(parseAssignment(value(), arg));
     else if (arg == "--drive") a.load.drives.push_back(parseAssignment(value(), arg));
     else if (arg == "--reactions") a.reactions = true;
+    else if (arg == "--bag") a.bag = value();
     else if (arg == "--plot") a.plot = value();
     else if (arg == "--plot-columns") a.plot_columns = value();
     else if (arg == "--quiet") a.quiet = true;
@@ -153,11 +159,33 @@ int main(int argc, char** argv) {
     }
     out = &file;
   }
+  // --bag: the node's topics at every sample, stamped with simulation time (+1 ns); it
+  // needs the reactions (the CSV has them only with --reactions).
+  std::unique_ptr<BagWriter> bag;
+  if (!args.bag.empty()) {
+    try {
+      bag = std::make_unique<BagWriter>(args.bag, *model);
+    } catch (const std::exception&) {
+      std::cerr << "simulate: cannot write '" << args.bag << "'\n";
+      return 1;
+    }
+  }
   CsvWriter csv(*out, *model, args.poses, args.reactions);
   RunLoop loop(*model, args.dt, args.every);
-  loop.setReactions(args.reactions);
+  loop.setReactions(args.reactions || bag);
   const bool write = !csv_path.empty() || !isatty(STDOUT_FILENO) || !args.quiet;
-  if (write) csv.header(), csv.row(loop.sample());
+  // A bag that cannot be written (disk full) ends the run like a file that cannot be opened.
+  auto sample = [&] {
+    if (write) csv.row(loop.sample());
+    if (bag) {
+      try {
+        bag->write(loop.sample());
+      } catch (const rosbag::BagException&) {
+        throw BagFailure();
+      }
+    }
+  };
+  if (write) csv.header();
   const long steps = std::lround(args.duration / args.dt);
   const auto start = std::chrono::steady_clock::now();
   auto elapsed = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(); };
@@ -170,11 +198,22 @@ int main(int argc, char** argv) {
     }
   };
   try {
-    // A row every N steps, and one at the end.
+    // A sample at t = 0, every N steps, and one at the end.
+    sample();
     while (loop.steps() < steps) {
       loop.advance(std::min(args.every, steps - loop.steps()), bar ? std::function<void()>(tick) : nullptr);
-      if (write) csv.row(loop.sample());
+      sample();
     }
+    if (bag) {
+      try {
+        bag->close();
+      } catch (const rosbag::BagException&) {
+        throw BagFailure();
+      }
+    }
+  } catch (const BagFailure&) {
+    std::cerr << (last_bar > 0 ? "\n" : "") << "simulate: cannot write '" << args.bag << "'\n";
+    return 1;
   } catch (const std::exception& e) {
     std::cerr << "\nsimulate: " << args.model << ": at t = " << model->time() << " s: " << e.what() << "\n";
     return 1;
