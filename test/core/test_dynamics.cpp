@@ -1,6 +1,8 @@
 // Physics with known answers: each test states its reference and tolerance.
 #include <gtest/gtest.h>
 
+#include "bodies.h"
+
 #include <cmath>
 #include <cstdio>
 
@@ -18,13 +20,9 @@ JointFrame frame(const Vector3d& sp, const Matrix3d& Rp = Matrix3d::Identity()) 
   return f;
 }
 
+// principal moments on the diagonal
 Body body(const std::string& name, double m, const Vector3d& inertia, const Vector3d& r) {
-  Body b;
-  b.name = name;
-  b.m = m;
-  b.Jp = inertia.asDiagonal();
-  b.r = r;
-  return b;
+  return mechanism_sim::body(name, m, Matrix3d(inertia.asDiagonal()), r);
 }
 
 // Runs and checks the violation bound at every step.

@@ -6,6 +6,7 @@
 
 #include <cmath>
 
+#include "bodies.h"
 #include "mechanism_sim/core/models.h"
 
 namespace mechanism_sim {
@@ -19,14 +20,6 @@ JointFrame axisZ(const Vector3d& sp) {
   return f;
 }
 
-Body body(const std::string& name, double m, const Matrix3d& Jp, const Vector3d& r) {
-  Body b;
-  b.name = name;
-  b.m = m;
-  b.Jp = Jp;
-  b.r = r;
-  return b;
-}
 
 // Released from the horizontal about a revolute (axis y at the origin): with I_o = m L^2 +
 // Ic the energy gives q_dot^2 = 2 m g L sin q / I_o and q_ddot = m g L cos q / I_o (q below

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdio>
 
+#include "bodies.h"
 #include "mechanism_sim/core/models.h"
 
 namespace mechanism_sim {
@@ -14,14 +15,6 @@ namespace {
 
 constexpr double kG = 9.81;
 
-Body body(const std::string& name, double m, const Matrix3d& Jp, const Vector3d& r) {
-  Body b;
-  b.name = name;
-  b.m = m;
-  b.Jp = Jp;
-  b.r = r;
-  return b;
-}
 
 // A point-like mass m (central inertia Ic) at distance L from a revolute about y through
 // `pivot`, released from the horizontal (+x side) at rest, gravity -z.

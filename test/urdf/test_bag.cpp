@@ -23,25 +23,15 @@
 #include <tf2_msgs/TFMessage.h>
 
 #include "mechanism_sim/JointReactions.h"
+#include "run_command.h"
 
 namespace {
 
 const std::string kSource = MECHANISM_SIM_SOURCE_DIR;
 
-struct Result {
-  int code;
-  std::string out;  // stdout and stderr
-};
+using Result = mechanism_sim::testing_util::CommandResult;  // out: stdout and stderr
 
-Result run(const std::string& command) {
-  FILE* p = popen((command + " 2>&1").c_str(), "r");
-  std::string out;
-  char buf[4096];
-  size_t n;
-  while ((n = fread(buf, 1, sizeof buf, p)) > 0) out.append(buf, n);
-  const int status = pclose(p);
-  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, out};
-}
+Result run(const std::string& command) { return mechanism_sim::testing_util::runCommand(command + " 2>&1"); }
 
 Result simulate(const std::string& args) { return run(std::string(SIMULATE_BIN) + " " + args); }
 

@@ -1,6 +1,8 @@
 // scripts/plot as a user runs it: the PNG it writes, the --summary JSON, --columns, errors.
 #include <gtest/gtest.h>
 
+#include "run_command.h"
+
 #include <sys/stat.h>
 #include <sys/wait.h>
 
@@ -36,14 +38,8 @@ std::string slurp(const std::string& path) {
 
 Result run(const std::string& args) {
   const std::string err_file = ::testing::TempDir() + "/plot_stderr.txt";
-  const std::string cmd = kPlot + " " + args + " 2>" + err_file;
-  FILE* p = popen(cmd.c_str(), "r");
-  std::string out;
-  char buf[4096];
-  size_t n;
-  while ((n = fread(buf, 1, sizeof buf, p)) > 0) out.append(buf, n);
-  const int status = pclose(p);
-  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, out, slurp(err_file)};
+  const auto r = mechanism_sim::testing_util::runCommand(kPlot + " " + args + " 2>" + err_file);
+  return {r.code, r.out, slurp(err_file)};
 }
 
 void write(const std::string& path, const std::string& text) {

@@ -1,6 +1,8 @@
 // The simulate executable as a user runs it: CSV layout, options, exit codes, messages.
 #include <gtest/gtest.h>
 
+#include "run_command.h"
+
 #include <sys/wait.h>
 
 #include <cstdio>
@@ -13,20 +15,10 @@ namespace {
 
 const std::string kSource = MECHANISM_SIM_SOURCE_DIR;
 
-struct Result {
-  int code;
-  std::string out;  // stdout and stderr
-};
+using Result = mechanism_sim::testing_util::CommandResult;  // out: stdout and stderr
 
 Result run(const std::string& args) {
-  const std::string cmd = std::string(SIMULATE_BIN) + " " + args + " 2>&1";
-  FILE* p = popen(cmd.c_str(), "r");
-  std::string out;
-  char buf[4096];
-  size_t n;
-  while ((n = fread(buf, 1, sizeof buf, p)) > 0) out.append(buf, n);
-  const int status = pclose(p);
-  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, out};
+  return mechanism_sim::testing_util::runCommand(std::string(SIMULATE_BIN) + " " + args + " 2>&1");
 }
 
 std::vector<std::vector<std::string>> readCsv(const std::string& path) {
