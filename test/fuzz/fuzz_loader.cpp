@@ -96,6 +96,12 @@ int fuzzOne(const uint8_t* data, size_t size) {
     if (!std::isfinite(p) || !std::isfinite(v))
       finding("step: non-finite state without an error (violation " + std::to_string(p) + ", " +
               std::to_string(v) + ")");
+    // a silently wrong answer: the step went on with the constraints visibly broken
+    // (relative to each equation's own terms, so scale-free)
+    const double rp = model->relativePositionViolation(), rv = model->relativeVelocityViolation();
+    if (rp > 1e-6 || rv > 1e-6)
+      finding("step: constraints left broken without an error (relative violation " + std::to_string(rp) + ", " +
+              std::to_string(rv) + ")");
   }
   say("loaded; 100 steps taken");
   return 0;
