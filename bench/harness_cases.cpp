@@ -9,7 +9,7 @@
 //     budget; the table gives the median per step, and min and max.
 // Then the linear-cost check of issue 7: chains of 50 and 400 links, ratio of their costs.
 //
-//   bench_harness [--cases pendulum,chain,fourbar,screw,linear] [--dt S] [--integrator rk4|rk2]
+//   bench_harness [--cases pendulum,chain,fourbar,screw,linear] [--dt S] [--integrator rk4|rk3|rk2]
 //                 [--repeats N] [--budget S] [--chain-n 10,50,200] [--fourbar-n 1,10,50] [--quick]
 #include <algorithm>
 #include <chrono>
@@ -302,7 +302,7 @@ std::string cpuModel() {
 
 int usage(const char* prog) {
   std::fprintf(stderr,
-               "usage: %s [--cases pendulum,chain,fourbar,screw,linear] [--dt S] [--integrator rk4|rk2]\n"
+               "usage: %s [--cases pendulum,chain,fourbar,screw,linear] [--dt S] [--integrator rk4|rk3|rk2]\n"
                "          [--repeats N] [--budget S] [--chain-n 10,50,200] [--fourbar-n 1,10,50] [--quick]\n",
                prog);
   return 2;
@@ -333,7 +333,7 @@ int main(int argc, char** argv) {
     else return usage(argv[0]);
   }
   if (opt.quick && !repeats_given) opt.repeats = 1;
-  if (!(opt.dt > 0) || opt.repeats < 1 || (opt.integrator != "rk4" && opt.integrator != "rk2")) return usage(argv[0]);
+  if (!(opt.dt > 0) || opt.repeats < 1 || (opt.integrator != "rk4" && opt.integrator != "rk2" && opt.integrator != "rk3")) return usage(argv[0]);
 
   std::printf("bench_harness: %s; dt %g s, %s, median of %d repeats, timing budget %g s per case%s\n\n",
               cpuModel().c_str(), opt.dt, opt.integrator.c_str(), opt.repeats, opt.budget,

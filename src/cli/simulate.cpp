@@ -25,7 +25,7 @@ namespace {
 
 const char* kUsage =
     "usage: simulate MODEL.urdf [--duration S] [--dt S] [--output-every N]\n"
-    "                [--csv FILE] [--poses] [--integrator rk4|rk2]\n"
+    "                [--csv FILE] [--poses] [--integrator rk4|rk3|rk2]\n"
     "                [--set JOINT=POSITION]... [--velocity JOINT=VALUE]...\n"
     "                [--effort JOINT=VALUE]... [--drive JOINT=VELOCITY]...\n"
     "                [--reactions] [--bag FILE.bag] [--plot FILE.png] [--plot-columns LIST]\n"

@@ -37,8 +37,8 @@ void System::finalize() {
   if (nb < 1) throw ModelError("the mechanism has no moving body");
   for (int b = 1; b <= nb; ++b) validateBody(bodies[b]);
   if (!gravity.allFinite()) throw ModelError("gravity must be finite");
-  if (options.method != "rk4" && options.method != "rk2")
-    throw ModelError("unknown integrator '" + options.method + "' (known: rk4, rk2)");
+  if (options.method != "rk4" && options.method != "rk2" && options.method != "rk3")
+    throw ModelError("unknown integrator '" + options.method + "' (known: rk4, rk3, rk2)");
   if (!(options.position_tol > 0) || !(options.velocity_tol > 0) || !(options.solve_tol > 0))
     throw ModelError("integrator tolerances must be positive");
 

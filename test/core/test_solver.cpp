@@ -46,9 +46,13 @@ struct Pendulum {
   }
 };
 
-double pendulumError(const Pendulum& p, double h, double T, SolverStats* stats = nullptr) {
+double pendulumError(const Pendulum& p, double h, double T, SolverStats* stats = nullptr,
+                     const std::string& method = "rk4") {
   Mechanism m;
   const int b = p.add(m);
+  IntegratorOptions io;
+  io.method = method;
+  m.setIntegrator(io);
   m.build();
   m.assemble();
   for (long k = 0, n = std::lround(T / h); k < n; ++k) m.step(h);
@@ -78,6 +82,40 @@ TEST(Solver, PendulumErrorFallsAsHToTheFourth) {
     previous = err;
   }
   EXPECT_LT(previous, 1e-11);
+}
+
+// rk3 (Kutta's third-order method): errors fall as h^3 (ratio 8 per halving), and an
+// undamped oscillation does not gain energy (its stability region holds the imaginary
+// axis up to sqrt(3), Heun's none of it); it loses a little (|R(i y)| < 1 there).
+TEST(Solver, Rk3ErrorFallsAsHCubedAndKeepsTheEnergy) {
+  const double T = 2.0;
+  double previous = 0;
+  for (double h : {4e-3, 2e-3, 1e-3, 5e-4}) {
+    const double err = pendulumError(Pendulum(), h, T, nullptr, "rk3");
+    std::printf("pendulum rk3 h = %g: error %.3e\n", h, err);
+    if (previous > 0) {
+      EXPECT_GT(previous / err, 6.0) << "h = " << h;
+      EXPECT_LT(previous / err, 10.0) << "h = " << h;
+    }
+    previous = err;
+  }
+  Mechanism m;
+  models::fourBarChain(m, 1, 0.4, 1.0, 1.2);
+  IntegratorOptions io;
+  io.method = "rk3";
+  m.setIntegrator(io);
+  m.build();
+  m.assemble();
+  const double E0 = m.kineticEnergy() + m.potentialEnergy();
+  double gain = 0, loss = 0;
+  for (int k = 0; k < 20000; ++k) {
+    m.step(1e-3);
+    const double dE = m.kineticEnergy() + m.potentialEnergy() - E0;
+    gain = std::max(gain, dE), loss = std::max(loss, -dE);
+  }
+  std::printf("four-bar rk3, 20 s at 1 ms: energy gain %.2e J, loss %.2e J of %.2f\n", gain, loss, std::fabs(E0));
+  EXPECT_LT(gain, 1e-8 * std::fabs(E0));  // round-off of the projections
+  EXPECT_LT(loss, 1e-5 * std::fabs(E0));
 }
 
 // The four-bar (dependent equations, a closed loop): self-convergence of the crank angle

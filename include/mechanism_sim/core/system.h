@@ -44,7 +44,8 @@ struct SpringDamper {
 };
 
 struct IntegratorOptions {
-  // "rk4" (classical Runge-Kutta, default) or "rk2" (Heun).
+  // "rk4" (classical Runge-Kutta, default), "rk3" (Kutta's third order: three solves a
+  // step, stable for undamped oscillation) or "rk2" (Heun).
   std::string method = "rk4";
   // Relative tolerances: of each equation against the size of its own terms (positions,
   // velocities, the equations of motion). Scale-free: metres or millimetres alike.
