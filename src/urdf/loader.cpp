@@ -271,7 +271,9 @@ class ModelBuilder {
       d.profile = "velocity";
       put(locate(specs, o.first, nullptr), d);
     }
-    for (const auto& [at, d] : drives) {
+    for (const auto& entry : drives) {  // (no structured binding: lambdas below capture these)
+      const Coordinate& at = entry.first;
+      const ExtDrive& d = entry.second;
       auto refuse = [&](const std::string& what) {
         if (d.element) fail(d.element, what);  // both throw
         fail("drive of '" + d.dof + "': " + what);
