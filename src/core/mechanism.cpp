@@ -182,7 +182,18 @@ AssemblyReport Mechanism::assemble(const std::vector<CoordinateTarget>& position
 
 void Mechanism::step(double h) {
   if (!built_) throw std::logic_error("Mechanism::step before build() and assemble()");
-  stepper_->step(*sys_, state_, inputs_, h);
+  try {
+    stepper_->step(*sys_, state_, inputs_, h);
+  } catch (...) {
+    // the State is back at the last accepted step (Stepper::step); the queries read the
+    // stepper's evaluation, which the failed step left elsewhere: evaluate there again
+    try {
+      State probe = state_;
+      stepper_->settle(*sys_, probe, inputs_);
+    } catch (...) {
+    }
+    throw;
+  }
 }
 
 void Mechanism::setJointEffort(int joint, int k, double tau) {

@@ -178,5 +178,33 @@ TEST(Drive, DrivingACoordinateTwiceOrWithoutPositionIsRefused) {
   EXPECT_THROW(m.addDrive(0, 1, DriveProfile::velocity(2)), std::out_of_range);
 }
 
+// A drive that moves its joint past the joint's limits stops the run naming the joint,
+// instead of fighting the stop (two equations on one coordinate).
+TEST(Drive, DrivingPastALimitIsAnErrorNamingTheJoint) {
+  Mechanism m;
+  Body b;
+  b.name = "arm";
+  b.m = 1;
+  b.Jp = 0.01 * Matrix3d::Identity();
+  b.r = Vector3d(0.5, 0, 0);
+  const int i = m.addBody(b);
+  m.addJoint(makeJoint("revolute", "elbow", Mechanism::kGround, models::axisY(Vector3d::Zero()), i,
+                       models::axisY(Vector3d(-0.5, 0, 0))));
+  m.setJointLimits(0, 0, -1.0, 1.0);
+  m.addDrive(0, 0, DriveProfile::velocity(2.0));
+  m.build();
+  m.assemble();
+  const State before_error = m.state();
+  try {
+    for (int k = 0; k < 1000; ++k) m.step(1e-3);
+    ADD_FAILURE() << "driven past the limit";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("the drive of joint 'elbow' moves it to"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("past its limits [-1, 1]"), std::string::npos) << e.what();
+  }
+  EXPECT_LE(m.jointPosition(0, 0), 1.0 + 1e-12);  // left at the last accepted step
+  EXPECT_GT(m.time(), 0.49);
+}
+
 }  // namespace
 }  // namespace mechanism_sim
