@@ -82,10 +82,12 @@ class Drive(unittest.TestCase):
         r = rospy.wait_for_message("/mechanism_sim/joint_reactions", JointReactions, 10.0)
         self.assertEqual(list(r.name), ["crank_joint", "rod_joint", "slider_joint", "wrist_pin"])
         self.assertEqual(len(r.wrench), 4)
-        js = state()
-        # the crank's axis is -y in its joint frame: the drive's torque is -t_y
-        effort = js.effort[js.name.index("crank_joint")]
-        self.assertGreater(abs(effort), 1e-3)
+        # the drive's torque crosses zero twice a turn: its peak over a few samples is not zero
+        peak = 0.0
+        for _ in range(30):
+            js = state()
+            peak = max(peak, abs(js.effort[js.name.index("crank_joint")]))
+        self.assertGreater(peak, 1e-2)
         r = rospy.wait_for_message("/mechanism_sim/joint_reactions", JointReactions, 10.0)
         for w in r.wrench:
             for x in (w.force.x, w.force.y, w.force.z, w.torque.x, w.torque.y, w.torque.z):
