@@ -936,9 +936,9 @@ void displace(const System& sys, Eigen::VectorXd& x, const double* dq) {
     if (e > worst_err) worst_err = e, worst = ci;
   }
   std::ostringstream os;
-  os << "at t = " << t << " s: the step left the constraints (relative residual " << fmt(err)
-     << ", largest at '" << sys.constraints[worst]->name() << "': " << fmt(worst_err)
-     << "); try a smaller step";
+  os << "the step left the constraints (relative residual " << fmt(err) << ", largest at '"
+     << sys.constraints[worst]->name() << "': " << fmt(worst_err) << ", reached at t = " << t
+     << " s); try a smaller step";
   throw StepFailure(os.str());
 }
 
@@ -993,6 +993,25 @@ void Stepper::projectVelocities(const System& sys, State& s) {
   if (err <= tol) return;
   ++stats_.velocity_shortfalls;
   stats_.worst_velocity = std::max(stats_.worst_velocity, err);
+  if (err > 1e-6) {
+    // as for positions: the step cannot be repaired (it is retaken in halves, then the run
+    // stops) rather than going on with the velocity constraints visibly broken
+    mulJ(sys, s.u.data(), query_.data());
+    query_ -= nu_;
+    int worst = 0;
+    double worst_v = -1.0;
+    for (int ci = 0; ci < sys.numConstraints(); ++ci) {
+      const ConstraintLayout& L = sys.layout[ci];
+      const double v = L.size ? query_.segment(L.row, L.size).cwiseAbs().maxCoeff() : 0.0;
+      if (v > worst_v) worst_v = v, worst = ci;
+    }
+    std::ostringstream os;
+    os << "the velocities cannot be brought onto the constraints (relative residual " << fmt(err)
+       << ", largest at '" << sys.constraints[worst]->name() << "': " << fmt(worst_v) << ", reached at t = " << s.t
+       << " s); the mechanism may be near a singular or locking configuration (joint axes almost but not "
+          "exactly aligned?)";
+    throw StepFailure(os.str());
+  }
 }
 
 }  // namespace mechanism_sim
