@@ -1009,7 +1009,7 @@ void Stepper::projectVelocities(const System& sys, State& s) {
     os << "the velocities cannot be brought onto the constraints (relative residual " << fmt(err)
        << ", largest at '" << sys.constraints[worst]->name() << "': " << fmt(worst_v) << ", reached at t = " << s.t
        << " s); the mechanism may be near a singular or locking configuration (joint axes almost but not "
-          "exactly aligned?)";
+          "exactly aligned?) or too badly scaled for double precision (parts of very different sizes)";
     throw StepFailure(os.str());
   }
 }
