@@ -927,14 +927,21 @@ void displace(const System& sys, Eigen::VectorXd& x, const double* dq) {
   }
 }
 
-[[noreturn]] void Stepper::leftConstraints(const System& sys, double t, double err) const {
+// The constraint with the largest |r| over its rows (r per equation), and that value.
+static int worstConstraint(const System& sys, const Eigen::VectorXd& r, double* value) {
   int worst = 0;
-  double worst_err = -1.0;
+  *value = -1.0;
   for (int ci = 0; ci < sys.numConstraints(); ++ci) {
     const ConstraintLayout& L = sys.layout[ci];
-    const double e = L.size ? Phi_.segment(L.row, L.size).cwiseAbs().maxCoeff() : 0.0;
-    if (e > worst_err) worst_err = e, worst = ci;
+    const double e = L.size ? r.segment(L.row, L.size).cwiseAbs().maxCoeff() : 0.0;
+    if (e > *value) *value = e, worst = ci;
   }
+  return worst;
+}
+
+[[noreturn]] void Stepper::leftConstraints(const System& sys, double t, double err) const {
+  double worst_err = 0;
+  const int worst = worstConstraint(sys, Phi_, &worst_err);
   std::ostringstream os;
   os << "the step left the constraints (relative residual " << fmt(err) << ", largest at '"
      << sys.constraints[worst]->name() << "': " << fmt(worst_err) << ", reached at t = " << t
@@ -998,13 +1005,8 @@ void Stepper::projectVelocities(const System& sys, State& s) {
     // stops) rather than going on with the velocity constraints visibly broken
     mulJ(sys, s.u.data(), query_.data());
     query_ -= nu_;
-    int worst = 0;
-    double worst_v = -1.0;
-    for (int ci = 0; ci < sys.numConstraints(); ++ci) {
-      const ConstraintLayout& L = sys.layout[ci];
-      const double v = L.size ? query_.segment(L.row, L.size).cwiseAbs().maxCoeff() : 0.0;
-      if (v > worst_v) worst_v = v, worst = ci;
-    }
+    double worst_v = 0;
+    const int worst = worstConstraint(sys, query_, &worst_v);
     std::ostringstream os;
     os << "the velocities cannot be brought onto the constraints (relative residual " << fmt(err)
        << ", largest at '" << sys.constraints[worst]->name() << "': " << fmt(worst_v) << ", reached at t = " << s.t
