@@ -420,13 +420,19 @@ void Stepper::residualScales(const System& sys) {
 // was computed from (a componentwise backward error: independent of units); the scales
 // are taken from the warm start (or, from a cold one, after the first update). A
 // shortfall is counted.
-bool Stepper::solveKKT(const System& sys, bool factored, double t) {
+//
+// H from nearby positions (HState::kNearby: the last stage's, for the state the step
+// reached) still contracts the error, more slowly the further its Jacobian is from this
+// one; when a pass gains less than a factor 1 / kNearbyGain, H is factored here and the
+// passes go on (rather than stopping short).
+bool Stepper::solveKKT(const System& sys, HState hstate, double t, bool rescale) {
+  constexpr double kNearbyGain = 0.25;
   const double tol = sys.options.solve_tol;
   double res = 0, previous_res = HUGE_VAL;
   // warm (a, lambda from a nearby solve): their sizes are the solution's to O(h); cold
   // (nothing yet): the scales are taken again after the first update
   const bool cold = (sys.n > 0 && a_.cwiseAbs().maxCoeff() == 0.0) || (sys.m > 0 && lam_.cwiseAbs().maxCoeff() == 0.0);
-  residualScales(sys);
+  if (rescale || cold) residualScales(sys);
   for (int pass = 0;; ++pass) {
     mulM(sys, a_.data(), r1_.data());
     for (int i = 0; i < sys.n; ++i) r1_[i] = Q_[i] - r1_[i];
@@ -453,12 +459,17 @@ bool Stepper::solveKKT(const System& sys, bool factored, double t) {
       ++stats_.solves;
       return true;
     }
-    // No progress: what is left is inconsistent (equations that are dependent at this very
-    // configuration, e.g. a parallelogram passing flat). Further passes would only push
-    // the iterate along the nearly dependent direction: keep the best one, count it.
-    if (pass == kMaxSolvePasses || (pass >= 2 && res > 0.5 * previous_res)) break;
+    if (hstate == HState::kNearby && pass >= 1 && res > kNearbyGain * previous_res) {
+      factor(sys, "stage", t, false);
+      hstate = HState::kCurrent;
+    } else if (pass == kMaxSolvePasses || (pass >= 2 && res > 0.5 * previous_res)) {
+      // No progress: what is left is inconsistent (equations that are dependent at this
+      // very configuration, e.g. a parallelogram passing flat). Further passes would only
+      // push the iterate along the nearly dependent direction: keep the best one, count it.
+      break;
+    }
     previous_res = res;
-    if (!factored) factor(sys, "stage 1", t), factored = true;
+    if (hstate == HState::kNone) factor(sys, "stage 1", t), hstate = HState::kCurrent;
     ++stats_.solve_passes;
     for (int e = 0; e < sys.m; ++e) dm_[e] = kKappa * W_[e] * r2_[e];
     dn_ = r1_;
@@ -543,9 +554,12 @@ void Stepper::rates(const System& sys, const State& s, const Inputs& in,
                     const double* u, double* xdot, double* udot, bool reweight) {
   load(sys, x, u);
   evaluate(sys, s);
+  // H at the stage's own Jacobian: with kappa = 1e7 even the O(h^2) difference between
+  // RK4's two midpoint stages makes refinement on the other's H diverge (measured)
   factor(sys, "stage", s.t, reweight);
   forces(sys, s, in, friction);
-  solveKKT(sys, true, s.t);
+  // the residual scales of the step's first solve (stages differ from it by O(h))
+  solveKKT(sys, HState::kCurrent, s.t, false);
   positionRates(sys.nb, x, u, xdot);
   std::copy(a_.data(), a_.data() + sys.n, udot);
 }
@@ -563,7 +577,7 @@ void Stepper::frictionFor(const System& sys, State& s, const Inputs& in, double 
   forces(sys, s, in, s.friction);
   a_ = s.acc;
   lam_ = s.lambda;
-  solveKKT(sys, true, s.t);
+  solveKKT(sys, HState::kCurrent, s.t);
   Row rows[3];
   Eigen::Matrix<double, 6, 3> HinvG;  // H^-1 G_k^T restricted to the joint's two bodies
   for (int j = 0; j < sys.numJoints(); ++j) {
@@ -660,12 +674,12 @@ void Stepper::advance(const System& sys, State& s, const Inputs& in, double h, i
     advance(sys, s, in, 0.5 * h, depth + 1);
     return;
   }
-  backup_[depth] = s;
+  if (depth > 0) backup_[depth] = s;  // depth 0 starts from start_ (step())
   try {
     stepOnce(sys, s, in, h);
   } catch (const StepFailure&) {
     if (depth >= kMaxHalvings) throw;
-    s = backup_[depth];
+    s = depth > 0 ? backup_[depth] : start_;
     ++stats_.halved_steps;
     advance(sys, s, in, 0.5 * h, depth + 1);
     advance(sys, s, in, 0.5 * h, depth + 1);
@@ -691,7 +705,7 @@ void Stepper::stepOnce(const System& sys, State& s, const Inputs& in, double h) 
   forces(sys, s, in, s.friction);
   a_ = s.acc;
   lam_ = s.lambda;
-  solveKKT(sys, factored, s.t);
+  solveKKT(sys, factored ? HState::kCurrent : HState::kNone, s.t);
   have_eval_ = false;  // the stages below overwrite the evaluation
   x0_ = s.x;
   u0_ = s.u;
@@ -782,13 +796,16 @@ void Stepper::finishStep(const System& sys, State& s, const Inputs& in, bool aft
   evaluate(sys, s);
   const bool moved = projectPositions(sys, s, frozen);
   if (moved || !frozen) factor(sys, "projection", s.t, !frozen);  // velocities need H at this Phi_q
-  projectVelocities(sys, s);
-  load(sys, s.x.data(), s.u.data());
+  const bool sped = projectVelocities(sys, s);
+  // Tracked angles move to the new pose. The evaluation above stands when neither
+  // projection moved the state: its branch references were predicted within O(h^2) of
+  // these (the branch, all an evaluation takes from them, is the same).
+  if (moved || sped) load(sys, s.x.data(), s.u.data());
   trackAngles(sys, s);
-  evaluate(sys, s);
+  if (moved || sped) evaluate(sys, s);
   for (int pass = 0;; ++pass) {
     forces(sys, s, in, s.friction);
-    solveKKT(sys, true, s.t);
+    solveKKT(sys, HState::kNearby, s.t);
     if (pass > static_cast<int>(sys.limits.size()) || !releaseLimits(sys, s)) break;
     evaluate(sys, s);
     factor(sys, "limit release", s.t);
@@ -984,9 +1001,10 @@ bool Stepper::projectPositions(const System& sys, State& s, bool frozen) {
 
 // Mass-orthogonal projection of velocities onto Phi_q v = 0:
 //   dv = -H^-1 Phi_q^T W Phi_q v, repeated until the relative residual meets velocity_tol.
-void Stepper::projectVelocities(const System& sys, State& s) {
+bool Stepper::projectVelocities(const System& sys, State& s) {
   const double tol = sys.options.velocity_tol;
   double err = velocityResidual(sys, s.u);
+  const bool moves = err > tol;
   for (int it = 0; err > tol && it < kMaxVelocityPasses; ++it) {
     mulJ(sys, s.u.data(), dm_.data());
     for (int e = 0; e < sys.m; ++e) dm_[e] = -kKappa * W_[e] * (dm_[e] - nu_[e]);
@@ -997,7 +1015,7 @@ void Stepper::projectVelocities(const System& sys, State& s) {
     err = velocityResidual(sys, s.u);
   }
   ++stats_.velocity_projections;
-  if (err <= tol) return;
+  if (err <= tol) return moves;
   ++stats_.velocity_shortfalls;
   stats_.worst_velocity = std::max(stats_.worst_velocity, err);
   if (err > 1e-6) {
@@ -1014,6 +1032,7 @@ void Stepper::projectVelocities(const System& sys, State& s) {
           "exactly aligned?) or too badly scaled for double precision (parts of very different sizes)";
     throw StepFailure(os.str());
   }
+  return moves;
 }
 
 }  // namespace mechanism_sim

@@ -106,9 +106,13 @@ class Stepper {
   void forces(const System& sys, const State& s, const Inputs& in,
               const std::vector<std::array<double, 3>>& friction);
   void factor(const System& sys, const char* where, double t, bool reweight = true);
-  // Refines s.acc/lambda-warm-started a_, lam_; factors H here first if it must iterate
-  // and `factored` is false.
-  bool solveKKT(const System& sys, bool factored, double t);
+  // What H is when a solve starts: not yet factored for this step (factor before the
+  // first pass), factored at the evaluated positions, or factored at nearby positions
+  // (refactored here when the passes converge slowly).
+  enum class HState { kNone, kCurrent, kNearby };
+  // Refines s.acc/lambda-warm-started a_, lam_. With rescale false the residual scales of
+  // the last solve are kept (the stages of one step: their terms differ by O(h)).
+  bool solveKKT(const System& sys, HState h, double t, bool rescale = true);
   bool frictionActs(const System& sys) const;
   void residualScales(const System& sys);
   void rates(const System& sys, const State& s, const Inputs& in,
@@ -119,7 +123,7 @@ class Stepper {
   void stepOnce(const System& sys, State& s, const Inputs& in, double h);
   void finishStep(const System& sys, State& s, const Inputs& in, bool after_stages);
   bool projectPositions(const System& sys, State& s, bool frozen);  // whether it moved
-  void projectVelocities(const System& sys, State& s);
+  bool projectVelocities(const System& sys, State& s);  // whether it moved
   bool updateLimits(const System& sys, State& s);
   bool releaseLimits(const System& sys, State& s);
   void jointRows(const System& sys, const State& s, int j, Row* rows) const;
