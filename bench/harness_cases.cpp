@@ -11,6 +11,9 @@
 //
 //   bench_harness [--cases pendulum,chain,fourbar,screw,linear] [--dt S] [--integrator rk4|rk3|rk2]
 //                 [--repeats N] [--budget S] [--chain-n 10,50,200] [--fourbar-n 1,10,50] [--quick]
+//   bench_harness --steps CASE N K   loads one case and takes K steps of 1 ms, untimed, then
+//                 prints the solver's work per step: for an instruction count, run it under
+//                 valgrind --tool=callgrind at two K and divide the difference (README "Speed").
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -303,14 +306,31 @@ std::string cpuModel() {
 int usage(const char* prog) {
   std::fprintf(stderr,
                "usage: %s [--cases pendulum,chain,fourbar,screw,linear] [--dt S] [--integrator rk4|rk3|rk2]\n"
-               "          [--repeats N] [--budget S] [--chain-n 10,50,200] [--fourbar-n 1,10,50] [--quick]\n",
-               prog);
+               "          [--repeats N] [--budget S] [--chain-n 10,50,200] [--fourbar-n 1,10,50] [--quick]\n"
+               "       %s --steps pendulum|chain|fourbar|screw N K\n",
+               prog, prog);
   return 2;
 }
 
 }  // namespace
 
+// --steps CASE N K
+int countSteps(const std::string& name, int N, long K) {
+  auto m = harness::loadCase(name, N);
+  for (long k = 0; k < K; ++k) m->step(1e-3);
+  const SolverStats s = m->solverStats();
+  const double k = static_cast<double>(std::max(K, 1L));
+  std::printf("%s %d, %ld steps: per step %.2f evaluations, %.2f factorizations, %.2f refinement passes; %s\n",
+              name.c_str(), N, K, s.evaluations / k, s.factorizations / k, s.solve_passes / k, s.describe().c_str());
+  return 0;
+}
+
 int main(int argc, char** argv) {
+  if (argc == 5 && std::string(argv[1]) == "--steps") {
+    const std::string name = argv[2];
+    if (!std::set<std::string>{"pendulum", "chain", "fourbar", "screw"}.count(name)) return usage(argv[0]);
+    return countSteps(name, std::atoi(argv[3]), std::atol(argv[4]));
+  }
   Options opt;
   bool repeats_given = false;
   for (int i = 1; i < argc; ++i) {
