@@ -96,7 +96,7 @@ Stepper::Stepper(const System& sys) {
   for (const auto& c : sys.constraints) sizes_.push_back(c->size());
   auto zeros = [](Eigen::VectorXd& v, int size) { v = Eigen::VectorXd::Zero(size); };
   zeros(Phi_, sys.m), zeros(nu_, sys.m), zeros(gamma_, sys.m), zeros(W_, sys.m), zeros(lam_, sys.m);
-  zeros(r2_, sys.m), zeros(s2_, sys.m), zeros(dm_, sys.m), zeros(query_, sys.m);
+  zeros(r2_, sys.m), zeros(s2_, sys.m), zeros(dm_, sys.m), zeros(dl_, sys.m), zeros(query_, sys.m);
   zeros(Q_, sys.n), zeros(a_, sys.n), zeros(r1_, sys.n), zeros(s1_, sys.n), zeros(dn_, sys.n);
   zeros(x0_, 7 * sys.nb), zeros(u0_, sys.n), zeros(xs_, 7 * sys.nb), zeros(us_, sys.n);
   for (int s = 0; s < 4; ++s) zeros(kx_[s], 7 * sys.nb), zeros(ku_[s], sys.n);
@@ -465,7 +465,13 @@ bool Stepper::solveKKT(const System& sys, HState hstate, double t, bool rescale)
     } else if (pass == kMaxSolvePasses || (pass >= 2 && res > 0.5 * previous_res)) {
       // No progress: what is left is inconsistent (equations that are dependent at this
       // very configuration, e.g. a parallelogram passing flat). Further passes would only
-      // push the iterate along the nearly dependent direction: keep the best one, count it.
+      // push the iterate along the nearly dependent direction: keep the better of the last
+      // two iterates (the last pass is undone when it made things worse), count it.
+      if (res > previous_res) {
+        a_ -= dn_;
+        lam_ -= dl_;
+        res = previous_res;
+      }
       break;
     }
     previous_res = res;
@@ -477,7 +483,8 @@ bool Stepper::solveKKT(const System& sys, HState hstate, double t, bool rescale)
     chol_.solve(dn_.data());
     a_ += dn_;
     mulJ(sys, dn_.data(), dm_.data());
-    for (int e = 0; e < sys.m; ++e) lam_[e] += kKappa * W_[e] * (dm_[e] - r2_[e]);
+    for (int e = 0; e < sys.m; ++e) dl_[e] = kKappa * W_[e] * (dm_[e] - r2_[e]);
+    lam_ += dl_;
   }
   ++stats_.solves;
   ++stats_.solve_shortfalls;

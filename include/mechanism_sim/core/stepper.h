@@ -139,7 +139,7 @@ class Stepper {
   std::vector<Jacobian> J_, J_frozen_;  // J_frozen_: the last stage's, during projection
   std::vector<int> sizes_;
   mutable Eigen::VectorXd query_;
-  Eigen::VectorXd Phi_, nu_, gamma_, W_, Q_, a_, lam_, r1_, r2_, s1_, s2_, dn_, dm_;
+  Eigen::VectorXd Phi_, nu_, gamma_, W_, Q_, a_, lam_, r1_, r2_, s1_, s2_, dn_, dm_, dl_;
   std::vector<Eigen::Matrix<double, 6, 6>> Minv_;  // per moving body, with stand-ins
   BlockCholesky chol_;
   Eigen::VectorXd x0_, u0_, xs_, us_, kx_[4], ku_[4];
