@@ -155,10 +155,7 @@ void Mechanism::setJointFriction(int joint, int k, double f) {
 }
 
 void Mechanism::setIntegrator(const IntegratorOptions& options) {
-  if (options.method != "rk4" && options.method != "rk2" && options.method != "rk3")
-    throw ModelError("unknown integrator '" + options.method + "' (known: rk4, rk3, rk2)");
-  if (!(options.position_tol > 0) || !(options.velocity_tol > 0) || !(options.solve_tol > 0))
-    throw ModelError("integrator tolerances must be positive");
+  options.validate();
   editable().options = options;
 }
 

@@ -32,15 +32,19 @@ void validateBody(const Body& b) {
 
 }  // namespace
 
+void IntegratorOptions::validate() const {
+  if (method != "rk4" && method != "rk2" && method != "rk3")
+    throw ModelError("unknown integrator '" + method + "' (known: rk4, rk3, rk2)");
+  if (!(position_tol > 0) || !(velocity_tol > 0) || !(solve_tol > 0))
+    throw ModelError("integrator tolerances must be positive");
+}
+
 void System::finalize() {
   nb = numBodies() - 1;
   if (nb < 1) throw ModelError("the mechanism has no moving body");
   for (int b = 1; b <= nb; ++b) validateBody(bodies[b]);
   if (!gravity.allFinite()) throw ModelError("gravity must be finite");
-  if (options.method != "rk4" && options.method != "rk2" && options.method != "rk3")
-    throw ModelError("unknown integrator '" + options.method + "' (known: rk4, rk3, rk2)");
-  if (!(options.position_tol > 0) || !(options.velocity_tol > 0) || !(options.solve_tol > 0))
-    throw ModelError("integrator tolerances must be positive");
+  options.validate();
 
   // Drives become constraints after joints and couplers, limits after all others (free
   // until reached).

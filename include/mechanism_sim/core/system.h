@@ -52,6 +52,8 @@ struct IntegratorOptions {
   double position_tol = 1e-13;
   double velocity_tol = 1e-13;
   double solve_tol = 1e-13;
+  // Throws ModelError naming what is wrong (an unknown method, a tolerance not positive).
+  void validate() const;
 };
 
 // Position limit of a joint coordinate; `constraint` is its LimitConstraint.
