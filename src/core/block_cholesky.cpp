@@ -14,7 +14,14 @@ namespace mechanism_sim {
 //  3. Schedule: for each column k, the blocks below the diagonal and the updates
 //     L_ij -= L_ik L_jk^T they make (i >= j > k).
 void BlockCholesky::analyze(int nb, const std::vector<std::pair<int, int>>& edges) {
+  analyze(nb, edges, {}, {});
+}
+
+void BlockCholesky::analyze(int nb, const std::vector<std::pair<int, int>>& edges, const std::vector<int>& given,
+                            const std::vector<signed char>& signs) {
   nb_ = nb;
+  if ((!given.empty() && static_cast<int>(given.size()) != nb) || (!signs.empty() && static_cast<int>(signs.size()) != nb))
+    throw std::invalid_argument("BlockCholesky::analyze: order or signs of the wrong size");
   std::vector<std::set<int>> adj(nb);
   for (const auto& e : edges) {
     if (e.first < 0 || e.second < 0 || e.first >= nb || e.second >= nb)
@@ -23,10 +30,17 @@ void BlockCholesky::analyze(int nb, const std::vector<std::pair<int, int>>& edge
     adj[e.first].insert(e.second);
     adj[e.second].insert(e.first);
   }
-  // 1. minimum degree
+  // 1. minimum degree (or the given order)
   order_.clear();
   position_.assign(nb, -1);
-  {
+  if (!given.empty()) {
+    order_ = given;
+    for (int k = 0; k < nb; ++k) {
+      if (given[k] < 0 || given[k] >= nb || position_[given[k]] >= 0)
+        throw std::invalid_argument("BlockCholesky::analyze: the order is not a permutation");
+      position_[given[k]] = k;
+    }
+  } else {
     std::vector<std::set<int>> g = adj;
     std::vector<char> done(nb, 0);
     for (int step = 0; step < nb; ++step) {
@@ -85,6 +99,9 @@ void BlockCholesky::analyze(int nb, const std::vector<std::pair<int, int>>& edge
       }
     update_start_[k + 1] = static_cast<int>(updates_.size());
   }
+  sign_.assign(nb, 1.0);
+  if (!signs.empty())
+    for (int k = 0; k < nb; ++k) sign_[k] = signs[order_[k]] < 0 ? -1.0 : 1.0;
   zero_.assign(6 * nb, 0);
   y_.assign(nb, Vec6::Zero());
   start_.assign(nb, Vec6::Zero());
@@ -167,20 +184,24 @@ inline void backwardLT(const BlockCholesky::Block& L, const BlockCholesky::Vec6&
 
 int BlockCholesky::factorize(double pivot_tol, bool skip_zero) {
   int zeros = 0;
-  for (int k = 0; k < nb_; ++k) start_[k] = blocks_[k].diagonal();
+  for (int k = 0; k < nb_; ++k) start_[k] = blocks_[k].diagonal().cwiseAbs();
   for (int k = 0; k < nb_; ++k) {
     Block& D = blocks_[k];
+    const double s = sign_[k];
+    if (s < 0) D = -D;
     if (!factorDiagonal(D, pivot_tol, skip_zero, k, &zeros)) return zeros;
     dinv_[k] = D.diagonal().cwiseInverse();
     for (int p = col_start_[k]; p < col_start_[k + 1]; ++p) {
       Block& B = blocks_[col_block_[p]];
-      solveRightLT(D, dinv_[k], B);  // L_ik = H_ik L_kk^{-T}
+      solveRightLT(D, dinv_[k], B);  // L_ik = s_k H_ik L_kk^{-T}
+      if (s < 0) B = -B;
       for (int c = 0; c < 6; ++c)
         if (zero_[6 * order_[k] + c]) B.col(c).setZero();
     }
-    for (int u = update_start_[k]; u < update_start_[k + 1]; ++u) {
+    for (int u = update_start_[k]; u < update_start_[k + 1]; ++u) {  // H_ij -= L_ik s_k L_jk^T
       const Update& up = updates_[u];
-      blocks_[up.target].noalias() -= blocks_[up.a] * blocks_[up.b].transpose();
+      if (s > 0) blocks_[up.target].noalias() -= blocks_[up.a] * blocks_[up.b].transpose();
+      else blocks_[up.target].noalias() += blocks_[up.a] * blocks_[up.b].transpose();
     }
   }
   return zeros;
@@ -193,7 +214,8 @@ void BlockCholesky::solve(double* x) const {
     for (int p = col_start_[k]; p < col_start_[k + 1]; ++p)
       y_[col_row_[p]].noalias() -= blocks_[col_block_[p]] * y_[k];
   }
-  for (int k = nb_ - 1; k >= 0; --k) {  // L^T x = y
+  for (int k = nb_ - 1; k >= 0; --k) {  // L^T x = S y
+    if (sign_[k] < 0) y_[k] = -y_[k];
     for (int p = col_start_[k]; p < col_start_[k + 1]; ++p)
       y_[k].noalias() -= blocks_[col_block_[p]].transpose() * y_[col_row_[p]];
     backwardLT(blocks_[k], dinv_[k], y_[k]);

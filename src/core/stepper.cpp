@@ -3,7 +3,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <set>
 #include <sstream>
+
+#include <Eigen/Eigenvalues>
 
 #include "mechanism_sim/core/couplers.h"
 
@@ -101,6 +104,7 @@ Stepper::Stepper(const System& sys) {
   zeros(x0_, 7 * sys.nb), zeros(u0_, sys.n), zeros(xs_, 7 * sys.nb), zeros(us_, sys.n);
   for (int s = 0; s < 4; ++s) zeros(kx_[s], 7 * sys.nb), zeros(ku_[s], sys.n);
   chol_.analyze(sys.nb, sys.block_edges);
+  zeros(zero_rows_, sys.m);
   length_scale_ = sys.length_scale;
   // everything a step writes is sized here: a step allocates nothing
   backup_.assign(kMaxHalvings + 1, initialState(sys));
@@ -129,6 +133,7 @@ Stepper::Stepper(const System& sys) {
     Minv_[b - 1].topLeftCorner<3, 3>() = Matrix3d::Identity() / m;
     Minv_[b - 1].bottomRightCorner<3, 3>() = Jp.inverse();
   }
+  buildTree(sys);
 }
 
 void Stepper::load(const System& sys, const double* x, const double* u) {
@@ -187,9 +192,10 @@ inline Vec6 padded(const double* y, int size) {
 }
 }  // namespace
 
-void Stepper::mulJ(const System& sys, const double* v, double* out) const {
-  for (int e = 0; e < sys.m; ++e) out[e] = 0.0;
-  for (int ci = 0; ci < sys.numConstraints(); ++ci) {
+void Stepper::mulJ(const System& sys, const double* v, double* out) const { mulJ(sys, all_constraints_, v, out); }
+
+void Stepper::mulJ(const System& sys, const std::vector<int>& cs, const double* v, double* out) const {
+  for (int ci : cs) {
     const ConstraintLayout& L = sys.layout[ci];
     const Jacobian& J = J_[ci];
     Vec6 y = Vec6::Zero();
@@ -197,12 +203,14 @@ void Stepper::mulJ(const System& sys, const double* v, double* out) const {
       if (L.bodies[s] < 0) continue;
       y.noalias() += J.middleCols<6>(6 * s) * Eigen::Map<const Vec6>(v + 6 * L.bodies[s]);
     }
-    for (int e = 0; e < L.size; ++e) out[L.row + e] += y[e];
+    for (int e = 0; e < L.size; ++e) out[L.row + e] = y[e];
   }
 }
 
-void Stepper::addJt(const System& sys, const double* y, double* out) const {
-  for (int ci = 0; ci < sys.numConstraints(); ++ci) {
+void Stepper::addJt(const System& sys, const double* y, double* out) const { addJt(sys, all_constraints_, y, out); }
+
+void Stepper::addJt(const System& sys, const std::vector<int>& cs, const double* y, double* out) const {
+  for (int ci : cs) {
     const ConstraintLayout& L = sys.layout[ci];
     const Jacobian& J = J_[ci];
     const Vec6 yc = padded(y + L.row, L.size);
@@ -253,22 +261,181 @@ void Stepper::assembleH(const System& sys, double kappa, double mass, double shi
     D.bottomRightCorner<3, 3>() += mass * B.Jp;
     if (shift != 0.0) D.diagonal() += shift * Minv_[b - 1].diagonal().cwiseInverse();
   }
-  for (int ci = 0; ci < sys.numConstraints(); ++ci) {
-    const Jacobian& J = J_[ci];
-    const ConstraintLayout& L = sys.layout[ci];
-    const int k = static_cast<int>(L.bodies.size());
-    const Vec6 w = kappa * padded(W_.data() + L.row, L.size);
-    for (int k1 = 0; k1 < k; ++k1) {
-      if (L.bodies[k1] < 0) continue;
-      const Mat6 WJ = w.asDiagonal() * J.middleCols<6>(6 * k1);
-      for (int k2 = k1; k2 < k; ++k2) {
-        const int address = L.address[k1 * k + k2];
-        if (address < 0) continue;
-        if (L.transposed[k1 * k + k2]) chol_.block(address).noalias() += J.middleCols<6>(6 * k2).transpose() * WJ;
-        else chol_.block(address).noalias() += WJ.transpose() * J.middleCols<6>(6 * k2);
-      }
+  for (int ci = 0; ci < sys.numConstraints(); ++ci)
+    addPenalty(sys, ci, kappa, chol_, sys.layout[ci].address.data(), sys.layout[ci].transposed.data());
+}
+
+void Stepper::addPenalty(const System& sys, int ci, double kappa, BlockCholesky& target, const int* address,
+                         const char* transposed) {
+  const Jacobian& J = J_[ci];
+  const ConstraintLayout& L = sys.layout[ci];
+  const int k = static_cast<int>(L.bodies.size());
+  const Vec6 w = kappa * padded(W_.data() + L.row, L.size);
+  for (int k1 = 0; k1 < k; ++k1) {
+    if (L.bodies[k1] < 0) continue;
+    const Mat6 WJ = w.asDiagonal() * J.middleCols<6>(6 * k1);
+    for (int k2 = k1; k2 < k; ++k2) {
+      const int a = address[k1 * k + k2];
+      if (a < 0) continue;
+      if (transposed[k1 * k + k2]) target.block(a).noalias() += J.middleCols<6>(6 * k2).transpose() * WJ;
+      else target.block(a).noalias() += WJ.transpose() * J.middleCols<6>(6 * k2);
     }
   }
+}
+
+// The KKT matrix of the tree joints with the other equations in penalty form:
+//   bodies: M + kappa sum_p J_p^T W_p J_p;  tree joint t, body b: J_tb;  t, t: 0
+// (-1 on the padding rows past the joint's size and on dropped rows: decoupled, solved
+// as dl = -r2 = 0).
+void Stepper::assembleKKT(const System& sys) {
+  kkt_.setZero();
+  for (int b = 1; b <= sys.nb; ++b) {
+    bool t = false;
+    auto& D = kkt_.block(kkt_.address(b - 1, b - 1, &t));
+    D.topLeftCorner<3, 3>().diagonal().array() += sys.bodies[b].m;
+    D.bottomRightCorner<3, 3>() += sys.bodies[b].Jp;
+  }
+  for (int ci : penalized_) addPenalty(sys, ci, kKappa, kkt_, kkt_address_[ci].data(), kkt_transposed_[ci].data());
+  for (int ci = 0; ci < sys.numConstraints(); ++ci) {
+    if (tree_node_[ci] < 0) continue;
+    const ConstraintLayout& L = sys.layout[ci];
+    const Jacobian& J = J_[ci];
+    const std::vector<int>& address = kkt_address_[ci];
+    for (size_t s = 0; s < L.bodies.size(); ++s) {
+      if (L.bodies[s] < 0) continue;
+      if (kkt_transposed_[ci][s]) kkt_.block(address[s]) = J.middleCols<6>(6 * s).transpose();
+      else kkt_.block(address[s]) = J.middleCols<6>(6 * s);
+    }
+    auto& D = kkt_.block(address.back());
+    for (int e = 0; e < 6; ++e)
+      if (e >= L.size || dropped_[L.row + e]) D(e, e) = -1.0;
+  }
+}
+
+// The spanning tree (forest) of joints held exactly by the KKT factorization: from the
+// ground outwards, a joint joins the tree when it ties a body not yet reached (which
+// must have a positive definite mass matrix: its pivot is then definite) to one that
+// is; bodies left over start trees of their own. Block rows are eliminated leaves
+// first: each body, then the joint to its parent, before the parent. Every other
+// constraint (loop closures, couplers, drives, limits) stays in penalty form.
+void Stepper::buildTree(const System& sys) {
+  const int nc = sys.numConstraints();
+  tree_node_.assign(nc, -1);
+  all_constraints_.resize(nc);
+  for (int ci = 0; ci < nc; ++ci) all_constraints_[ci] = ci;
+  auto definite = [&](int body) {  // moving-body index
+    const Body& B = sys.bodies[body + 1];
+    const double tr = B.Jp.trace();
+    return B.m > 0 && tr > 0 && Eigen::SelfAdjointEigenSolver<Matrix3d>(B.Jp).eigenvalues().minCoeff() > 1e-6 * tr;
+  };
+  std::vector<int> parent_joint(sys.nb, -1), parent(sys.nb, -1);
+  std::vector<char> reached(sys.nb, 0);
+  std::vector<int> roots;  // -1: the ground
+  std::vector<int> joint_cs;
+  for (int j = 0; j < sys.numJoints(); ++j)
+    if (sys.joints[j]->size() > 0 && sys.joints[j]->bodies().size() == 2) joint_cs.push_back(sys.joint_constraint[j]);
+  auto grow = [&]() {
+    for (bool more = true; more;) {
+      more = false;
+      for (int ci : joint_cs) {
+        if (tree_node_[ci] >= 0) continue;
+        const int a = sys.layout[ci].bodies[0], b = sys.layout[ci].bodies[1];
+        const bool in_a = a < 0 || reached[a], in_b = b < 0 || reached[b];
+        if (in_a == in_b) continue;
+        const int child = in_a ? b : a, from = in_a ? a : b;
+        if (!definite(child)) continue;
+        reached[child] = 1;
+        parent[child] = from;
+        parent_joint[child] = ci;
+        tree_node_[ci] = 0;  // numbered below
+        more = true;
+      }
+    }
+  };
+  grow();
+  for (int b = 0; b < sys.nb; ++b)
+    if (!reached[b]) reached[b] = 1, roots.push_back(b), grow();
+  // post-order: children before parents, each body followed by its parent joint
+  std::vector<std::vector<int>> children(sys.nb + 1);  // [nb]: the ground's
+  for (int b = 0; b < sys.nb; ++b)
+    if (parent_joint[b] >= 0) children[parent[b] < 0 ? sys.nb : parent[b]].push_back(b);
+  std::vector<int> order;
+  std::vector<int> tree_cs;
+  std::vector<std::pair<int, size_t>> stack;
+  auto visit = [&](int top) {  // iterative post-order of the subtree of body `top`
+    stack.push_back({top, 0});
+    while (!stack.empty()) {
+      auto& [b, next] = stack.back();
+      if (next < children[b].size()) {
+        const int c = children[b][next++];
+        stack.push_back({c, 0});
+        continue;
+      }
+      order.push_back(b);
+      if (parent_joint[b] >= 0) tree_cs.push_back(parent_joint[b]), order.push_back(-1 - parent_joint[b]);
+      stack.pop_back();
+    }
+  };
+  for (int b : children[sys.nb]) visit(b);
+  for (int r : roots) visit(r);
+  for (size_t k = 0; k < tree_cs.size(); ++k) tree_node_[tree_cs[k]] = sys.nb + static_cast<int>(k);
+  for (int& o : order)
+    if (o < 0) o = tree_node_[-1 - o];
+  const int nodes = sys.nb + static_cast<int>(tree_cs.size());
+  std::vector<signed char> signs(nodes, 1);
+  for (int k = sys.nb; k < nodes; ++k) signs[k] = -1;
+  std::vector<std::pair<int, int>> edges;
+  penalized_.clear();
+  for (int ci = 0; ci < nc; ++ci) {
+    const ConstraintLayout& L = sys.layout[ci];
+    if (tree_node_[ci] >= 0) {
+      for (int b : L.bodies)
+        if (b >= 0) edges.push_back({tree_node_[ci], b});
+      continue;
+    }
+    penalized_.push_back(ci);
+    for (int b1 : L.bodies)
+      for (int b2 : L.bodies)
+        if (b1 >= 0 && b2 >= 0 && b1 < b2) edges.push_back({b1, b2});
+  }
+  kkt_.analyze(nodes, edges, order, signs);
+  // With loop closures (penalized equations between bodies the tree does not tie
+  // directly) the tree order fills in along the loops: the KKT factorization then costs
+  // more than H's while the loops' refinement passes stay (the four-bars of bench/: 20%
+  // more instructions a step). Those mechanisms keep H.
+  std::set<std::pair<int, int>> unique;
+  for (auto e : edges) unique.insert({std::min(e.first, e.second), std::max(e.first, e.second)});
+  if (tree_cs.empty() || kkt_.offDiagonalBlocks() > static_cast<int>(unique.size())) {
+    std::fill(tree_node_.begin(), tree_node_.end(), -1);
+    penalized_ = all_constraints_;
+    kkt_ = BlockCholesky();
+    return;
+  }
+  kkt_address_.assign(nc, {});
+  kkt_transposed_.assign(nc, {});
+  for (int ci = 0; ci < nc; ++ci) {
+    const ConstraintLayout& L = sys.layout[ci];
+    const int k = static_cast<int>(L.bodies.size());
+    bool t = false;
+    if (tree_node_[ci] >= 0) {
+      for (int s = 0; s < k; ++s) {
+        const int a = L.bodies[s] < 0 ? -1 : kkt_.address(tree_node_[ci], L.bodies[s], &t);
+        kkt_address_[ci].push_back(a);
+        kkt_transposed_[ci].push_back(t);
+      }
+      kkt_address_[ci].push_back(kkt_.address(tree_node_[ci], tree_node_[ci], &t));
+      continue;
+    }
+    kkt_address_[ci].assign(k * k, -1);
+    kkt_transposed_[ci].assign(k * k, 0);
+    for (int k1 = 0; k1 < k; ++k1)
+      for (int k2 = k1; k2 < k; ++k2) {
+        if (L.bodies[k1] < 0 || L.bodies[k2] < 0) continue;
+        kkt_address_[ci][k1 * k + k2] = kkt_.address(L.bodies[k1], L.bodies[k2], &t);
+        kkt_transposed_[ci][k1 * k + k2] = t;
+      }
+  }
+  z_ = Eigen::VectorXd::Zero(6 * nodes);
 }
 
 // Adds weight * rows^T rows for rows over the bodies of a constraint (assembly targets).
@@ -286,17 +453,65 @@ void Stepper::addRowsToH(const System& sys, int constraint, const Eigen::MatrixX
     }
 }
 
-void Stepper::factor(const System& sys, const char* where, double t, bool reweight) {
+void Stepper::factor(const System& sys, const char* where, double t, bool reweight, bool penalty) {
   if (reweight) rowWeights(sys);
-  assembleH(sys, kKappa, 1.0, 0.0);
   ++stats_.factorizations;
   factored_x_ = evaluated_x_;
   factored_side_ = evaluated_side_;
+  if (!penalty && kkt_.size() > 0) {
+    assembleKKT(sys);
+    if (kkt_.factorize(0.0, false) == 0) {
+      kkt_mode_ = true;
+      return;
+    }
+    // a pivot of the tree is not definite (its joint's equations are dependent at this
+    // configuration): this factorization takes every equation in penalty form
+  }
+  kkt_mode_ = false;
+  assembleH(sys, kKappa, 1.0, 0.0);
   if (chol_.factorize(0.0, false) != 0) {
     std::ostringstream os;
     os << "at t = " << t << " s (" << where
        << "): the constrained mass matrix is singular; some motion moves no mass";
     throw std::runtime_error(os.str());
+  }
+}
+
+void Stepper::precondition(const System& sys, const double* r1, const double* r2, bool multipliers) {
+  const std::vector<int>& pen = kkt_mode_ ? penalized_ : all_constraints_;
+  for (int ci : pen) {
+    const ConstraintLayout& L = sys.layout[ci];
+    for (int e = 0; e < L.size; ++e) dm_[L.row + e] = kKappa * W_[L.row + e] * r2[L.row + e];
+  }
+  if (r1 != dn_.data()) std::copy(r1, r1 + sys.n, dn_.data());
+  addJt(sys, pen, dm_.data(), dn_.data());
+  if (kkt_mode_) {
+    z_.head(sys.n) = dn_;
+    for (int ci = 0; ci < sys.numConstraints(); ++ci) {
+      const int node = tree_node_[ci];
+      if (node < 0) continue;
+      const ConstraintLayout& L = sys.layout[ci];
+      auto zc = z_.segment<6>(6 * node);
+      zc.setZero();
+      for (int e = 0; e < L.size; ++e) zc[e] = r2[L.row + e];
+    }
+    kkt_.solve(z_.data());
+    dn_ = z_.head(sys.n);
+    if (multipliers)
+      for (int ci = 0; ci < sys.numConstraints(); ++ci) {
+        const int node = tree_node_[ci];
+        if (node < 0) continue;
+        const ConstraintLayout& L = sys.layout[ci];
+        for (int e = 0; e < L.size; ++e) dl_[L.row + e] = z_[6 * node + e];
+      }
+  } else {
+    chol_.solve(dn_.data());
+  }
+  if (!multipliers) return;
+  mulJ(sys, pen, dn_.data(), dm_.data());
+  for (int ci : pen) {
+    const ConstraintLayout& L = sys.layout[ci];
+    for (int e = L.row; e < L.row + L.size; ++e) dl_[e] = kKappa * W_[e] * (dm_[e] - r2[e]);
   }
 }
 
@@ -477,13 +692,8 @@ bool Stepper::solveKKT(const System& sys, HState hstate, double t, bool rescale)
     previous_res = res;
     if (hstate == HState::kNone) factor(sys, "stage 1", t), hstate = HState::kCurrent;
     ++stats_.solve_passes;
-    for (int e = 0; e < sys.m; ++e) dm_[e] = kKappa * W_[e] * r2_[e];
-    dn_ = r1_;
-    addJt(sys, dm_.data(), dn_.data());
-    chol_.solve(dn_.data());
+    precondition(sys, r1_.data(), r2_.data(), true);
     a_ += dn_;
-    mulJ(sys, dn_.data(), dm_.data());
-    for (int e = 0; e < sys.m; ++e) dl_[e] = kKappa * W_[e] * (dm_[e] - r2_[e]);
     lam_ += dl_;
   }
   ++stats_.solves;
@@ -504,7 +714,7 @@ double Stepper::minimumNormMultipliers(const System& sys, const State& s, const 
   std::fill(all.dropped.begin(), all.dropped.end(), 0);
   load(sys, all.x.data(), all.u.data());
   evaluate(sys, all);
-  factor(sys, "reactions", s.t);
+  factor(sys, "reactions", s.t, true, true);  // penalty form: all rows weighted alike
   forces(sys, all, in, all.friction);
   have_eval_ = false;
   // g = Q - M a: the constraint forces (the limits' part taken out: they keep their own)
@@ -603,7 +813,8 @@ void Stepper::frictionFor(const System& sys, State& s, const Inputs& in, double 
       x.setZero();
       for (int b = 0; b < 2; ++b)
         if (bs[b] != System::kGround) x.segment<6>(6 * (bs[b] - 1)) = rows[k].J.segment<6>(6 * b).transpose();
-      chol_.solve(x.data());
+      precondition(sys, x.data(), zero_rows_.data(), false);
+      x = dn_;
     };
     auto dotRow = [&](int k, const Eigen::VectorXd& x) {
       double d = 0;
@@ -986,12 +1197,11 @@ bool Stepper::projectPositions(const System& sys, State& s, bool frozen) {
       frozen = false;
     }
     previous = err;
-    for (int e = 0; e < sys.m; ++e) dm_[e] = -kKappa * W_[e] * Phi_[e];
-    dn_.setZero();
+    r2_ = -Phi_;
+    r1_.setZero();
     if (frozen) std::swap(J_, J_frozen_);
-    addJt(sys, dm_.data(), dn_.data());
+    precondition(sys, r1_.data(), r2_.data(), false);
     if (frozen) std::swap(J_, J_frozen_);
-    chol_.solve(dn_.data());
     displace(sys, s.x, dn_.data());
     load(sys, s.x.data(), s.u.data());
     evaluate(sys, s);
@@ -1013,11 +1223,10 @@ bool Stepper::projectVelocities(const System& sys, State& s) {
   double err = velocityResidual(sys, s.u);
   const bool moves = err > tol;
   for (int it = 0; err > tol && it < kMaxVelocityPasses; ++it) {
-    mulJ(sys, s.u.data(), dm_.data());
-    for (int e = 0; e < sys.m; ++e) dm_[e] = -kKappa * W_[e] * (dm_[e] - nu_[e]);
-    dn_.setZero();
-    addJt(sys, dm_.data(), dn_.data());
-    chol_.solve(dn_.data());
+    mulJ(sys, s.u.data(), r2_.data());
+    r2_ = nu_ - r2_;
+    r1_.setZero();
+    precondition(sys, r1_.data(), r2_.data(), false);
     s.u += dn_;
     err = velocityResidual(sys, s.u);
   }

@@ -1,7 +1,9 @@
 // The block Cholesky factorization against a dense one: a tree (no fill) and a graph
-// with loops (fill), random SPD blocks; and the zero pivot of a semidefinite matrix.
+// with loops (fill), random SPD blocks; a quasi-definite KKT matrix in tree order (signed
+// pivots); and the zero pivot of a semidefinite matrix.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <random>
 
 #include <Eigen/Dense>
@@ -73,6 +75,67 @@ TEST(BlockCholesky, TreeOrderHasNoFill) {
   BlockCholesky chol;
   chol.analyze(7, edges);
   EXPECT_EQ(chol.offDiagonalBlocks(), static_cast<int>(edges.size()));
+}
+
+// L S L^T of a KKT matrix [M J^T; J 0] in tree order (Baraff 1996): a chain of 12 bodies,
+// each tied to the one before by 5 random equations (the first to the ground), block rows
+// 0..11 the bodies, 12..23 the equations (padded to 6 with -1: decoupled), eliminated
+// body, its joint, the next body, ...; then the same with the order reversed, where the
+// first pivot is a joint's zero block: it is found, not divided by.
+TEST(BlockCholesky, QuasiDefiniteKktInTreeOrderSolvesLikeDense) {
+  const int nb = 12, nodes = 2 * nb;
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  std::vector<std::pair<int, int>> edges;
+  std::vector<int> order;
+  std::vector<signed char> signs(nodes, 1);
+  for (int b = nb - 1; b >= 0; --b) {  // body b hangs from body b - 1 by joint nb + b
+    edges.push_back({nb + b, b});
+    if (b > 0) edges.push_back({nb + b, b - 1});
+    signs[nb + b] = -1;
+    order.push_back(b);
+    order.push_back(nb + b);
+  }
+  for (const bool reversed : {false, true}) {
+    std::vector<int> o = order;
+    if (reversed) std::reverse(o.begin(), o.end());
+    BlockCholesky kkt;
+    kkt.analyze(nodes, edges, o, signs);
+    if (!reversed) EXPECT_EQ(kkt.offDiagonalBlocks(), static_cast<int>(edges.size()));  // no fill
+    kkt.setZero();
+    Eigen::MatrixXd A = Eigen::MatrixXd::Zero(6 * nodes, 6 * nodes);
+    auto put = [&](int i, int j, const BlockCholesky::Block& B) {
+      A.block<6, 6>(6 * i, 6 * j) = B;
+      if (i != j) A.block<6, 6>(6 * j, 6 * i) = B.transpose();
+      bool t = false;
+      const int a = kkt.address(i, j, &t);
+      kkt.block(a) = t ? BlockCholesky::Block(B.transpose()) : B;
+    };
+    for (int b = 0; b < nb; ++b) {
+      BlockCholesky::Block M = BlockCholesky::Block::Zero();
+      M.diagonal() << 2, 2, 2, 0.01, 0.02, 0.03;  // kg and kg m^2: a small body
+      put(b, b, M);
+      BlockCholesky::Block pad = BlockCholesky::Block::Zero();
+      pad(5, 5) = -1;
+      put(nb + b, nb + b, pad);
+      for (int side = 0; side < (b > 0 ? 2 : 1); ++side) {
+        BlockCholesky::Block J = BlockCholesky::Block::Zero();
+        for (int r = 0; r < 5; ++r)
+          for (int c = 0; c < 6; ++c) J(r, c) = u(rng);
+        put(nb + b, b - side, J);
+      }
+    }
+    if (reversed) {
+      EXPECT_GT(kkt.factorize(0.0, false), 0);
+      continue;
+    }
+    ASSERT_EQ(kkt.factorize(0.0, false), 0);
+    Eigen::VectorXd rhs = Eigen::VectorXd::Random(6 * nodes), x = rhs;
+    kkt.solve(x.data());
+    const Eigen::VectorXd dense = A.fullPivLu().solve(rhs);
+    EXPECT_LT((A * x - rhs).norm(), 1e-11 * (A.norm() * x.norm() + rhs.norm()));
+    EXPECT_LT((x - dense).norm(), 1e-9 * dense.norm());
+  }
 }
 
 TEST(BlockCholesky, ZeroPivotIsFoundAndNamed) {

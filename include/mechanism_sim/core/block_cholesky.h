@@ -6,6 +6,13 @@
 // kinematic trees", IJRR 2005), the block pattern of L and a fixed schedule of block
 // updates. The numeric phase is right-looking over fixed-size 6x6 kernels and allocates
 // nothing. H is assembled straight into the block storage (block()).
+//
+// With a sign per block row and a given order it factors a quasi-definite matrix as
+// L S L^T, S = diag(s_k I): the KKT matrix [M J^T; J 0] with the bodies and the equations
+// of a spanning tree of joints as block rows (s = +1, -1), eliminated leaves first so
+// that every pivot is definite (Baraff, "Linear-time dynamics using Lagrange
+// multipliers", SIGGRAPH 1996): a body before the joint that ties it to its parent, that
+// joint before the parent.
 #pragma once
 #include <utility>
 #include <vector>
@@ -21,6 +28,10 @@ class BlockCholesky {
 
   // nb block rows; edges (i, j), i != j, of the block pattern (either order, repeats fine).
   void analyze(int nb, const std::vector<std::pair<int, int>>& edges);
+  // The same with the pivot order given (order[k]: the block row eliminated k-th) and a
+  // sign per block row (+1: s_k H_kk after the updates is positive definite; -1: negative).
+  void analyze(int nb, const std::vector<std::pair<int, int>>& edges, const std::vector<int>& order,
+               const std::vector<signed char>& signs);
   int size() const { return nb_; }
 
   // Storage of block (i, j) of H (original body indices, adjacent or i == j): *transposed
@@ -29,7 +40,8 @@ class BlockCholesky {
   Block& block(int address) { return blocks_[address]; }
   void setZero();
 
-  // Factors in place. A pivot d with d <= pivot_tol * (the diagonal entry it started from)
+  // Factors in place (H = L S L^T). A pivot d of s_k H_kk with d <= pivot_tol * |the
+  // diagonal entry it started from|
   // is zero: with skip_zero its row and column are dropped (noted in zeroPivot),
   // otherwise factorization stops. Returns the number of zero pivots met.
   int factorize(double pivot_tol, bool skip_zero);
@@ -48,6 +60,7 @@ class BlockCholesky {
 
   int nb_ = 0;
   std::vector<int> order_, position_;           // k-th pivot body, body -> k
+  std::vector<double> sign_;                    // s_k in pivot order
   std::vector<int> col_start_, col_row_, col_block_;  // column k: rows (k order) and blocks
   std::vector<Update> updates_;
   std::vector<int> update_start_;               // updates of column k

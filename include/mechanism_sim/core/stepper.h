@@ -1,9 +1,12 @@
 // The stepper: maps (System, State, Inputs, h) to the next State, with its own scratch
 // space. Method (README "Integration method"):
 //   * accelerations and multipliers of  M a + Phi_q^T lambda = Q,  Phi_q a = gamma  from
-//     the quasi-definite KKT system, factored as H = M + Phi_q^T W Phi_q (block Cholesky,
-//     block_cholesky.h) with a weight per equation scaled by the masses it couples, and
-//     refined on the exact KKT residual until it meets a relative tolerance;
+//     the quasi-definite KKT system: the joints of a spanning tree exactly (their
+//     equations are block rows of the factored KKT matrix, eliminated leaves first), the
+//     other equations (loop closures, couplers, drives, limits) in penalty form,
+//     H = M + Phi_q^T W Phi_q with a weight per equation scaled by the masses it couples
+//     (block Cholesky, block_cholesky.h); refined on the exact KKT residual until it
+//     meets a relative tolerance;
 //   * classical RK4 (or Heun) on the index-1 equations;
 //   * after the step, mass-orthogonal projection of positions onto Phi = 0 (simplified
 //     Newton) and of velocities onto Phi_q v = 0, both to relative tolerances.
@@ -74,8 +77,8 @@ class Stepper {
   double rowScale(const Constraint& c, const Eigen::Ref<const Eigen::MatrixXd>& J, int e) const;
   // 1 / (row M~^-1 row^T) for a row over the bodies of a constraint (see rowWeights).
   double rowWeight(const System& sys, int constraint, const Eigen::Ref<const Eigen::MatrixXd>& row) const;
-  // Re-solves accelerations and multipliers at the evaluated state (H factored there).
-  void factorHere(const System& sys, double t) { factor(sys, "assembly", t); }
+  // Factors H (penalty form, cholesky()) at the evaluated state, for assembly.
+  void factorHere(const System& sys, double t) { factor(sys, "assembly", t, true, true); }
   const SolverStats& stats() const { return stats_; }
   // Multipliers of the equality constraints with the least weighted norm sum_e lambda_e^2 /
   // w_e (w_e the row weight) among all that give s's constraint forces Q - M a, dependent
@@ -97,6 +100,9 @@ class Stepper {
   BlockCholesky& cholesky() { return chol_; }
   void mulJ(const System& sys, const double* v, double* out) const;   // out = Phi_q v
   void addJt(const System& sys, const double* y, double* out) const;  // out += Phi_q^T y
+  // The same over the listed constraints only (mulJ writes their rows only).
+  void mulJ(const System& sys, const std::vector<int>& cs, const double* v, double* out) const;
+  void addJt(const System& sys, const std::vector<int>& cs, const double* y, double* out) const;
   void mulM(const System& sys, const double* v, double* out) const;   // out = M v
   // Per-row weights 1 / (J_e M~^{-1} J_e^T), M~ the masses with stand-ins for massless
   // bodies (System scales): W = kappa * rowWeights makes kappa dimensionless.
@@ -105,7 +111,20 @@ class Stepper {
  private:
   void forces(const System& sys, const State& s, const Inputs& in,
               const std::vector<std::array<double, 3>>& friction);
-  void factor(const System& sys, const char* where, double t, bool reweight = true);
+  // Factors at the evaluated positions: the tree KKT matrix, or H alone with `penalty`
+  // (and when a tree pivot is not definite).
+  void factor(const System& sys, const char* where, double t, bool reweight = true, bool penalty = false);
+  // The spanning tree of joints whose equations the KKT factorization holds (once).
+  void buildTree(const System& sys);
+  void assembleKKT(const System& sys);
+  // Adds kappa J_c^T W_c J_c of constraint ci into `target` at the given block addresses.
+  void addPenalty(const System& sys, int ci, double kappa, BlockCholesky& target, const int* address,
+                  const char* transposed);
+  // The factored regularized KKT matrix applied to residuals (r1 per body, r2 per row):
+  //   [M + J_p^T W J_p, J_t^T; J_t, 0] [dn; dl_t] = [r1 + J_p^T W r2_p; r2_t],
+  //   dl_p = W (J_p dn - r2_p)  (t: tree rows, p: penalized rows, W with kappa).
+  // Writes dn_ and, with `multipliers`, dl_.
+  void precondition(const System& sys, const double* r1, const double* r2, bool multipliers);
   // What H is when a solve starts: not yet factored for this step (factor before the
   // first pass), factored at the evaluated positions, or factored at nearby positions
   // (refactored here when the passes converge slowly).
@@ -142,6 +161,17 @@ class Stepper {
   Eigen::VectorXd Phi_, nu_, gamma_, W_, Q_, a_, lam_, r1_, r2_, s1_, s2_, dn_, dm_, dl_;
   std::vector<Eigen::Matrix<double, 6, 6>> Minv_;  // per moving body, with stand-ins
   BlockCholesky chol_;
+  // Tree KKT: block rows 0..nb-1 the bodies, nb + k the k-th tree joint's equations.
+  BlockCholesky kkt_;
+  bool kkt_mode_ = false;           // the last factorization is kkt_ (else chol_)
+  std::vector<int> tree_node_;      // per constraint: its KKT block row, -1 when penalized
+  std::vector<int> penalized_;      // constraints in penalty form (all when kkt_mode_ is off)
+  std::vector<int> all_constraints_;
+  // per constraint: KKT blocks of its slot pairs (penalized: body-body as in
+  // ConstraintLayout; tree: (node, slot) in address[slot], the node's diagonal last)
+  std::vector<std::vector<int>> kkt_address_;
+  std::vector<std::vector<char>> kkt_transposed_;
+  Eigen::VectorXd z_, zero_rows_;
   Eigen::VectorXd x0_, u0_, xs_, us_, kx_[4], ku_[4];
   // The evaluation and factorization describe this state (compared by content, so no
   // flag has to be kept in step with anything).
