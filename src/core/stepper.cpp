@@ -3,7 +3,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <set>
 #include <sstream>
 
 #include <Eigen/Eigenvalues>
@@ -313,11 +312,12 @@ void Stepper::assembleKKT(const System& sys) {
 }
 
 // The spanning tree (forest) of joints held exactly by the KKT factorization: from the
-// ground outwards, a joint joins the tree when it ties a body not yet reached (which
-// must have a positive definite mass matrix: its pivot is then definite) to one that
-// is; bodies left over start trees of their own. Block rows are eliminated leaves
-// first: each body, then the joint to its parent, before the parent. Every other
-// constraint (loop closures, couplers, drives, limits) stays in penalty form.
+// ground outwards (depth first), a joint joins the tree when it ties a body not yet
+// reached (which must have a positive definite mass matrix: its pivot is then definite)
+// to one that is; bodies left over start trees of their own. Block rows are eliminated
+// leaves first: each body, then the joint to its parent, before the parent. Drives and
+// limits stay in penalty form; a mechanism with loop closures or couplers keeps H for
+// everything (below).
 void Stepper::buildTree(const System& sys) {
   const int nc = sys.numConstraints();
   tree_node_.assign(nc, -1);
@@ -334,27 +334,59 @@ void Stepper::buildTree(const System& sys) {
   std::vector<int> joint_cs;
   for (int j = 0; j < sys.numJoints(); ++j)
     if (sys.joints[j]->size() > 0 && sys.joints[j]->bodies().size() == 2) joint_cs.push_back(sys.joint_constraint[j]);
-  auto grow = [&]() {
-    for (bool more = true; more;) {
-      more = false;
-      for (int ci : joint_cs) {
-        if (tree_node_[ci] >= 0) continue;
-        const int a = sys.layout[ci].bodies[0], b = sys.layout[ci].bodies[1];
-        const bool in_a = a < 0 || reached[a], in_b = b < 0 || reached[b];
-        if (in_a == in_b) continue;
-        const int child = in_a ? b : a, from = in_a ? a : b;
-        if (!definite(child)) continue;
-        reached[child] = 1;
-        parent[child] = from;
-        parent_joint[child] = ci;
-        tree_node_[ci] = 0;  // numbered below
-        more = true;
+  std::vector<std::vector<int>> incident(sys.nb + 1);  // [nb]: the ground's
+  for (int ci : joint_cs)
+    for (int b : sys.layout[ci].bodies) incident[b < 0 ? sys.nb : b].push_back(ci);
+  std::vector<std::pair<int, size_t>> path;
+  auto grow = [&](int top) {  // top: a moving body or -1 (the ground)
+    path.assign(1, {top, 0});
+    while (!path.empty()) {
+      auto& [x, next] = path.back();
+      const std::vector<int>& js = incident[x < 0 ? sys.nb : x];
+      if (next == js.size()) {
+        path.pop_back();
+        continue;
       }
+      const int ci = js[next++];
+      if (tree_node_[ci] >= 0) continue;
+      const int a = sys.layout[ci].bodies[0], b = sys.layout[ci].bodies[1];
+      const int y = a == x ? b : a;
+      if (y < 0 || reached[y] || !definite(y)) continue;
+      reached[y] = 1;
+      parent[y] = x;
+      parent_joint[y] = ci;
+      tree_node_[ci] = 0;  // numbered below
+      path.push_back({y, 0});
     }
   };
-  grow();
+  grow(-1);
   for (int b = 0; b < sys.nb; ++b)
-    if (!reached[b]) reached[b] = 1, roots.push_back(b), grow();
+    if (!reached[b]) reached[b] = 1, roots.push_back(b), grow(b);
+  // Trees only: the penalized equations may be the drives and limits of tree joints (no
+  // fill: they couple the body pair of a tree joint), not loop closures or couplers. Near
+  // a configuration where a loop's equations become dependent (a parallelogram passing
+  // flat) the exact tree rows push all of the inconsistency into the loop's penalized
+  // rows: the four-bar at h = 1/64 ms left 38 solves short by up to 1.6e-4 (relative)
+  // this way, against 69 by at most 7.6e-8 in penalty form, which spreads it over every
+  // equation by its weight. A loop's passes stay in either form, so mechanisms with
+  // loops keep H.
+  std::vector<char> allowed(nc, 0);
+  for (const DriveSpec& D : sys.drives) allowed[D.constraint] = tree_node_[sys.joint_constraint[D.joint]] >= 0;
+  for (const LimitSpec& L : sys.limits) allowed[L.constraint] = tree_node_[sys.joint_constraint[L.joint]] >= 0;
+  bool tree = false;
+  for (int ci = 0; ci < nc; ++ci) {
+    if (tree_node_[ci] >= 0) tree = true;
+    else if (sys.layout[ci].size > 0 && !allowed[ci]) {
+      tree = false;
+      break;
+    }
+  }
+  if (!tree) {
+    std::fill(tree_node_.begin(), tree_node_.end(), -1);
+    penalized_ = all_constraints_;
+    kkt_ = BlockCholesky();
+    return;
+  }
   // post-order: children before parents, each body followed by its parent joint
   std::vector<std::vector<int>> children(sys.nb + 1);  // [nb]: the ground's
   for (int b = 0; b < sys.nb; ++b)
@@ -399,18 +431,6 @@ void Stepper::buildTree(const System& sys) {
         if (b1 >= 0 && b2 >= 0 && b1 < b2) edges.push_back({b1, b2});
   }
   kkt_.analyze(nodes, edges, order, signs);
-  // With loop closures (penalized equations between bodies the tree does not tie
-  // directly) the tree order fills in along the loops: the KKT factorization then costs
-  // more than H's while the loops' refinement passes stay (the four-bars of bench/: 20%
-  // more instructions a step). Those mechanisms keep H.
-  std::set<std::pair<int, int>> unique;
-  for (auto e : edges) unique.insert({std::min(e.first, e.second), std::max(e.first, e.second)});
-  if (tree_cs.empty() || kkt_.offDiagonalBlocks() > static_cast<int>(unique.size())) {
-    std::fill(tree_node_.begin(), tree_node_.end(), -1);
-    penalized_ = all_constraints_;
-    kkt_ = BlockCholesky();
-    return;
-  }
   kkt_address_.assign(nc, {});
   kkt_transposed_.assign(nc, {});
   for (int ci = 0; ci < nc; ++ci) {
@@ -478,35 +498,41 @@ void Stepper::factor(const System& sys, const char* where, double t, bool reweig
 }
 
 void Stepper::precondition(const System& sys, const double* r1, const double* r2, bool multipliers) {
-  const std::vector<int>& pen = kkt_mode_ ? penalized_ : all_constraints_;
+  if (r1 != dn_.data()) std::copy(r1, r1 + sys.n, dn_.data());
+  if (!kkt_mode_) {  // H alone: every row weighted
+    for (int e = 0; e < sys.m; ++e) dm_[e] = kKappa * W_[e] * r2[e];
+    addJt(sys, dm_.data(), dn_.data());
+    chol_.solve(dn_.data());
+    if (!multipliers) return;
+    mulJ(sys, dn_.data(), dm_.data());
+    for (int e = 0; e < sys.m; ++e) dl_[e] = kKappa * W_[e] * (dm_[e] - r2[e]);
+    return;
+  }
+  // the tree's rows exactly, the others (drives, limits) weighted
+  const std::vector<int>& pen = penalized_;
   for (int ci : pen) {
     const ConstraintLayout& L = sys.layout[ci];
     for (int e = 0; e < L.size; ++e) dm_[L.row + e] = kKappa * W_[L.row + e] * r2[L.row + e];
   }
-  if (r1 != dn_.data()) std::copy(r1, r1 + sys.n, dn_.data());
   addJt(sys, pen, dm_.data(), dn_.data());
-  if (kkt_mode_) {
-    z_.head(sys.n) = dn_;
+  z_.head(sys.n) = dn_;
+  for (int ci = 0; ci < sys.numConstraints(); ++ci) {
+    const int node = tree_node_[ci];
+    if (node < 0) continue;
+    const ConstraintLayout& L = sys.layout[ci];
+    auto zc = z_.segment<6>(6 * node);
+    zc.setZero();
+    for (int e = 0; e < L.size; ++e) zc[e] = r2[L.row + e];
+  }
+  kkt_.solve(z_.data());
+  dn_ = z_.head(sys.n);
+  if (multipliers)
     for (int ci = 0; ci < sys.numConstraints(); ++ci) {
       const int node = tree_node_[ci];
       if (node < 0) continue;
       const ConstraintLayout& L = sys.layout[ci];
-      auto zc = z_.segment<6>(6 * node);
-      zc.setZero();
-      for (int e = 0; e < L.size; ++e) zc[e] = r2[L.row + e];
+      for (int e = 0; e < L.size; ++e) dl_[L.row + e] = z_[6 * node + e];
     }
-    kkt_.solve(z_.data());
-    dn_ = z_.head(sys.n);
-    if (multipliers)
-      for (int ci = 0; ci < sys.numConstraints(); ++ci) {
-        const int node = tree_node_[ci];
-        if (node < 0) continue;
-        const ConstraintLayout& L = sys.layout[ci];
-        for (int e = 0; e < L.size; ++e) dl_[L.row + e] = z_[6 * node + e];
-      }
-  } else {
-    chol_.solve(dn_.data());
-  }
   if (!multipliers) return;
   mulJ(sys, pen, dn_.data(), dm_.data());
   for (int ci : pen) {

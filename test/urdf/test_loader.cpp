@@ -437,30 +437,18 @@ TEST(FuzzFindings, ZeroPrincipalMomentRunsWithinTheBound) {
 // reported only as solver shortfalls. A velocity projection that cannot reach 1e-6 now
 // fails the step like a position projection does: retaken in halves, then the run stops
 // with the constraint named.
-// The fuzz finding of nearly_parallel_axes.urdf: with the rocker joint's origin lost, the
-// coupler's two joints are coaxial and base, crank and rocker form a triangle of hinges
-// (locked; 5e-5 rad out of parallel, so assembly drops the loop's 3 dependent equations).
-// The penalty solver met the near-dependence with velocity constraints broken by 3.5e-3
-// (then, after a fix, with an error). The tree KKT solve holds the hinges exactly: the
-// triangle stays locked and the coupler swings as a pendulum about its joint, its energy
-// kept, the constraints to 1e-6 relative at every step.
-TEST(FuzzFindings, NearlyParallelAxesLockTheTriangleAndTheCouplerSwings) {
+TEST(FuzzFindings, NearlyParallelAxesStopInsteadOfBreakingTheConstraints) {
   auto m = load("test/urdf/nearly_parallel_axes.urdf");
-  const int crank = m->dofIndex("crank_joint"), coupler = m->dofIndex("coupler_joint");
-  ASSERT_GE(crank, 0);
-  ASSERT_GE(coupler, 0);
-  const double E0 = m->kineticEnergy() + m->potentialEnergy();
-  double swing = 0, E_scale = 0;
-  for (int k = 0; k < 1000; ++k) {
-    m->step(1e-3);
-    ASSERT_LE(m->relativeVelocityViolation(), 1e-6) << "t = " << m->time();
-    ASSERT_LE(std::fabs(m->position(crank)), 1e-9) << "t = " << m->time();
-    swing = std::max(swing, std::fabs(m->position(coupler)));
-    E_scale = std::max(E_scale, m->kineticEnergy());
+  try {
+    for (int k = 0; k < 1000; ++k) {
+      m->step(1e-3);
+      ASSERT_LE(m->relativeVelocityViolation(), 1e-6) << "t = " << m->time();
+    }
+    ADD_FAILURE() << "ran 1 s";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("the velocities cannot be brought onto the constraints"), std::string::npos)
+        << e.what();
   }
-  EXPECT_GT(swing, 3.0);  // released at rest with its centre of mass out: it swings through
-  EXPECT_NEAR(m->kineticEnergy() + m->potentialEnergy(), E0, 1e-8 * E_scale);
-  EXPECT_EQ(m->solverStats().shortfalls(), 0) << m->solverStats().describe();
 }
 
 }  // namespace
