@@ -590,15 +590,7 @@ void Stepper::jointRows(const System& sys, const State& s, int j, Row* rows) con
   jt.coordinates(kin_[jt.bodyI()], kin_[jt.bodyJ()], s.tracked[jt.id()], rows);
 }
 
-// Iterative refinement of the KKT system  [M J^T; J 0] [a; lambda] = [Q; gamma]  with the
-// regularized matrix [M J^T; J -W^-1] as preconditioner (H = M + J^T W J factored):
-//   r1 = Q - M a - J^T lambda,  r2 = gamma - J a,
-//   H da = r1 + J^T W r2,  dlambda = W (J da - r2).
-// With H factored at the current J one pass is the augmented Lagrangian update (Bayo &
-// Ledesma 1996); with H from a nearby state it still converges. It stops when every
-// equation's residual is within solve_tol of the size of the terms it was computed from
-// (componentwise backward error: independent of units); a shortfall is counted.
-// The size of the terms each residual was computed from, as inverses: per body, the
+// The residual scales of solveKKT: the size of the terms each residual was computed from, as inverses: per body, the
 // largest force (torque) term of its three components, forces and torques measured
 // against each other through the length scale; per equation, |gamma| + |J_r| |a_r|max +
 // |J_theta| |a_theta|max. Both have a floor at kFloor of the system's largest.
@@ -652,12 +644,13 @@ void Stepper::residualScales(const System& sys) {
 }
 
 // Iterative refinement of the KKT system  [M J^T; J 0] [a; lambda] = [Q; gamma]  with the
-// regularized matrix [M J^T; J -W^-1] as preconditioner (H = M + J^T W J factored):
+// regularized matrix [M J^T; J -W^-1] as preconditioner (precondition(); W = 0 on the
+// rows of the tree KKT factorization, which holds them exactly):
 //   r1 = Q - M a - J^T lambda,  r2 = gamma - J a,
-//   H da = r1 + J^T W r2,  dlambda = W (J da - r2).
+//   H da = r1 + J^T W r2,  dlambda = W (J da - r2)   (H = M + J^T W J).
 // With H factored at the current J one pass is the augmented Lagrangian update (Bayo &
 // Ledesma 1996) made exact by also correcting r1 (the round-off of H, which grows with
-// kappa). It stops when every residual is within solve_tol of the size of the terms it
+// kappa); on a tree, one pass solves to round-off. It stops when every residual is within solve_tol of the size of the terms it
 // was computed from (a componentwise backward error: independent of units); the scales
 // are taken from the warm start (or, from a cold one, after the first update). A
 // shortfall is counted.
