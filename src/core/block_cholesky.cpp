@@ -103,6 +103,7 @@ void BlockCholesky::analyze(int nb, const std::vector<std::pair<int, int>>& edge
   if (!signs.empty())
     for (int k = 0; k < nb; ++k) sign_[k] = signs[order_[k]] < 0 ? -1.0 : 1.0;
   zero_.assign(6 * nb, 0);
+  has_zero_ = false;
   y_.assign(nb, Vec6::Zero());
   start_.assign(nb, Vec6::Zero());
   dinv_.assign(nb, Vec6::Zero());
@@ -127,6 +128,35 @@ void BlockCholesky::setZero() {
 // pivot test relative to the entry's own starting value.
 bool BlockCholesky::factorDiagonal(Block& D, double pivot_tol, bool skip_zero, int k, int* zeros) {
   const Vec6& start = start_[k];
+  if (!skip_zero) {  // the stepper's case: no bookkeeping of dropped entries, stop at the first
+    double* d = D.data();  // column-major: D(r, c) = d[r + 6 c]
+#pragma GCC unroll 6
+    for (int c = 0; c < 6; ++c) {
+      double s = d[c + 6 * c];
+#pragma GCC unroll 6
+      for (int p = 0; p < c; ++p) s -= d[c + 6 * p] * d[c + 6 * p];
+      if (!(s > pivot_tol * start(c)) || !(s < HUGE_VAL)) {
+        zero_[6 * order_[k] + c] = 1;
+        has_zero_ = true;
+        ++*zeros;
+        return false;
+      }
+      const double l = std::sqrt(s), inv = 1.0 / l;
+      d[c + 6 * c] = l;
+#pragma GCC unroll 6
+      for (int r = c + 1; r < 6; ++r) {
+        double t = d[r + 6 * c];
+#pragma GCC unroll 6
+        for (int p = 0; p < c; ++p) t -= d[r + 6 * p] * d[c + 6 * p];
+        d[r + 6 * c] = t * inv;
+      }
+    }
+#pragma GCC unroll 6
+    for (int c = 1; c < 6; ++c)
+#pragma GCC unroll 6
+      for (int r = 0; r < c; ++r) d[r + 6 * c] = 0.0;
+    return true;
+  }
   for (int c = 0; c < 6; ++c) {
     double s = D(c, c);
     for (int p = 0; p < c; ++p) s -= D(c, p) * D(c, p);
@@ -135,6 +165,7 @@ bool BlockCholesky::factorDiagonal(Block& D, double pivot_tol, bool skip_zero, i
       ++*zeros;
       if (!skip_zero) return false;
       zero_[6 * order_[k] + c] = 1;
+      has_zero_ = true;
       D(c, c) = 1.0;
       for (int r = c + 1; r < 6; ++r) D(r, c) = 0.0;
       continue;
@@ -157,8 +188,10 @@ namespace {
 // B <- B L^-T for lower-triangular L with inverse diagonal dinv: each row b of B solves
 // L x = b^T by forward substitution.
 inline void solveRightLT(const BlockCholesky::Block& L, const BlockCholesky::Vec6& dinv, BlockCholesky::Block& B) {
+#pragma GCC unroll 6
   for (int c = 0; c < 6; ++c) {
     BlockCholesky::Vec6 col = B.col(c);
+#pragma GCC unroll 6
     for (int p = 0; p < c; ++p) col -= L(c, p) * B.col(p);
     B.col(c) = col * dinv[c];
   }
@@ -166,15 +199,19 @@ inline void solveRightLT(const BlockCholesky::Block& L, const BlockCholesky::Vec
 
 // y <- L^-1 y and y <- L^-T y for one diagonal block.
 inline void forwardL(const BlockCholesky::Block& L, const BlockCholesky::Vec6& dinv, BlockCholesky::Vec6& y) {
+#pragma GCC unroll 6
   for (int c = 0; c < 6; ++c) {
     double v = y[c];
+#pragma GCC unroll 6
     for (int p = 0; p < c; ++p) v -= L(c, p) * y[p];
     y[c] = v * dinv[c];
   }
 }
 inline void backwardLT(const BlockCholesky::Block& L, const BlockCholesky::Vec6& dinv, BlockCholesky::Vec6& y) {
+#pragma GCC unroll 6
   for (int c = 5; c >= 0; --c) {
     double v = y[c];
+#pragma GCC unroll 6
     for (int r = c + 1; r < 6; ++r) v -= L(r, c) * y[r];
     y[c] = v * dinv[c];
   }
@@ -184,6 +221,7 @@ inline void backwardLT(const BlockCholesky::Block& L, const BlockCholesky::Vec6&
 
 int BlockCholesky::factorize(double pivot_tol, bool skip_zero) {
   int zeros = 0;
+  if (has_zero_) std::fill(zero_.begin(), zero_.end(), 0), has_zero_ = false;
   for (int k = 0; k < nb_; ++k) start_[k] = blocks_[k].diagonal().cwiseAbs();
   for (int k = 0; k < nb_; ++k) {
     Block& D = blocks_[k];
@@ -195,8 +233,9 @@ int BlockCholesky::factorize(double pivot_tol, bool skip_zero) {
       Block& B = blocks_[col_block_[p]];
       solveRightLT(D, dinv_[k], B);  // L_ik = s_k H_ik L_kk^{-T}
       if (s < 0) B = -B;
-      for (int c = 0; c < 6; ++c)
-        if (zero_[6 * order_[k] + c]) B.col(c).setZero();
+      if (has_zero_)
+        for (int c = 0; c < 6; ++c)
+          if (zero_[6 * order_[k] + c]) B.col(c).setZero();
     }
     for (int u = update_start_[k]; u < update_start_[k + 1]; ++u) {  // H_ij -= L_ik s_k L_jk^T
       const Update& up = updates_[u];
@@ -222,8 +261,9 @@ void BlockCholesky::solve(double* x) const {
   }
   for (int k = 0; k < nb_; ++k) {
     Vec6 v = y_[k];
-    for (int c = 0; c < 6; ++c)
-      if (zero_[6 * order_[k] + c]) v(c) = 0.0;
+    if (has_zero_)
+      for (int c = 0; c < 6; ++c)
+        if (zero_[6 * order_[k] + c]) v(c) = 0.0;
     Eigen::Map<Vec6>(x + 6 * order_[k]) = v;
   }
 }

@@ -67,6 +67,7 @@ class BlockCholesky {
   std::vector<std::vector<std::pair<int, int>>> lookup_;  // per column k: (row k', block)
   std::vector<Block> blocks_;                   // [0, nb): diagonal of body order_[k]
   std::vector<char> zero_;
+  bool has_zero_ = false;                       // some entry of zero_ is set
   std::vector<Vec6> start_, dinv_;                     // diagonal of H before factorization
   mutable std::vector<Vec6> y_;
 };
