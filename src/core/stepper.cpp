@@ -286,14 +286,19 @@ void Stepper::addPenalty(const System& sys, int ci, double kappa, BlockCholesky&
 //   bodies: M + kappa sum_p J_p^T W_p J_p;  tree joint t, body b: J_tb;  t, t: 0
 // (-1 on the padding rows past the joint's size and on dropped rows: decoupled, solved
 // as dl = -r2 = 0).
+//
+// Every block is written here, none only added to: the blocks the penalized equations add
+// to (body pairs) are zeroed first, the others assigned (a tree has no fill), so the
+// storage is not swept clean before each factorization.
 void Stepper::assembleKKT(const System& sys) {
-  kkt_.setZero();
   for (int b = 1; b <= sys.nb; ++b) {
     bool t = false;
     auto& D = kkt_.block(kkt_.address(b - 1, b - 1, &t));
-    D.topLeftCorner<3, 3>().diagonal().array() += sys.bodies[b].m;
-    D.bottomRightCorner<3, 3>() += sys.bodies[b].Jp;
+    D.setZero();
+    D.topLeftCorner<3, 3>().diagonal().array() = sys.bodies[b].m;
+    D.bottomRightCorner<3, 3>() = sys.bodies[b].Jp;
   }
+  for (int a : kkt_added_) kkt_.block(a).setZero();
   for (int ci : penalized_) addPenalty(sys, ci, kKappa, kkt_, kkt_address_[ci].data(), kkt_transposed_[ci].data());
   for (int ci = 0; ci < sys.numConstraints(); ++ci) {
     if (tree_node_[ci] < 0) continue;
@@ -306,6 +311,7 @@ void Stepper::assembleKKT(const System& sys) {
       else kkt_.block(address[s]) = J.middleCols<6>(6 * s);
     }
     auto& D = kkt_.block(address.back());
+    D.setZero();
     for (int e = 0; e < 6; ++e)
       if (e >= L.size || dropped_[L.row + e]) D(e, e) = -1.0;
   }
@@ -456,6 +462,20 @@ void Stepper::buildTree(const System& sys) {
       }
   }
   z_ = Eigen::VectorXd::Zero(6 * nodes);
+  kkt_added_.clear();
+  for (int ci : penalized_)
+    for (size_t k = 0; k < kkt_address_[ci].size(); ++k) {
+      const int a = kkt_address_[ci][k];
+      if (a >= nodes) kkt_added_.push_back(a);  // off the diagonal (the diagonal is assigned)
+    }
+  std::sort(kkt_added_.begin(), kkt_added_.end());
+  kkt_added_.erase(std::unique(kkt_added_.begin(), kkt_added_.end()), kkt_added_.end());
+  for (auto& e : edges)
+    if (e.first > e.second) std::swap(e.first, e.second);
+  std::sort(edges.begin(), edges.end());
+  edges.erase(std::unique(edges.begin(), edges.end()), edges.end());
+  if (kkt_.offDiagonalBlocks() != static_cast<int>(edges.size()))  // (no fill in a tree)
+    throw std::logic_error("Stepper: the tree KKT factorization has fill");
 }
 
 // Adds weight * rows^T rows for rows over the bodies of a constraint (assembly targets).

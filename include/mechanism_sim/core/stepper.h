@@ -171,6 +171,7 @@ class Stepper {
   // ConstraintLayout; tree: (node, slot) in address[slot], the node's diagonal last)
   std::vector<std::vector<int>> kkt_address_;
   std::vector<std::vector<char>> kkt_transposed_;
+  std::vector<int> kkt_added_;      // off-diagonal blocks the penalized equations add to
   Eigen::VectorXd z_, zero_rows_;
   Eigen::VectorXd x0_, u0_, xs_, us_, kx_[4], ku_[4];
   // The evaluation and factorization describe this state (compared by content, so no
