@@ -230,8 +230,10 @@ void Stepper::mulM(const System& sys, const double* v, double* out) const {
   }
 }
 
-const Eigen::VectorXd& Stepper::rowWeights(const System& sys) {
-  for (int ci = 0; ci < sys.numConstraints(); ++ci) {
+const Eigen::VectorXd& Stepper::rowWeights(const System& sys) { return rowWeights(sys, all_constraints_); }
+
+const Eigen::VectorXd& Stepper::rowWeights(const System& sys, const std::vector<int>& cs) {
+  for (int ci : cs) {
     const ConstraintLayout& L = sys.layout[ci];
     const Jacobian& J = J_[ci];
     Vec6 sum = Vec6::Zero();  // diag(J M~^-1 J^T)
@@ -494,11 +496,11 @@ void Stepper::addRowsToH(const System& sys, int constraint, const Eigen::MatrixX
 }
 
 void Stepper::factor(const System& sys, const char* where, double t, bool reweight, bool penalty) {
-  if (reweight) rowWeights(sys);
   ++stats_.factorizations;
   factored_x_ = evaluated_x_;
   factored_side_ = evaluated_side_;
   if (!penalty && kkt_.size() > 0) {
+    if (reweight) rowWeights(sys, penalized_);  // the tree's rows have none
     assembleKKT(sys);
     if (kkt_.factorize(0.0, false) == 0) {
       kkt_mode_ = true;
@@ -506,7 +508,9 @@ void Stepper::factor(const System& sys, const char* where, double t, bool reweig
     }
     // a pivot of the tree is not definite (its joint's equations are dependent at this
     // configuration): this factorization takes every equation in penalty form
+    reweight = true;
   }
+  if (reweight) rowWeights(sys);
   kkt_mode_ = false;
   assembleH(sys, kKappa, 1.0, 0.0);
   if (chol_.factorize(0.0, false) != 0) {

@@ -107,6 +107,7 @@ class Stepper {
   // Per-row weights 1 / (J_e M~^{-1} J_e^T), M~ the masses with stand-ins for massless
   // bodies (System scales): W = kappa * rowWeights makes kappa dimensionless.
   const Eigen::VectorXd& rowWeights(const System& sys);
+  const Eigen::VectorXd& rowWeights(const System& sys, const std::vector<int>& constraints);
 
  private:
   void forces(const System& sys, const State& s, const Inputs& in,
