@@ -1,12 +1,15 @@
 // bench_factor: the step's linear algebra against the library baselines (issue 7, item 4).
 // For harness mechanisms (bench/harness_models.h) at their assembled state, H =
-// M + kappa Phi_q^T W Phi_q is built exactly as the stepper builds it (Stepper::evaluate,
-// rowWeights, assembleH with Stepper::kKappa), then one numeric factorization and one solve
-// are timed per iteration with
-//   BlockCholesky      the core's 6x6 block Cholesky (factorize(0, false) + solve);
-//   EigenLDLT          Eigen's SimplicialLDLT, AMD order, pattern analysed once;
+// M + kappa Phi_q^T W Phi_q (loops) or the tree KKT matrix [M J^T; J 0] (chains, "-kkt")
+// is built exactly as the stepper builds it (Stepper::evaluate, rowWeights, assembleH with
+// Stepper::kKappa, or assembleKKT), then one numeric factorization and one solve are timed
+// per iteration with
+//   BlockCholesky      the core's 6x6 block Cholesky (factorize(0, false) + solve; on the
+//                      KKT matrix its signed L S L^T in the tree order);
+//   EigenLDLT          Eigen's SimplicialLDLT, AMD order (KKT: the tree order), pattern
+//                      analysed once;
 //   CholmodSupernodal  CHOLMOD's supernodal LL^T, analysed once (default orderings);
-//   CholmodSimplicial  CHOLMOD's simplicial LDL^T, analysed once;
+//   CholmodSimplicial  CHOLMOD's simplicial LDL^T, analysed once (KKT: the tree order);
 //   SparseLDLT         the core's scalar up-looking LDL^T (the step's former factorization,
 //                      now used by assembly), AMD order from Eigen.
 // Every iteration first copies H's values into the library's own storage (the block array,
@@ -45,18 +48,25 @@ using SpMat = Eigen::SparseMatrix<double, Eigen::ColMajor, int>;
 
 namespace {
 
-// H of one case at its assembled state, as the stepper's block storage holds it before
-// factorization and as compressed columns (lower triangle, and both triangles).
+// The matrix of one case at its assembled state, as the stepper's block storage holds it
+// before factorization and as compressed columns (lower triangle, and both triangles): H,
+// or with `kkt` the tree KKT matrix [M J^T; J 0] (bodies and tree joints as block rows,
+// Stepper::assembleKKT), whose libraries get the stepper's elimination order (any other
+// order may meet a joint's zero block first).
 struct Problem {
   std::string name;
+  bool kkt = false;
   std::unique_ptr<ms::MechanismModel> model;
   std::unique_ptr<ms::Stepper> stepper;
+  ms::BlockCholesky* ch = nullptr;
   std::vector<ms::BlockCholesky::Block> blocks;
-  SpMat lower, full;
+  SpMat lower, full, lower_p, full_p;  // _p: in elimination order (kkt)
+  Eigen::VectorXd b_p;
+  std::vector<int> order;  // pivot k -> row (kkt)
   Eigen::VectorXd b;
   int n = 0;
 
-  Problem(const std::string& label, const std::string& kase, int N) : name(label) {
+  Problem(const std::string& label, const std::string& kase, int N, bool tree) : name(label), kkt(tree) {
     model = harness::loadCase(kase, N);
     const ms::System& sys = model->mechanism().system();
     const ms::State& s = model->mechanism().state();
@@ -64,32 +74,41 @@ struct Problem {
     stepper->load(sys, s.x.data(), s.u.data());
     stepper->evaluate(sys, s);
     stepper->rowWeights(sys);
-    stepper->assembleH(sys, ms::Stepper::kKappa, 1.0, 0.0);  // as Stepper::factor does
-    ms::BlockCholesky& ch = stepper->cholesky();
-    for (int a = 0; a < ch.size() + ch.offDiagonalBlocks(); ++a) blocks.push_back(ch.block(a));
-
-    // the block pattern: diagonal blocks and the body graph's edges
-    std::set<std::pair<int, int>> edges;
-    for (int i = 0; i < sys.nb; ++i) edges.insert({i, i});
-    for (const auto& e : sys.block_edges)
-      if (e.first != e.second) edges.insert({std::min(e.first, e.second), std::max(e.first, e.second)});
+    if (kkt) {
+      ch = &stepper->kkt();
+      if (ch->size() == 0) throw std::runtime_error(label + ": not a tree");
+      stepper->assembleKKT(sys);  // as Stepper::factor does
+    } else {
+      ch = &stepper->cholesky();
+      stepper->assembleH(sys, ms::Stepper::kKappa, 1.0, 0.0);  // as Stepper::factor does
+    }
+    for (int a = 0; a < ch->size() + ch->offDiagonalBlocks(); ++a) blocks.push_back(ch->block(a));
+    // the stored blocks: H(i, j) at its address
     std::vector<Eigen::Triplet<double>> t;
-    for (const auto& e : edges) {
-      bool transposed = false;
-      const int a = ch.address(e.first, e.second, &transposed);
-      const ms::BlockCholesky::Block B = transposed ? ms::BlockCholesky::Block(ch.block(a).transpose()) : ch.block(a);
+    for (const auto& e : ch->storedBlocks()) {
+      const ms::BlockCholesky::Block& B = ch->block(e[2]);
       for (int r = 0; r < 6; ++r)
         for (int c = 0; c < 6; ++c) {
-          t.emplace_back(6 * e.first + r, 6 * e.second + c, B(r, c));
-          if (e.first != e.second) t.emplace_back(6 * e.second + c, 6 * e.first + r, B(r, c));
+          t.emplace_back(6 * e[0] + r, 6 * e[1] + c, B(r, c));
+          if (e[0] != e[1]) t.emplace_back(6 * e[1] + c, 6 * e[0] + r, B(r, c));
         }
     }
-    n = 6 * sys.nb;
+    n = 6 * ch->size();
+    for (int k = 0; k < ch->size(); ++k)
+      for (int r = 0; r < 6; ++r) order.push_back(6 * ch->pivot(k) + r);
     full.resize(n, n);
     full.setFromTriplets(t.begin(), t.end());  // explicit zeros inside blocks are kept
     lower = full.triangularView<Eigen::Lower>();
     lower.makeCompressed();
     b = Eigen::VectorXd::LinSpaced(n, 1.0, 2.0);
+    if (kkt) {  // the same in elimination order: row order[i] becomes row i
+      Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> P(n);
+      for (int i = 0; i < n; ++i) P.indices()[order[i]] = i;
+      full_p = full.twistedBy(P);
+      lower_p = full_p.triangularView<Eigen::Lower>();
+      lower_p.makeCompressed();
+      b_p = P * b;
+    }
   }
 
   double residual(const Eigen::VectorXd& x) const { return (full * x - b).norm() / b.norm(); }
@@ -102,7 +121,7 @@ void copyValues(const SpMat& from, SpMat& to) {
 }
 
 void BM_Copy(benchmark::State& state, Problem* p) {
-  ms::BlockCholesky& ch = p->stepper->cholesky();
+  ms::BlockCholesky& ch = *p->ch;
   for (auto _ : state) {
     for (size_t a = 0; a < p->blocks.size(); ++a) ch.block(static_cast<int>(a)) = p->blocks[a];
     benchmark::ClobberMemory();
@@ -110,7 +129,7 @@ void BM_Copy(benchmark::State& state, Problem* p) {
 }
 
 void BM_BlockCholesky(benchmark::State& state, Problem* p) {
-  ms::BlockCholesky& ch = p->stepper->cholesky();
+  ms::BlockCholesky& ch = *p->ch;
   Eigen::VectorXd x(p->n);
   for (auto _ : state) {
     for (size_t a = 0; a < p->blocks.size(); ++a) ch.block(static_cast<int>(a)) = p->blocks[a];
@@ -126,20 +145,28 @@ void BM_BlockCholesky(benchmark::State& state, Problem* p) {
   state.counters["rel_residual"] = p->residual(x);
 }
 
-void BM_EigenLDLT(benchmark::State& state, Problem* p) {
-  SpMat A = p->lower;
-  Eigen::SimplicialLDLT<SpMat, Eigen::Lower, Eigen::AMDOrdering<int>> ldlt;
+// Eigen's SimplicialLDLT: AMD order on H; on the tree KKT matrix the stepper's order (the
+// matrix permuted to it once, NaturalOrdering: AMD may eliminate a joint's zero block first).
+template <typename Ordering>
+void runEigenLDLT(benchmark::State& state, const SpMat& lower, const SpMat& full, const Eigen::VectorXd& b) {
+  SpMat A = lower;
+  Eigen::SimplicialLDLT<SpMat, Eigen::Lower, Ordering> ldlt;
   ldlt.analyzePattern(A);
-  Eigen::VectorXd x(p->n);
+  Eigen::VectorXd x(b.size());
   for (auto _ : state) {
-    copyValues(p->lower, A);
+    copyValues(lower, A);
     ldlt.factorize(A);
-    x = ldlt.solve(p->b);
+    x = ldlt.solve(b);
     benchmark::DoNotOptimize(x.data());
   }
   if (ldlt.info() != Eigen::Success) state.SkipWithError("Eigen: factorization failed");
-  state.counters["nnz_L"] = static_cast<double>(ldlt.matrixL().nestedExpression().nonZeros() + p->n);
-  state.counters["rel_residual"] = p->residual(x);
+  state.counters["nnz_L"] = static_cast<double>(ldlt.matrixL().nestedExpression().nonZeros() + b.size());
+  state.counters["rel_residual"] = (full * x - b).norm() / b.norm();
+}
+
+void BM_EigenLDLT(benchmark::State& state, Problem* p) {
+  if (p->kkt) runEigenLDLT<Eigen::NaturalOrdering<int>>(state, p->lower_p, p->full_p, p->b_p);
+  else runEigenLDLT<Eigen::AMDOrdering<int>>(state, p->lower, p->full, p->b);
 }
 
 #ifdef HAVE_SPARSE_LDLT
@@ -173,7 +200,13 @@ void BM_Cholmod(benchmark::State& state, Problem* p, int supernodal) {
   cholmod_common c;
   cholmod_start(&c);
   c.supernodal = supernodal;
-  const SpMat& H = p->lower;
+  if (p->kkt) {  // simplicial LDL^T in the stepper's order (the matrix is permuted to it)
+    c.nmethods = 1;
+    c.method[0].ordering = CHOLMOD_NATURAL;
+    c.postorder = false;
+  }
+  const SpMat& H = p->kkt ? p->lower_p : p->lower;
+  const Eigen::VectorXd& rhs = p->kkt ? p->b_p : p->b;
   cholmod_sparse* A = cholmod_allocate_sparse(p->n, p->n, H.nonZeros(), 1, 1, -1, CHOLMOD_REAL, &c);
   std::copy(H.outerIndexPtr(), H.outerIndexPtr() + p->n + 1, static_cast<int*>(A->p));
   std::copy(H.innerIndexPtr(), H.innerIndexPtr() + H.nonZeros(), static_cast<int*>(A->i));
@@ -181,7 +214,7 @@ void BM_Cholmod(benchmark::State& state, Problem* p, int supernodal) {
   std::copy(H.valuePtr(), H.valuePtr() + H.nonZeros(), Ax);
   cholmod_factor* L = cholmod_analyze(A, &c);
   cholmod_dense* B = cholmod_allocate_dense(p->n, 1, p->n, CHOLMOD_REAL, &c);
-  std::copy(p->b.data(), p->b.data() + p->n, static_cast<double*>(B->x));
+  std::copy(rhs.data(), rhs.data() + p->n, static_cast<double*>(B->x));
   cholmod_dense *X = nullptr, *Y = nullptr, *E = nullptr;
   for (auto _ : state) {
     std::copy(H.valuePtr(), H.valuePtr() + H.nonZeros(), Ax);
@@ -193,7 +226,7 @@ void BM_Cholmod(benchmark::State& state, Problem* p, int supernodal) {
     state.SkipWithError("CHOLMOD failed");
   } else {
     const Eigen::Map<const Eigen::VectorXd> x(static_cast<const double*>(X->x), p->n);
-    state.counters["rel_residual"] = p->residual(x);
+    state.counters["rel_residual"] = p->kkt ? (p->full_p * x - rhs).norm() / rhs.norm() : p->residual(x);
     state.counters["nnz_L"] = c.lnz;
     state.counters["supernodal"] = L->is_super;
   }
@@ -258,8 +291,16 @@ class SummaryReporter : public benchmark::ConsoleReporter {
 int main(int argc, char** argv) {
   benchmark::Initialize(&argc, argv);
   if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
-  const std::vector<std::pair<std::string, std::pair<std::string, int>>> cases = {
-      {"chain50", {"chain", 50}}, {"chain200", {"chain", 200}}, {"fourbar10", {"fourbar", 10}}, {"fourbar50", {"fourbar", 50}}};
+  // H of the chains (their former factorization), the tree KKT matrix the chains now
+  // factor, and H of the four-bars (loops keep it)
+  struct Case {
+    std::string label, kase;
+    int N;
+    bool kkt;
+  };
+  const std::vector<Case> cases = {{"chain50", "chain", 50, false},      {"chain200", "chain", 200, false},
+                                   {"chain50-kkt", "chain", 50, true},   {"chain200-kkt", "chain", 200, true},
+                                   {"fourbar10", "fourbar", 10, false}, {"fourbar50", "fourbar", 50, false}};
   std::vector<std::string> names, libs = {"BlockCholesky", "EigenLDLT"};
 #ifdef MECHANISM_SIM_HAVE_CHOLMOD
   libs.push_back("CholmodSupernodal");
@@ -269,21 +310,22 @@ int main(int argc, char** argv) {
   libs.push_back("SparseLDLT");
 #endif
   libs.push_back("copy");
-  for (const auto& c : cases) {
-    g_problems.emplace_back(new Problem(c.first, c.second.first, c.second.second));
+  for (const Case& c : cases) {
+    g_problems.emplace_back(new Problem(c.label, c.kase, c.N, c.kkt));
     Problem* p = g_problems.back().get();
-    names.push_back(c.first);
+    names.push_back(c.label);
     auto reg = [&](const std::string& lib, void (*fn)(benchmark::State&, Problem*)) {
-      benchmark::RegisterBenchmark((c.first + "/" + lib).c_str(), fn, p);
+      benchmark::RegisterBenchmark((c.label + "/" + lib).c_str(), fn, p);
     };
     reg("BlockCholesky", BM_BlockCholesky);
     reg("EigenLDLT", BM_EigenLDLT);
 #ifdef MECHANISM_SIM_HAVE_CHOLMOD
-    benchmark::RegisterBenchmark((c.first + "/CholmodSupernodal").c_str(), BM_Cholmod, p, CHOLMOD_SUPERNODAL);
-    benchmark::RegisterBenchmark((c.first + "/CholmodSimplicial").c_str(), BM_Cholmod, p, CHOLMOD_SIMPLICIAL);
+    if (!c.kkt)  // supernodal CHOLMOD is LL^T: not for an indefinite matrix
+      benchmark::RegisterBenchmark((c.label + "/CholmodSupernodal").c_str(), BM_Cholmod, p, CHOLMOD_SUPERNODAL);
+    benchmark::RegisterBenchmark((c.label + "/CholmodSimplicial").c_str(), BM_Cholmod, p, CHOLMOD_SIMPLICIAL);
 #endif
 #ifdef HAVE_SPARSE_LDLT
-    reg("SparseLDLT", BM_SparseLDLT);
+    if (!c.kkt) reg("SparseLDLT", BM_SparseLDLT);  // its pivots must be positive
 #endif
     reg("copy", BM_Copy);
   }

@@ -120,6 +120,15 @@ int BlockCholesky::address(int i, int j, bool* transposed) const {
   throw std::logic_error("BlockCholesky::address: bodies are not adjacent");
 }
 
+std::vector<std::array<int, 3>> BlockCholesky::storedBlocks() const {
+  std::vector<std::array<int, 3>> out;
+  for (int k = 0; k < nb_; ++k) {
+    out.push_back({order_[k], order_[k], k});
+    for (int p = col_start_[k]; p < col_start_[k + 1]; ++p) out.push_back({order_[col_row_[p]], order_[k], col_block_[p]});
+  }
+  return out;
+}
+
 void BlockCholesky::setZero() {
   for (Block& b : blocks_) b.setZero();
 }

@@ -338,7 +338,7 @@ void Stepper::buildTree(const System& sys) {
   };
   std::vector<int> parent_joint(sys.nb, -1), parent(sys.nb, -1);
   std::vector<char> reached(sys.nb, 0);
-  std::vector<int> roots;  // -1: the ground
+  std::vector<int> roots;  // bodies no tree joint ties to the ground (floating ones)
   std::vector<int> joint_cs;
   for (int j = 0; j < sys.numJoints(); ++j)
     if (sys.joints[j]->size() > 0 && sys.joints[j]->bodies().size() == 2) joint_cs.push_back(sys.joint_constraint[j]);

@@ -14,6 +14,7 @@
 // multipliers", SIGGRAPH 1996): a body before the joint that ties it to its parent, that
 // joint before the parent.
 #pragma once
+#include <array>
 #include <utility>
 #include <vector>
 
@@ -51,6 +52,10 @@ class BlockCholesky {
   bool zeroPivot(int b, int r) const { return zero_[6 * b + r] != 0; }
   // Number of stored off-diagonal blocks of L (fill included): the cost of a factorization.
   int offDiagonalBlocks() const { return static_cast<int>(blocks_.size()) - nb_; }
+  // The block row eliminated k-th.
+  int pivot(int k) const { return order_[k]; }
+  // Every stored block as (i, j, address): before factorization the block is H(i, j).
+  std::vector<std::array<int, 3>> storedBlocks() const;
 
  private:
   struct Update {

@@ -98,6 +98,9 @@ class Stepper {
   void assembleH(const System& sys, double kappa, double mass, double shift);
   void addRowsToH(const System& sys, int constraint, const Eigen::MatrixXd& rows, double weight);
   BlockCholesky& cholesky() { return chol_; }
+  // The tree KKT matrix (stepper.cpp): empty (size 0) for a mechanism with loops.
+  void assembleKKT(const System& sys);
+  BlockCholesky& kkt() { return kkt_; }
   void mulJ(const System& sys, const double* v, double* out) const;   // out = Phi_q v
   void addJt(const System& sys, const double* y, double* out) const;  // out += Phi_q^T y
   // The same over the listed constraints only (mulJ writes their rows only).
@@ -117,7 +120,6 @@ class Stepper {
   void factor(const System& sys, const char* where, double t, bool reweight = true, bool penalty = false);
   // The spanning tree of joints whose equations the KKT factorization holds (once).
   void buildTree(const System& sys);
-  void assembleKKT(const System& sys);
   // Adds kappa J_c^T W_c J_c of constraint ci into `target` at the given block addresses.
   void addPenalty(const System& sys, int ci, double kappa, BlockCholesky& target, const int* address,
                   const char* transposed);
