@@ -150,14 +150,14 @@ bool BlockCholesky::factorDiagonal(Block& D, double pivot_tol, bool skip_zero, i
         ++*zeros;
         return false;
       }
-      const double l = std::sqrt(s), inv = 1.0 / l;
+      const double l = std::sqrt(s);
       d[c + 6 * c] = l;
 #pragma GCC unroll 6
       for (int r = c + 1; r < 6; ++r) {
         double t = d[r + 6 * c];
 #pragma GCC unroll 6
         for (int p = 0; p < c; ++p) t -= d[r + 6 * p] * d[c + 6 * p];
-        d[r + 6 * c] = t * inv;
+        d[r + 6 * c] = t / l;
       }
     }
 #pragma GCC unroll 6
