@@ -286,8 +286,8 @@ void Stepper::addPenalty(const System& sys, int ci, double kappa, BlockCholesky&
 
 // The KKT matrix of the tree joints with the other equations in penalty form:
 //   bodies: M + kappa sum_p J_p^T W_p J_p;  tree joint t, body b: J_tb;  t, t: 0
-// (-1 on the padding rows past the joint's size and on dropped rows: decoupled, solved
-// as dl = -r2 = 0).
+// (-1 on the padding rows past the joint's size and on dropped rows: decoupled, dl = -r2,
+// which is 0 in a solve: a dropped row's gamma and J are 0).
 //
 // Every block is written here, none only added to: the blocks the penalized equations add
 // to (body pairs) are zeroed first, the others assigned (a tree has no fill), so the
@@ -315,7 +315,7 @@ void Stepper::assembleKKT(const System& sys) {
     auto& D = kkt_.block(address.back());
     D.setZero();
     for (int e = 0; e < 6; ++e)
-      if (e >= L.size || dropped_[L.row + e]) D(e, e) = -1.0;
+      if (e >= L.size || (!dropped_.empty() && dropped_[L.row + e])) D(e, e) = -1.0;
   }
 }
 
@@ -825,8 +825,9 @@ void Stepper::rates(const System& sys, const State& s, const Inputs& in,
 }
 
 // Friction for the step h about to be taken, from the state with H factored there.
-// The effective inertia along coordinate k is I = 1 / (G H^-1 G^T) (H^-1 is the
-// constrained inverse mass up to 1/kappa); the effort that leaves q_dot = 0 after the step
+// The effective inertia along coordinate k is I = 1 / (G P G^T), P the constrained inverse
+// mass (the factored matrix applied to G^T: exactly on a tree's KKT matrix, up to 1/kappa
+// with H); the effort that leaves q_dot = 0 after the step
 // is I (q_dot / h + q_ddot_free) with q_ddot_free = G a_free - gamma_G (the coordinate's
 // own velocity term), and friction supplies it up to f. A planar joint's two in-plane
 // translations are taken together: the effort vector that stops both, from their 2x2
@@ -839,7 +840,6 @@ void Stepper::frictionFor(const System& sys, State& s, const Inputs& in, double 
   lam_ = s.lambda;
   solveKKT(sys, HState::kCurrent, s.t);
   Row rows[3];
-  Eigen::Matrix<double, 6, 3> HinvG;  // H^-1 G_k^T restricted to the joint's two bodies
   for (int j = 0; j < sys.numJoints(); ++j) {
     const auto& f = sys.friction[j];
     const Joint& jt = *sys.joints[j];
@@ -1227,9 +1227,11 @@ static int worstConstraint(const System& sys, const Eigen::VectorXd& r, double* 
   throw StepFailure(os.str());
 }
 
-// Mass-orthogonal projection of positions, simplified Newton:
-//   dq = -H^-1 Phi_q^T W Phi  (H = M + Phi_q^T W Phi_q: the least-squares step, dependent
-// equations included), renewing H when progress is slow.
+// Mass-orthogonal projection of positions, simplified Newton: dq from the factored
+// matrix applied to r2 = -Phi (precondition(): on H, dq = -H^-1 Phi_q^T W Phi, the
+// least-squares step, dependent equations included; on the tree KKT matrix the
+// mass-orthogonal step onto the tree's equations), renewing the factorization when
+// progress is slow.
 bool Stepper::projectPositions(const System& sys, State& s, bool frozen) {
   const double tol = sys.options.position_tol;
   double err = positionResidual(sys), previous = HUGE_VAL;
@@ -1259,8 +1261,9 @@ bool Stepper::projectPositions(const System& sys, State& s, bool frozen) {
   return it > 0;
 }
 
-// Mass-orthogonal projection of velocities onto Phi_q v = 0:
-//   dv = -H^-1 Phi_q^T W Phi_q v, repeated until the relative residual meets velocity_tol.
+// Mass-orthogonal projection of velocities onto Phi_q v = nu: dv from the factored matrix
+// applied to r2 = nu - Phi_q v (on H: dv = H^-1 Phi_q^T W r2), repeated until the relative
+// residual meets velocity_tol.
 bool Stepper::projectVelocities(const System& sys, State& s) {
   const double tol = sys.options.velocity_tol;
   double err = velocityResidual(sys, s.u);

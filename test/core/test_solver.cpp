@@ -249,8 +249,6 @@ TEST(Solver, PendulumFarFromTheOriginConvergesEveryStep) {
   EXPECT_LE(stats.factorizations, 4 * 2000 + 10);
 }
 
-// A snapshot is the State: restoring it and stepping again repeats the run bit for bit,
-// inputs changing between steps included.
 // The joints of a tree are block rows of the factored KKT matrix: a stage solve is exact
 // up to round-off whatever the chain's length, so the refinement passes a solve takes do
 // not grow along a chain (in penalty form they did, the contraction per pass falling like
@@ -273,6 +271,8 @@ TEST(Solver, RefinementPassesDoNotGrowAlongAChain) {
   EXPECT_LE(per_solve[1], per_solve[0] + 0.2) << "N = 5: " << per_solve[0] << ", N = 120: " << per_solve[1];
 }
 
+// A snapshot is the State: restoring it and stepping again repeats the run bit for bit,
+// inputs changing between steps included.
 TEST(Solver, SnapshotRestoreContinuesBitIdentically) {
   Mechanism m;
   models::fourBarChain(m, 2, 0.4, 1.0, 1.2);

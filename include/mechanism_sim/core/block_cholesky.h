@@ -46,7 +46,9 @@ class BlockCholesky {
   // is zero: with skip_zero its row and column are dropped (noted in zeroPivot),
   // otherwise factorization stops. Returns the number of zero pivots met.
   int factorize(double pivot_tol, bool skip_zero);
-  // Solves H x = b in place (6 entries per body, original order; zero pivots give 0).
+  // Solves H x = b in place (6 entries per body, original order). After a factorization
+  // that met zero pivots (skip_zero) the factor is only good for zeroPivot(): the rows of
+  // L left of a skipped pivot are not cleared, so a solve would spread them.
   void solve(double* x) const;
   // Whether entry r of body b had a zero pivot in the last factorize().
   bool zeroPivot(int b, int r) const { return zero_[6 * b + r] != 0; }

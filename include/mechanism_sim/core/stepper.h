@@ -1,12 +1,12 @@
 // The stepper: maps (System, State, Inputs, h) to the next State, with its own scratch
 // space. Method (README "Integration method"):
 //   * accelerations and multipliers of  M a + Phi_q^T lambda = Q,  Phi_q a = gamma  from
-//     the quasi-definite KKT system: the joints of a spanning tree exactly (their
-//     equations are block rows of the factored KKT matrix, eliminated leaves first), the
-//     other equations (loop closures, couplers, drives, limits) in penalty form,
-//     H = M + Phi_q^T W Phi_q with a weight per equation scaled by the masses it couples
-//     (block Cholesky, block_cholesky.h); refined on the exact KKT residual until it
-//     meets a relative tolerance;
+//     the quasi-definite KKT system. A tree's joints are block rows of the factored KKT
+//     matrix (eliminated leaves first), its drives and limits in penalty form; a
+//     mechanism with loops or couplers (and any factorization whose tree pivot is not
+//     definite) has every equation in penalty form, H = M + Phi_q^T W Phi_q with a weight
+//     per equation scaled by the masses it couples (block Cholesky, block_cholesky.h).
+//     Either is refined on the exact KKT residual until it meets a relative tolerance;
 //   * classical RK4 (or Heun) on the index-1 equations;
 //   * after the step, mass-orthogonal projection of positions onto Phi = 0 (simplified
 //     Newton) and of velocities onto Phi_q v = 0, both to relative tolerances.
@@ -168,7 +168,7 @@ class Stepper {
   BlockCholesky kkt_;
   bool kkt_mode_ = false;           // the last factorization is kkt_ (else chol_)
   std::vector<int> tree_node_;      // per constraint: its KKT block row, -1 when penalized
-  std::vector<int> penalized_;      // constraints in penalty form (all when kkt_mode_ is off)
+  std::vector<int> penalized_;      // constraints in penalty form when kkt_mode_ is on
   std::vector<int> all_constraints_;
   // per constraint: KKT blocks of its slot pairs (penalized: body-body as in
   // ConstraintLayout; tree: (node, slot) in address[slot], the node's diagonal last)
