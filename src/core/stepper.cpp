@@ -285,9 +285,10 @@ void Stepper::addPenalty(const System& sys, int ci, double kappa, BlockCholesky&
 }
 
 // The KKT matrix of the tree joints with the other equations in penalty form:
-//   bodies: M + kappa sum_p J_p^T W_p J_p;  tree joint t, body b: J_tb;  t, t: 0
-// (-1 on the padding rows past the joint's size and on dropped rows: decoupled, dl = -r2,
-// which is 0 in a solve: a dropped row's gamma and J are 0).
+//   bodies: M + kappa sum_p J_p^T W_p J_p;  tree block t, body b: J_tb;  t, t: 0
+// (a tree block's rows: its joint's equations, then the drives and limits merged into it;
+// -1 on the padding rows past them and on rows that are zero, an inactive limit's or a
+// dropped one's: decoupled, dl = -r2, which is 0 in a solve, their gamma being 0).
 //
 // Every block is written here, none only added to: the blocks the penalized equations add
 // to (body pairs) are zeroed first, the others assigned (a tree has no fill), so the
@@ -305,17 +306,31 @@ void Stepper::assembleKKT(const System& sys) {
   for (int ci = 0; ci < sys.numConstraints(); ++ci) {
     if (tree_node_[ci] < 0) continue;
     const ConstraintLayout& L = sys.layout[ci];
+    const std::vector<NodeRow>& rows = node_rows_[tree_node_[ci] - sys.nb];
     const Jacobian& J = J_[ci];
     const std::vector<int>& address = kkt_address_[ci];
     for (size_t s = 0; s < L.bodies.size(); ++s) {
       if (L.bodies[s] < 0) continue;
-      if (kkt_transposed_[ci][s]) kkt_.block(address[s]) = J.middleCols<6>(6 * s).transpose();
-      else kkt_.block(address[s]) = J.middleCols<6>(6 * s);
+      // rows: the joint's equations (zero past its size), then its drives and limits
+      BlockCholesky::Block& B = kkt_.block(address[s]);
+      if (kkt_transposed_[ci][s]) {
+        B = J.middleCols<6>(6 * s).transpose();
+        for (size_t r = L.size; r < rows.size(); ++r)
+          B.col(r) = J_[rows[r].constraint].row(rows[r].e).segment<6>(6 * s).transpose();
+      } else {
+        B = J.middleCols<6>(6 * s);
+        for (size_t r = L.size; r < rows.size(); ++r) B.row(r) = J_[rows[r].constraint].row(rows[r].e).segment<6>(6 * s);
+      }
     }
     auto& D = kkt_.block(address.back());
     D.setZero();
-    for (int e = 0; e < 6; ++e)
-      if (e >= L.size || (!dropped_.empty() && dropped_[L.row + e])) D(e, e) = -1.0;
+    const int size = static_cast<int>(rows.size());
+    for (int e = size; e < 6; ++e) D(e, e) = -1.0;
+    if (!dropped_.empty())
+      for (int e = 0; e < L.size; ++e)
+        if (dropped_[L.row + e]) D(e, e) = -1.0;
+    for (int e = L.size; e < size; ++e)  // an inactive limit's row is zero
+      if (J_[rows[e].constraint].row(rows[e].e).squaredNorm() == 0.0) D(e, e) = -1.0;
   }
 }
 
@@ -323,9 +338,9 @@ void Stepper::assembleKKT(const System& sys) {
 // ground outwards (depth first), a joint joins the tree when it ties a body not yet
 // reached (which must have a positive definite mass matrix: its pivot is then definite)
 // to one that is; bodies left over start trees of their own. Block rows are eliminated
-// leaves first: each body, then the joint to its parent, before the parent. Drives and
-// limits stay in penalty form; a mechanism with loop closures or couplers keeps H for
-// everything (below).
+// leaves first: each body, then the joint to its parent, before the parent. A joint's
+// drives and limits are rows of its block; a mechanism with loop closures or couplers
+// keeps H for everything (below).
 void Stepper::buildTree(const System& sys) {
   const int nc = sys.numConstraints();
   tree_node_.assign(nc, -1);
@@ -370,8 +385,9 @@ void Stepper::buildTree(const System& sys) {
   grow(-1);
   for (int b = 0; b < sys.nb; ++b)
     if (!reached[b]) reached[b] = 1, roots.push_back(b), grow(b);
-  // Trees only: the penalized equations may be the drives and limits of tree joints (no
-  // fill: they couple the body pair of a tree joint), not loop closures or couplers. Near
+  // Trees only: besides the tree's joints there may be drives and limits of tree joints
+  // (rows of the joint's block, or weighted when they do not fit: no fill either way, they
+  // couple the body pair of a tree joint), not loop closures or couplers. Near
   // a configuration where a loop's equations become dependent (a parallelogram passing
   // flat) the exact tree rows push all of the inconsistency into the loop's penalized
   // rows: the four-bar at h = 1/64 ms left 38 solves short by up to 1.6e-4 (relative)
@@ -422,6 +438,26 @@ void Stepper::buildTree(const System& sys) {
   for (int& o : order)
     if (o < 0) o = tree_node_[-1 - o];
   const int nodes = sys.nb + static_cast<int>(tree_cs.size());
+  // The rows of each tree block: its joint's equations, then the drives and limits of
+  // that joint while they fit in 6 (a coordinate has at most one of each; the rest stay
+  // weighted). An inactive limit's row is zero: then, like padding, it is decoupled.
+  node_rows_.assign(tree_cs.size(), {});
+  for (size_t k = 0; k < tree_cs.size(); ++k) {
+    const ConstraintLayout& L = sys.layout[tree_cs[k]];
+    for (int e = 0; e < L.size; ++e) node_rows_[k].push_back({L.row + e, tree_cs[k], e});
+  }
+  std::vector<char> merged(nc, 0);
+  auto attach = [&](int c, int joint) {
+    const int node = tree_node_[sys.joint_constraint[joint]];
+    if (node < 0) return;
+    std::vector<NodeRow>& rows = node_rows_[node - sys.nb];
+    const ConstraintLayout& L = sys.layout[c];
+    if (static_cast<int>(rows.size()) + L.size > 6) return;
+    for (int e = 0; e < L.size; ++e) rows.push_back({L.row + e, c, e});
+    merged[c] = 1;
+  };
+  for (const DriveSpec& D : sys.drives) attach(D.constraint, D.joint);
+  for (const LimitSpec& L : sys.limits) attach(L.constraint, L.joint);
   std::vector<signed char> signs(nodes, 1);
   for (int k = sys.nb; k < nodes; ++k) signs[k] = -1;
   std::vector<std::pair<int, int>> edges;
@@ -433,6 +469,7 @@ void Stepper::buildTree(const System& sys) {
         if (b >= 0) edges.push_back({tree_node_[ci], b});
       continue;
     }
+    if (merged[ci]) continue;  // rows of its joint's block
     penalized_.push_back(ci);
     for (int b1 : L.bodies)
       for (int b2 : L.bodies)
@@ -532,7 +569,7 @@ void Stepper::precondition(const System& sys, const double* r1, const double* r2
     for (int e = 0; e < sys.m; ++e) dl_[e] = kKappa * W_[e] * (dm_[e] - r2[e]);
     return;
   }
-  // the tree's rows exactly, the others (drives, limits) weighted
+  // the tree blocks' rows exactly, the others (drives and limits that did not fit) weighted
   const std::vector<int>& pen = penalized_;
   for (int ci : pen) {
     const ConstraintLayout& L = sys.layout[ci];
@@ -540,23 +577,17 @@ void Stepper::precondition(const System& sys, const double* r1, const double* r2
   }
   addJt(sys, pen, dm_.data(), dn_.data());
   z_.head(sys.n) = dn_;
-  for (int ci = 0; ci < sys.numConstraints(); ++ci) {
-    const int node = tree_node_[ci];
-    if (node < 0) continue;
-    const ConstraintLayout& L = sys.layout[ci];
-    auto zc = z_.segment<6>(6 * node);
-    zc.setZero();
-    for (int e = 0; e < L.size; ++e) zc[e] = r2[L.row + e];
+  for (size_t k = 0; k < node_rows_.size(); ++k) {
+    double* zc = z_.data() + 6 * (sys.nb + k);
+    const size_t size = node_rows_[k].size();
+    for (size_t r = 0; r < size; ++r) zc[r] = r2[node_rows_[k][r].row];
+    for (size_t r = size; r < 6; ++r) zc[r] = 0.0;
   }
   kkt_.solve(z_.data());
   dn_ = z_.head(sys.n);
   if (multipliers)
-    for (int ci = 0; ci < sys.numConstraints(); ++ci) {
-      const int node = tree_node_[ci];
-      if (node < 0) continue;
-      const ConstraintLayout& L = sys.layout[ci];
-      for (int e = 0; e < L.size; ++e) dl_[L.row + e] = z_[6 * node + e];
-    }
+    for (size_t k = 0; k < node_rows_.size(); ++k)
+      for (size_t r = 0; r < node_rows_[k].size(); ++r) dl_[node_rows_[k][r].row] = z_[6 * (sys.nb + k) + r];
   if (!multipliers) return;
   mulJ(sys, pen, dn_.data(), dm_.data());
   for (int ci : pen) {

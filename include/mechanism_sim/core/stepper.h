@@ -1,8 +1,8 @@
 // The stepper: maps (System, State, Inputs, h) to the next State, with its own scratch
 // space. Method (README "Integration method"):
 //   * accelerations and multipliers of  M a + Phi_q^T lambda = Q,  Phi_q a = gamma  from
-//     the quasi-definite KKT system. A tree's joints are block rows of the factored KKT
-//     matrix (eliminated leaves first), its drives and limits in penalty form; a
+//     the quasi-definite KKT system. A tree's joints (with their drives and limits) are
+//     block rows of the factored KKT matrix (eliminated leaves first); a
 //     mechanism with loops or couplers (and any factorization whose tree pivot is not
 //     definite) has every equation in penalty form, H = M + Phi_q^T W Phi_q with a weight
 //     per equation scaled by the masses it couples (block Cholesky, block_cholesky.h).
@@ -168,6 +168,10 @@ class Stepper {
   BlockCholesky kkt_;
   bool kkt_mode_ = false;           // the last factorization is kkt_ (else chol_)
   std::vector<int> tree_node_;      // per constraint: its KKT block row, -1 when penalized
+  struct NodeRow {
+    int row, constraint, e;         // global row; its constraint and row there
+  };
+  std::vector<std::vector<NodeRow>> node_rows_;  // per tree block (row nb + k): its rows
   std::vector<int> penalized_;      // constraints in penalty form when kkt_mode_ is on
   std::vector<int> all_constraints_;
   // per constraint: KKT blocks of its slot pairs (penalized: body-body as in
