@@ -134,61 +134,39 @@ void BlockCholesky::setZero() {
 }
 
 // In-place lower Cholesky factor of one diagonal block, column by column, with the
-// pivot test relative to the entry's own starting value.
+// pivot test relative to the entry's own starting |value| (start_). A zero pivot stops
+// the factorization, or with skip_zero drops its entry (noted in zero_).
 bool BlockCholesky::factorDiagonal(Block& D, double pivot_tol, bool skip_zero, int k, int* zeros) {
   const Vec6& start = start_[k];
-  if (!skip_zero) {  // the stepper's case: no bookkeeping of dropped entries, stop at the first
-    double* d = D.data();  // column-major: D(r, c) = d[r + 6 c]
+  double* d = D.data();  // column-major: D(r, c) = d[r + 6 c]
 #pragma GCC unroll 6
-    for (int c = 0; c < 6; ++c) {
-      double s = d[c + 6 * c];
-#pragma GCC unroll 6
-      for (int p = 0; p < c; ++p) s -= d[c + 6 * p] * d[c + 6 * p];
-      if (!(s > pivot_tol * start(c)) || !(s < HUGE_VAL)) {
-        zero_[6 * order_[k] + c] = 1;
-        has_zero_ = true;
-        ++*zeros;
-        return false;
-      }
-      const double l = std::sqrt(s);
-      d[c + 6 * c] = l;
-#pragma GCC unroll 6
-      for (int r = c + 1; r < 6; ++r) {
-        double t = d[r + 6 * c];
-#pragma GCC unroll 6
-        for (int p = 0; p < c; ++p) t -= d[r + 6 * p] * d[c + 6 * p];
-        d[r + 6 * c] = t / l;
-      }
-    }
-#pragma GCC unroll 6
-    for (int c = 1; c < 6; ++c)
-#pragma GCC unroll 6
-      for (int r = 0; r < c; ++r) d[r + 6 * c] = 0.0;
-    return true;
-  }
   for (int c = 0; c < 6; ++c) {
-    double s = D(c, c);
-    for (int p = 0; p < c; ++p) s -= D(c, p) * D(c, p);
-    zero_[6 * order_[k] + c] = 0;
-    if (!(s > pivot_tol * std::fabs(start(c))) || !std::isfinite(s)) {
+    double s = d[c + 6 * c];
+#pragma GCC unroll 6
+    for (int p = 0; p < c; ++p) s -= d[c + 6 * p] * d[c + 6 * p];
+    if (!(s > pivot_tol * start(c)) || !(s < HUGE_VAL)) {
       ++*zeros;
-      if (!skip_zero) return false;
       zero_[6 * order_[k] + c] = 1;
       has_zero_ = true;
-      D(c, c) = 1.0;
-      for (int r = c + 1; r < 6; ++r) D(r, c) = 0.0;
+      if (!skip_zero) return false;
+      d[c + 6 * c] = 1.0;
+      for (int r = c + 1; r < 6; ++r) d[r + 6 * c] = 0.0;
       continue;
     }
     const double l = std::sqrt(s);
-    D(c, c) = l;
+    d[c + 6 * c] = l;
+#pragma GCC unroll 6
     for (int r = c + 1; r < 6; ++r) {
-      double t = D(r, c);
-      for (int p = 0; p < c; ++p) t -= D(r, p) * D(c, p);
-      D(r, c) = t / l;
+      double t = d[r + 6 * c];
+#pragma GCC unroll 6
+      for (int p = 0; p < c; ++p) t -= d[r + 6 * p] * d[c + 6 * p];
+      d[r + 6 * c] = t / l;
     }
   }
+#pragma GCC unroll 6
   for (int c = 1; c < 6; ++c)
-    for (int r = 0; r < c; ++r) D(r, c) = 0.0;  // upper triangle: zero, so L_kk is the block
+#pragma GCC unroll 6
+    for (int r = 0; r < c; ++r) d[r + 6 * c] = 0.0;  // upper triangle: zero, so L_kk is the block
   return true;
 }
 
