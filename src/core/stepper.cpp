@@ -559,8 +559,8 @@ void Stepper::factor(const System& sys, const char* where, double t, bool reweig
 }
 
 void Stepper::precondition(const System& sys, const double* r1, const double* r2, bool multipliers) {
-  if (r1 != dn_.data()) std::copy(r1, r1 + sys.n, dn_.data());
   if (!kkt_mode_) {  // H alone: every row weighted
+    if (r1 != dn_.data()) std::copy(r1, r1 + sys.n, dn_.data());
     for (int e = 0; e < sys.m; ++e) dm_[e] = kKappa * W_[e] * r2[e];
     addJt(sys, dm_.data(), dn_.data());
     chol_.solve(dn_.data());
@@ -575,8 +575,8 @@ void Stepper::precondition(const System& sys, const double* r1, const double* r2
     const ConstraintLayout& L = sys.layout[ci];
     for (int e = 0; e < L.size; ++e) dm_[L.row + e] = kKappa * W_[L.row + e] * r2[L.row + e];
   }
-  addJt(sys, pen, dm_.data(), dn_.data());
-  z_.head(sys.n) = dn_;
+  z_.head(sys.n) = Eigen::Map<const Eigen::VectorXd>(r1, sys.n);  // the bodies' rows of z_
+  addJt(sys, pen, dm_.data(), z_.data());
   for (size_t k = 0; k < node_rows_.size(); ++k) {
     double* zc = z_.data() + 6 * (sys.nb + k);
     const size_t size = node_rows_[k].size();
@@ -645,9 +645,9 @@ void Stepper::jointRows(const System& sys, const State& s, int j, Row* rows) con
   jt.coordinates(kin_[jt.bodyI()], kin_[jt.bodyJ()], s.tracked[jt.id()], rows);
 }
 
-// The residual scales of solveKKT: the size of the terms each residual was computed from, as inverses: per body, the
-// largest force (torque) term of its three components, forces and torques measured
-// against each other through the length scale; per equation, |gamma| + |J_r| |a_r|max +
+// The residual scales of solveKKT: the size of the terms each residual was computed
+// from, as inverses: per body, the largest force (torque) term of its three components,
+// forces and torques measured against each other through the length scale; per equation, |gamma| + |J_r| |a_r|max +
 // |J_theta| |a_theta|max. Both have a floor at kFloor of the system's largest.
 void Stepper::residualScales(const System& sys) {
   // accelerations: at least the centripetal scale V^2 / L of the motion
@@ -705,10 +705,10 @@ void Stepper::residualScales(const System& sys) {
 //   H da = r1 + J^T W r2,  dlambda = W (J da - r2)   (H = M + J^T W J).
 // With H factored at the current J one pass is the augmented Lagrangian update (Bayo &
 // Ledesma 1996) made exact by also correcting r1 (the round-off of H, which grows with
-// kappa); on a tree, one pass solves to round-off. It stops when every residual is within solve_tol of the size of the terms it
-// was computed from (a componentwise backward error: independent of units); the scales
-// are taken from the warm start (or, from a cold one, after the first update). A
-// shortfall is counted.
+// kappa); on a tree, one pass solves to round-off. It stops when every residual is within
+// solve_tol of the size of the terms it was computed from (a componentwise backward
+// error: independent of units); the scales are taken from the warm start (or, from a
+// cold one, after the first update). A shortfall is counted.
 //
 // H from nearby positions (HState::kNearby: the last stage's, for the state the step
 // reached) still contracts the error, more slowly the further its Jacobian is from this
@@ -858,9 +858,9 @@ void Stepper::rates(const System& sys, const State& s, const Inputs& in,
 // Friction for the step h about to be taken, from the state with H factored there.
 // The effective inertia along coordinate k is I = 1 / (G P G^T), P the constrained inverse
 // mass (the factored matrix applied to G^T: exactly on a tree's KKT matrix, up to 1/kappa
-// with H); the effort that leaves q_dot = 0 after the step
-// is I (q_dot / h + q_ddot_free) with q_ddot_free = G a_free - gamma_G (the coordinate's
-// own velocity term), and friction supplies it up to f. A planar joint's two in-plane
+// with H); the effort that leaves q_dot = 0 after the step is I (q_dot / h + q_ddot_free)
+// with q_ddot_free = G a_free - gamma_G (the coordinate's own velocity term), and friction
+// supplies it up to f. A planar joint's two in-plane
 // translations are taken together: the effort vector that stops both, from their 2x2
 // effective inertia, clamped radially to the friction disc (Coulomb's law in the plane:
 // the friction force has one magnitude limit whatever its direction).
@@ -883,12 +883,11 @@ void Stepper::frictionFor(const System& sys, State& s, const Inputs& in, double 
     // needed_k: the effort along q_k that stops the coordinate within the step, from the
     // coupled effective inertia (G H^-1 G^T)^-1 of the coordinates that have friction
     double needed[3] = {0, 0, 0}, gHg[3][3] = {{0}};
-    auto solveRow = [&](int k, Eigen::VectorXd& x) {
-      x.setZero();
+    auto solveRow = [&](int k) {  // dn_ = P G_k^T
+      dn_.setZero();
       for (int b = 0; b < 2; ++b)
-        if (bs[b] != System::kGround) x.segment<6>(6 * (bs[b] - 1)) = rows[k].J.segment<6>(6 * b).transpose();
-      precondition(sys, x.data(), zero_rows_.data(), false);
-      x = dn_;
+        if (bs[b] != System::kGround) dn_.segment<6>(6 * (bs[b] - 1)) = rows[k].J.segment<6>(6 * b).transpose();
+      precondition(sys, dn_.data(), zero_rows_.data(), false);
     };
     auto dotRow = [&](int k, const Eigen::VectorXd& x) {
       double d = 0;
@@ -900,7 +899,7 @@ void Stepper::frictionFor(const System& sys, State& s, const Inputs& in, double 
     for (int k = 0; k < dof; ++k) {
       if (f[k] <= 0.0) continue;
       rate[k] = rows[k].Phi_dot / h - rows[k].gamma + dotRow(k, a_);
-      solveRow(k, dn_);
+      solveRow(k);
       for (int l = 0; l < dof; ++l)
         if (f[l] > 0.0) gHg[l][k] = dotRow(l, dn_);
     }
