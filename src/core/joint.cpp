@@ -42,13 +42,7 @@ bool Joint::trackedRows(const BodyKin& ki, const BodyKin& kj, const Tracked& t, 
 
 void Joint::putPoint(const JointGeometry& g, RowWriter& out) {
   const Rows3 p = Cpoint(g.d);
-  for (int k = 0; k < 3; ++k) {
-    Row row;
-    row.Phi = p.Phi(k);
-    row.J = p.J.row(k);
-    row.gamma = p.gamma(k);
-    out.put(row);
-  }
+  for (int k = 0; k < 3; ++k) out.put(p, k);
 }
 
 }  // namespace mechanism_sim

@@ -1170,14 +1170,20 @@ double Stepper::rowWeight(const System& sys, int constraint, const Eigen::Ref<co
 }
 
 double Stepper::positionResidual(const System& sys) const {
+  // per constraint, all rows at once: the scale of row e is rowScale(c, J, e)
   double worst = 0;
   for (int ci = 0; ci < sys.numConstraints(); ++ci) {
     const ConstraintLayout& L = sys.layout[ci];
-    const Constraint& c = *sys.constraints[ci];
     const Jacobian& J = J_[ci];
+    Vec6 scale = Vec6::Zero();
+    for (size_t k = 0; k < L.bodies.size(); ++k) {
+      const double r = kin_[L.bodies[k] + 1].r.cwiseAbs().maxCoeff();  // (the ground's r is 0)
+      const auto Jb = J.middleCols<6>(6 * k);
+      scale += Jb.leftCols<3>().cwiseAbs().rowwise().sum() * (r + length_scale_) +
+               Jb.rightCols<3>().cwiseAbs().rowwise().sum();
+    }
     for (int e = 0; e < L.size; ++e)
-      if (dropped_.empty() || !dropped_[L.row + e])
-        worst = std::max(worst, relative(Phi_[L.row + e], rowScale(c, J, e)));
+      if (dropped_.empty() || !dropped_[L.row + e]) worst = std::max(worst, relative(Phi_[L.row + e], scale[e]));
   }
   return worst;
 }
@@ -1185,23 +1191,27 @@ double Stepper::positionResidual(const System& sys) const {
 // max_e |(Phi_q v)_e| / (size of its terms): |J_r| |v|_max + |J_theta| |w'|_max per body.
 double Stepper::velocityResidual(const System& sys, const Eigen::VectorXd& u) const {
   const double floor = kFloor * std::max(motionScale(sys, u), sys.velocity_scale);
+  // per body: the size its translational and rotational velocities are measured against
+  body_scale_.resize(sys.nb);
+  for (int b = 0; b < sys.nb; ++b) {
+    const double v0 = u.segment<3>(6 * b).cwiseAbs().maxCoeff(), w0 = u.segment<3>(6 * b + 3).cwiseAbs().maxCoeff();
+    body_scale_[b] = {std::max({v0, w0 * length_scale_, floor}), std::max({w0, v0 / length_scale_, floor / length_scale_})};
+  }
   double worst = 0;
   for (int ci = 0; ci < sys.numConstraints(); ++ci) {
     const ConstraintLayout& L = sys.layout[ci];
     const Jacobian& J = J_[ci];
-    for (int e = 0; e < L.size; ++e) {
-      if (!dropped_.empty() && dropped_[L.row + e]) continue;
-      double value = -nu_[L.row + e], scale = std::fabs(nu_[L.row + e]);
-      for (size_t k = 0; k < L.bodies.size(); ++k) {
-        if (L.bodies[k] < 0) continue;
-        const auto ub = u.segment<6>(6 * L.bodies[k]);
-        value += J.block<1, 6>(e, 6 * k).dot(ub);
-        const double v0 = ub.head<3>().cwiseAbs().maxCoeff(), w0 = ub.tail<3>().cwiseAbs().maxCoeff();
-        scale += J.block<1, 3>(e, 6 * k).cwiseAbs().sum() * std::max({v0, w0 * length_scale_, floor}) +
-                 J.block<1, 3>(e, 6 * k + 3).cwiseAbs().sum() * std::max({w0, v0 / length_scale_, floor / length_scale_});
-      }
-      worst = std::max(worst, relative(value, scale));
+    Vec6 value = -padded(nu_.data() + L.row, L.size);
+    Vec6 scale = value.cwiseAbs();
+    for (size_t k = 0; k < L.bodies.size(); ++k) {
+      if (L.bodies[k] < 0) continue;
+      const auto Jb = J.middleCols<6>(6 * k);
+      const std::array<double, 2>& bs = body_scale_[L.bodies[k]];
+      value.noalias() += Jb * u.segment<6>(6 * L.bodies[k]);
+      scale += Jb.leftCols<3>().cwiseAbs().rowwise().sum() * bs[0] + Jb.rightCols<3>().cwiseAbs().rowwise().sum() * bs[1];
     }
+    for (int e = 0; e < L.size; ++e)
+      if (dropped_.empty() || !dropped_[L.row + e]) worst = std::max(worst, relative(value[e], scale[e]));
   }
   return worst;
 }

@@ -316,7 +316,9 @@ TEST(Solver, AngleTrackedThroughMoreThanPiPerStep) {
     m.assemble({}, {CoordinateTarget{0, 0, 4000.0}});
     for (int k = 0; k < 1000; ++k) m.step(1e-3);
     EXPECT_NEAR(m.jointPosition(0, 0), 4000.0, 1e-2) << type;
-    if (std::string(type) == "screw") EXPECT_NEAR(m.position(w).z(), params.alpha * 4000.0, 1e-2 * params.alpha);
+    if (std::string(type) == "screw") {
+      EXPECT_NEAR(m.position(w).z(), params.alpha * 4000.0, 1e-2 * params.alpha);
+    }
     EXPECT_EQ(m.solverStats().shortfalls(), 0) << type << ": " << m.solverStats().describe();
     EXPECT_EQ(m.solverStats().halved_steps, 1000 * 15) << type;  // 16 substeps a step
   }

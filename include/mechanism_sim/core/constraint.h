@@ -83,6 +83,13 @@ class RowWriter {
     gamma_(n_) = row.gamma;
     ++n_;
   }
+  // Row k of a three-row primitive.
+  void put(const Rows3& rows, int k) {
+    Phi_(n_) = rows.Phi(k);
+    J_.row(n_) = rows.J.row(k);
+    gamma_(n_) = rows.gamma(k);
+    ++n_;
+  }
   int count() const { return n_; }
 
  private:

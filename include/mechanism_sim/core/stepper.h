@@ -12,6 +12,7 @@
 //     Newton) and of velocities onto Phi_q v = 0, both to relative tolerances.
 // Every iteration that stops short of its tolerance is counted in SolverStats.
 #pragma once
+#include <array>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -161,6 +162,7 @@ class Stepper {
   std::vector<Jacobian> J_, J_frozen_;  // J_frozen_: the last stage's, during projection
   std::vector<int> sizes_;
   mutable Eigen::VectorXd query_;
+  mutable std::vector<std::array<double, 2>> body_scale_;  // velocityResidual: per body
   Eigen::VectorXd Phi_, nu_, gamma_, W_, Q_, a_, lam_, r1_, r2_, s1_, s2_, dn_, dm_, dl_;
   std::vector<Eigen::Matrix<double, 6, 6>> Minv_;  // per moving body, with stand-ins
   BlockCholesky chol_;
