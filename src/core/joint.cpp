@@ -18,11 +18,15 @@ JointGeometry Joint::geometry(const BodyKin& ki, const BodyKin& kj, unsigned par
   return g;
 }
 
-void Joint::track(const BodyKin* const* kin, const EvalContext&, Tracked& t) const {
+void Joint::track(const BodyKin* const* kin, const EvalContext&, Tracked& t, Tracked& rate) const {
+  rate = Tracked{};
   Row rows[3];
   if (!trackedRows(*kin[0], *kin[1], t, rows)) return;
   for (int k = 0; k < dof(); ++k)
-    if (trackedSlot(k) >= 0) t[trackedSlot(k)] = rows[k].Phi;  // unwrapped near the old value
+    if (trackedSlot(k) >= 0) {
+      t[trackedSlot(k)] = rows[k].Phi;  // unwrapped near the old value
+      rate[trackedSlot(k)] = rows[k].Phi_dot;
+    }
 }
 
 void Joint::trackedRates(const BodyKin* const* kin, const EvalContext& ctx, Tracked& rate) const {

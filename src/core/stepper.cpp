@@ -144,12 +144,13 @@ void Stepper::gather(const Constraint& c, const BodyKin** ptrs) const {
   for (size_t k = 0; k < c.bodies().size(); ++k) ptrs[k] = &kin_[c.bodies()[k]];
 }
 
-void Stepper::trackAngles(const System& sys, State& s) const {
+void Stepper::trackAngles(const System& sys, State& s, std::vector<Tracked>* rates) const {
   const EvalContext ctx = s.context();
   const BodyKin* ptrs[kMaxConstraintBodies];
+  Tracked rate;
   for (int ci = 0; ci < sys.numConstraints(); ++ci) {
     gather(*sys.constraints[ci], ptrs);
-    sys.constraints[ci]->track(ptrs, ctx, s.tracked[ci]);
+    sys.constraints[ci]->track(ptrs, ctx, s.tracked[ci], rates ? (*rates)[ci] : rate);
   }
 }
 
@@ -984,9 +985,9 @@ void Stepper::stepOnce(const System& sys, State& s, const Inputs& in, double h) 
   // factorization, only when the inputs changed, so a restored State continues
   // bit-identically.
   load(sys, s.x.data(), s.u.data());
-  if (!(have_eval_ && eval_x_ == s.x && eval_u_ == s.u && eval_side_ == s.limit_side && eval_t_ == s.t &&
-        eval_drive_ == s.drive))
-    evaluate(sys, s);
+  const bool reuse = have_eval_ && eval_x_ == s.x && eval_u_ == s.u && eval_side_ == s.limit_side &&
+                     eval_t_ == s.t && eval_drive_ == s.drive;
+  if (!reuse) evaluate(sys, s);
   bool factored = false;
   if (frictionActs(sys)) {
     factor(sys, "stage 1", s.t);
@@ -1003,9 +1004,10 @@ void Stepper::stepOnce(const System& sys, State& s, const Inputs& in, double h) 
   positionRates(sys.nb, x0_.data(), u0_.data(), kx_[0].data());
   ku_[0] = a_;
   // Branch references of tracked angles at each stage: predicted from their rates, so
-  // an angle may advance by more than pi in one step (a wheel at 4000 rad/s, 1 ms).
+  // an angle may advance by more than pi in one step (a wheel at 4000 rad/s, 1 ms). The
+  // rates at this state are those finishStep tracked here when the evaluation is reused.
   tracked0_ = s.tracked;
-  {
+  if (!reuse) {
     const EvalContext ctx = s.context();
     const BodyKin* ptrs[kMaxConstraintBodies];
     for (int ci = 0; ci < sys.numConstraints(); ++ci) {
@@ -1092,7 +1094,7 @@ void Stepper::finishStep(const System& sys, State& s, const Inputs& in, bool aft
   // projection moved the state: its branch references were predicted within O(h^2) of
   // these (the branch, all an evaluation takes from them, is the same).
   if (moved || sped) load(sys, s.x.data(), s.u.data());
-  trackAngles(sys, s);
+  trackAngles(sys, s, &tracked_rate_);  // (the next step's stage 1 reuses the rates)
   if (moved || sped) evaluate(sys, s);
   for (int pass = 0;; ++pass) {
     forces(sys, s, in, s.friction);

@@ -36,10 +36,14 @@ Evaluation evaluate(const Joint& joint, const std::vector<BodyKin>& kin, const T
   return e;
 }
 
-// Moves the tracked angles to the pose kin (as an accepted step does).
+// Moves the tracked angles to the pose kin (as an accepted step does). The rates track()
+// gives are those trackedRates() gives there, to the bit (a step reuses them).
 void track(const Joint& joint, const std::vector<BodyKin>& kin, Tracked& tr) {
   const BodyKin* ptrs[2] = {&kin[0], &kin[1]};
-  joint.track(ptrs, EvalContext{&tr, nullptr}, tr);
+  Tracked rate{NAN, NAN}, expected{NAN, NAN};
+  joint.track(ptrs, EvalContext{&tr, nullptr}, tr, rate);
+  joint.trackedRates(ptrs, EvalContext{&tr, nullptr}, expected);
+  EXPECT_EQ(rate, expected) << joint.type();
 }
 
 class JointTypes : public ::testing::TestWithParam<std::string> {};

@@ -46,8 +46,11 @@ class Constraint {
                         Eigen::Ref<Eigen::VectorXd> Phi, Eigen::Ref<Eigen::MatrixXd> J,
                         Eigen::Ref<Eigen::VectorXd> gamma) const = 0;
   // The tracked angles of an accepted state, moved from those of the state before
-  // (angle trackers count turns here). Stateless: the angles live in the State.
-  virtual void track(const BodyKin* const* /*kin*/, const EvalContext& /*ctx*/, Tracked& /*t*/) const {}
+  // (angle trackers count turns here), and their rates there (as trackedRates()).
+  // Stateless: the angles live in the State.
+  virtual void track(const BodyKin* const* /*kin*/, const EvalContext& /*ctx*/, Tracked& /*t*/, Tracked& rate) const {
+    rate = Tracked{};
+  }
   // Rates of the tracked angles at (kin): a step predicts its stages' branch references
   // from them, so a joint may turn more than pi in one step.
   virtual void trackedRates(const BodyKin* const* /*kin*/, const EvalContext& /*ctx*/, Tracked& rate) const {

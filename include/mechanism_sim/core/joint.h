@@ -69,8 +69,8 @@ class Joint : public Constraint {
     equations(geometry(*kin[0], *kin[1], equationAxes()), *kin[0], *kin[1], ctx.tracked[id()], out);
   }
   // Tracked angles are the coordinates k with trackedSlot(k) >= 0: track() stores their
-  // values, trackedRates() their rates.
-  void track(const BodyKin* const* kin, const EvalContext& ctx, Tracked& t) const final;
+  // values and rates, trackedRates() their rates.
+  void track(const BodyKin* const* kin, const EvalContext& ctx, Tracked& t, Tracked& rate) const final;
   void trackedRates(const BodyKin* const* kin, const EvalContext& ctx, Tracked& rate) const final;
 
   JointGeometry geometry(const BodyKin& ki, const BodyKin& kj, unsigned parts = kAllParts) const;

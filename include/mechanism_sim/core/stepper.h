@@ -92,8 +92,9 @@ class Stepper {
   // ---- building blocks (assembly.cpp uses them)
   void load(const System& sys, const double* x, const double* u);
   void evaluate(const System& sys, const State& s);
-  // Moves the State's tracked angles to the loaded pose (after a step or an assembly move).
-  void trackAngles(const System& sys, State& s) const;
+  // Moves the State's tracked angles to the loaded pose (after a step or an assembly move);
+  // with `rates`, writes their rates there (per constraint).
+  void trackAngles(const System& sys, State& s, std::vector<Tracked>* rates = nullptr) const;
   // H = diag * M + shift I + sum_e w_e J_e^T J_e over the rows, w_e = kappa * (row weight),
   // plus extra rows (Jx: rows over the bodies of constraint `extra_constraint`).
   void assembleH(const System& sys, double kappa, double mass, double shift);
