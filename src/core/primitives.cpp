@@ -9,7 +9,7 @@ namespace mechanism_sim {
 FixedVector fixedVector(const BodyKin& b, const Vector3d& ap) {
   FixedVector f;
   f.a = b.A_Oi * ap;
-  f.a_th = -b.A_Oi * tilde(ap);  // (8.10): delta a = -A_Oi tilde(a') dtheta'
+  f.a_th = -timesTilde(b.A_Oi, ap);  // (8.10): delta a = -A_Oi tilde(a') dtheta'
   const Vector3d wxa = b.w.cross(ap);
   f.a_dot = b.A_Oi * wxa;
   f.a_cen = b.A_Oi * b.w.cross(wxa);
@@ -23,8 +23,8 @@ Gap gap(const BodyKin& bi, const Vector3d& sp_iB, const BodyKin& bj, const Vecto
   g.d_dot = bj.v + bj.A_Oi * wsj - bi.v - bi.A_Oi * wsi;
   g.d_cen = bj.A_Oi * bj.w.cross(wsj) - bi.A_Oi * bi.w.cross(wsi);
   // (7.16): delta d = delta r_j - A_Oj tilde(sp_jB) dtheta_j - delta r_i + A_Oi tilde(sp_iB) dtheta_i
-  g.d_thi = bi.A_Oi * tilde(sp_iB);
-  g.d_thj = -bj.A_Oi * tilde(sp_jB);
+  g.d_thi = timesTilde(bi.A_Oi, sp_iB);
+  g.d_thj = -timesTilde(bj.A_Oi, sp_jB);
   return g;
 }
 

@@ -30,6 +30,16 @@ PoseSetup randomSetup(std::mt19937& rng) {
   return s;
 }
 
+// The column-wise product A tilde(s) the primitives use is the product with the skew matrix.
+TEST(Primitives, TimesTildeIsTheProductWithTheSkewMatrix) {
+  std::mt19937 rng(5);
+  for (int n = 0; n < kPoses; ++n) {
+    const Matrix3d A = test::randomBody(rng).A_Oi;
+    const Vector3d s = test::randomVector(rng, 3.0);
+    EXPECT_LT((timesTilde(A, s) - A * tilde(s)).cwiseAbs().maxCoeff(), 1e-15 * 3.0) << n;
+  }
+}
+
 // Checks value-Jacobian-gamma-rate consistency of f, given its analytic J, gamma, rate.
 void expectConsistent(const test::Phis& f, const std::vector<BodyKin>& kin,
                       const Eigen::MatrixXd& J, const Eigen::VectorXd& gamma,

@@ -18,6 +18,16 @@ inline Matrix3d tilde(const Vector3d& a) {
   return m;
 }
 
+// A tilde(s), column by column: column k is A (s x e_k), two columns of A combined (the
+// product with the skew matrix would multiply its zeros too).
+inline Matrix3d timesTilde(const Matrix3d& A, const Vector3d& s) {
+  Matrix3d m;
+  m.col(0) = s.z() * A.col(1) - s.y() * A.col(2);
+  m.col(1) = s.x() * A.col(2) - s.z() * A.col(0);
+  m.col(2) = s.y() * A.col(0) - s.x() * A.col(1);
+  return m;
+}
+
 // Rotation exp(tilde(theta)) as a unit quaternion.
 inline Quaterniond expRotation(const Vector3d& theta) {
   const double angle = theta.norm();
