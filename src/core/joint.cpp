@@ -45,8 +45,7 @@ bool Joint::trackedRows(const BodyKin& ki, const BodyKin& kj, const Tracked& t, 
 }
 
 void Joint::putPoint(const JointGeometry& g, RowWriter& out) {
-  const Rows3 p = Cpoint(g.d);
-  for (int k = 0; k < 3; ++k) out.put(p, k);
+  out.put(Cpoint(g.d));
 }
 
 }  // namespace mechanism_sim

@@ -86,12 +86,12 @@ class RowWriter {
     gamma_(n_) = row.gamma;
     ++n_;
   }
-  // Row k of a three-row primitive.
-  void put(const Rows3& rows, int k) {
-    Phi_(n_) = rows.Phi(k);
-    J_.row(n_) = rows.J.row(k);
-    gamma_(n_) = rows.gamma(k);
-    ++n_;
+  // The three rows of a three-row primitive.
+  void put(const Rows3& rows) {
+    Phi_.segment<3>(n_) = rows.Phi;
+    J_.middleRows<3>(n_) = rows.J;
+    gamma_.segment<3>(n_) = rows.gamma;
+    n_ += 3;
   }
   int count() const { return n_; }
 
