@@ -104,6 +104,7 @@ Stepper::Stepper(const System& sys) {
   for (int s = 0; s < 4; ++s) zeros(kx_[s], 7 * sys.nb), zeros(ku_[s], sys.n);
   chol_.analyze(sys.nb, sys.block_edges);
   zeros(zero_rows_, sys.m);
+  body_scale_.assign(sys.nb, {0.0, 0.0});
   length_scale_ = sys.length_scale;
   // everything a step writes is sized here: a step allocates nothing
   backup_.assign(kMaxHalvings + 1, initialState(sys));
@@ -1194,7 +1195,6 @@ double Stepper::positionResidual(const System& sys) const {
 double Stepper::velocityResidual(const System& sys, const Eigen::VectorXd& u) const {
   const double floor = kFloor * std::max(motionScale(sys, u), sys.velocity_scale);
   // per body: the size its translational and rotational velocities are measured against
-  body_scale_.resize(sys.nb);
   for (int b = 0; b < sys.nb; ++b) {
     const double v0 = u.segment<3>(6 * b).cwiseAbs().maxCoeff(), w0 = u.segment<3>(6 * b + 3).cwiseAbs().maxCoeff();
     body_scale_[b] = {std::max({v0, w0 * length_scale_, floor}), std::max({w0, v0 / length_scale_, floor / length_scale_})};
