@@ -8,13 +8,13 @@ JointGeometry Joint::geometry(const BodyKin& ki, const BodyKin& kj, unsigned par
   const Matrix3d& Ri = frame_i_.Rp;
   const Matrix3d& Rj = frame_j_.Rp;
   JointGeometry g;
-  if (parts & kBxI) g.bx_i = fixedVector(ki, Ri.col(0));
-  if (parts & kByI) g.by_i = fixedVector(ki, Ri.col(1));
-  if (parts & kBzI) g.bz_i = fixedVector(ki, Ri.col(2));
-  if (parts & kBxJ) g.bx_j = fixedVector(kj, Rj.col(0));
-  if (parts & kByJ) g.by_j = fixedVector(kj, Rj.col(1));
-  if (parts & kBzJ) g.bz_j = fixedVector(kj, Rj.col(2));
-  if (parts & kGap) g.d = gap(ki, frame_i_.sp_B, kj, frame_j_.sp_B);
+  if (parts & kBxI) fixedVector(ki, Ri.col(0), g.bx_i);
+  if (parts & kByI) fixedVector(ki, Ri.col(1), g.by_i);
+  if (parts & kBzI) fixedVector(ki, Ri.col(2), g.bz_i);
+  if (parts & kBxJ) fixedVector(kj, Rj.col(0), g.bx_j);
+  if (parts & kByJ) fixedVector(kj, Rj.col(1), g.by_j);
+  if (parts & kBzJ) fixedVector(kj, Rj.col(2), g.bz_j);
+  if (parts & kGap) gap(ki, frame_i_.sp_B, kj, frame_j_.sp_B, g.d);
   return g;
 }
 

@@ -6,18 +6,15 @@
 
 namespace mechanism_sim {
 
-FixedVector fixedVector(const BodyKin& b, const Vector3d& ap) {
-  FixedVector f;
+void fixedVector(const BodyKin& b, const Vector3d& ap, FixedVector& f) {
   f.a = b.A_Oi * ap;
   f.a_th = -timesTilde(b.A_Oi, ap);  // (8.10): delta a = -A_Oi tilde(a') dtheta'
   const Vector3d wxa = b.w.cross(ap);
   f.a_dot = b.A_Oi * wxa;
   f.a_cen = b.A_Oi * b.w.cross(wxa);
-  return f;
 }
 
-Gap gap(const BodyKin& bi, const Vector3d& sp_iB, const BodyKin& bj, const Vector3d& sp_jB) {
-  Gap g;
+void gap(const BodyKin& bi, const Vector3d& sp_iB, const BodyKin& bj, const Vector3d& sp_jB, Gap& g) {
   g.d = bj.r + bj.A_Oi * sp_jB - bi.r - bi.A_Oi * sp_iB;
   const Vector3d wsi = bi.w.cross(sp_iB), wsj = bj.w.cross(sp_jB);
   g.d_dot = bj.v + bj.A_Oi * wsj - bi.v - bi.A_Oi * wsi;
@@ -25,7 +22,6 @@ Gap gap(const BodyKin& bi, const Vector3d& sp_iB, const BodyKin& bj, const Vecto
   // (7.16): delta d = delta r_j - A_Oj tilde(sp_jB) dtheta_j - delta r_i + A_Oi tilde(sp_iB) dtheta_i
   g.d_thi = timesTilde(bi.A_Oi, sp_iB);
   g.d_thj = -timesTilde(bj.A_Oi, sp_jB);
-  return g;
 }
 
 // (8.11)  delta C(n1) = -{a'_i^T A_ij tilde(a'_j) dtheta_j + a'_j^T A_ji tilde(a'_i) dtheta_i}

@@ -22,7 +22,13 @@ struct FixedVector {
   Vector3d a_dot;  // A_Oi (w x a')
   Vector3d a_cen;  // A_Oi (w x (w x a')): the part of a_ddot free of w_dot
 };
-FixedVector fixedVector(const BodyKin& b, const Vector3d& ap);
+// (Into f: a joint's geometry fills its members in place.)
+void fixedVector(const BodyKin& b, const Vector3d& ap, FixedVector& f);
+inline FixedVector fixedVector(const BodyKin& b, const Vector3d& ap) {
+  FixedVector f;
+  fixedVector(b, ap, f);
+  return f;
+}
 
 // d_ij = r_j + A_Oj sp_jB - r_i - A_Oi sp_iB and its derivatives.
 struct Gap {
@@ -30,7 +36,12 @@ struct Gap {
   Matrix3d d_thi;  // dd/dtheta'_i = A_Oi tilde(sp_iB)                    (7.16)
   Matrix3d d_thj;  // dd/dtheta'_j = -A_Oj tilde(sp_jB)
 };
-Gap gap(const BodyKin& bi, const Vector3d& sp_iB, const BodyKin& bj, const Vector3d& sp_jB);
+void gap(const BodyKin& bi, const Vector3d& sp_iB, const BodyKin& bj, const Vector3d& sp_jB, Gap& g);
+inline Gap gap(const BodyKin& bi, const Vector3d& sp_iB, const BodyKin& bj, const Vector3d& sp_jB) {
+  Gap g;
+  gap(bi, sp_iB, bj, sp_jB, g);
+  return g;
+}
 
 // One scalar equation: value, time derivative, Jacobian row and gamma.
 struct Row {
