@@ -135,8 +135,7 @@ class Stepper {
   // (refactored here when the passes converge slowly).
   enum class HState { kNone, kCurrent, kNearby };
   // Refines s.acc/lambda-warm-started a_, lam_. With rescale false the residual scales of
-  // the last solve are kept (the stages of one step and its final solve take those of its
-  // first: their terms differ by O(h)).
+  // the last solve are kept (the stages of one step: their terms differ by O(h)).
   bool solveKKT(const System& sys, HState h, double t, bool rescale = true);
   bool frictionActs(const System& sys) const;
   void residualScales(const System& sys);
