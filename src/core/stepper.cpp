@@ -1085,8 +1085,7 @@ void Stepper::finishStep(const System& sys, State& s, const Inputs& in, bool aft
   // is not in them: then full Newton, H refactored each iteration.
   // (H consistent with the evaluation: factored at the same positions)
   const bool consistent = factored_x_ == evaluated_x_ && factored_side_ == evaluated_side_;
-  const bool activated = updateLimits(sys, s);
-  const bool frozen = !activated && after_stages && consistent;
+  const bool frozen = !updateLimits(sys, s) && after_stages && consistent;
   if (frozen) std::swap(J_, J_frozen_);
   evaluate(sys, s);
   const bool moved = projectPositions(sys, s, frozen);
@@ -1100,10 +1099,7 @@ void Stepper::finishStep(const System& sys, State& s, const Inputs& in, bool aft
   if (moved || sped) evaluate(sys, s);
   for (int pass = 0;; ++pass) {
     forces(sys, s, in, s.friction);
-    // after the stages: the residual scales of the step's first solve, as the stages use
-    // (sizes, O(h) from these), unless a limit became active (its rows had none then);
-    // settling takes them here
-    solveKKT(sys, HState::kNearby, s.t, !after_stages || activated);
+    solveKKT(sys, HState::kNearby, s.t);
     if (pass > static_cast<int>(sys.limits.size()) || !releaseLimits(sys, s)) break;
     evaluate(sys, s);
     factor(sys, "limit release", s.t);
