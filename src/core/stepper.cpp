@@ -666,6 +666,7 @@ void Stepper::residualScales(const System& sys) {
   const double a_floor = kFloor * std::max({motionScale(sys, a_), V * V / length_scale_, sys.acceleration_scale,
                                             F / sys.mass_scale});
   for (int e = 0; e < sys.m; ++e) s2_[e] = std::fabs(gamma_[e]);
+  bodyScales(sys, a_, a_floor);
   for (int ci = 0; ci < sys.numConstraints(); ++ci) {
     const ConstraintLayout& L = sys.layout[ci];
     const Jacobian& J = J_[ci];
@@ -675,12 +676,8 @@ void Stepper::residualScales(const System& sys) {
       if (L.bodies[s] < 0) continue;
       const int col = 6 * L.bodies[s];
       const auto Jb = J.middleCols<6>(6 * s);
-      const Eigen::Map<const Vec6> ab(a_.data() + col);
-      const double ar0 = ab.head<3>().cwiseAbs().maxCoeff();
-      const double at0 = ab.tail<3>().cwiseAbs().maxCoeff();
-      const double ar = std::max({ar0, at0 * length_scale_, a_floor});
-      const double at = std::max({at0, ar0 / length_scale_, a_floor / length_scale_});
-      jas += Jb.leftCols<3>().cwiseAbs().rowwise().sum() * ar + Jb.rightCols<3>().cwiseAbs().rowwise().sum() * at;
+      const std::array<double, 2>& as = body_scale_[L.bodies[s]];
+      jas += Jb.leftCols<3>().cwiseAbs().rowwise().sum() * as[0] + Jb.rightCols<3>().cwiseAbs().rowwise().sum() * as[1];
       Eigen::Map<Vec6>(s1_.data() + col) += (Jb.transpose() * lam).cwiseAbs();
     }
     for (int e = 0; e < L.size; ++e) s2_[L.row + e] += jas[e];
@@ -1194,11 +1191,7 @@ double Stepper::positionResidual(const System& sys) const {
 // max_e |(Phi_q v)_e| / (size of its terms): |J_r| |v|_max + |J_theta| |w'|_max per body.
 double Stepper::velocityResidual(const System& sys, const Eigen::VectorXd& u) const {
   const double floor = kFloor * std::max(motionScale(sys, u), sys.velocity_scale);
-  // per body: the size its translational and rotational velocities are measured against
-  for (int b = 0; b < sys.nb; ++b) {
-    const double v0 = u.segment<3>(6 * b).cwiseAbs().maxCoeff(), w0 = u.segment<3>(6 * b + 3).cwiseAbs().maxCoeff();
-    body_scale_[b] = {std::max({v0, w0 * length_scale_, floor}), std::max({w0, v0 / length_scale_, floor / length_scale_})};
-  }
+  bodyScales(sys, u, floor);
   double worst = 0;
   for (int ci = 0; ci < sys.numConstraints(); ++ci) {
     const ConstraintLayout& L = sys.layout[ci];
@@ -1216,6 +1209,13 @@ double Stepper::velocityResidual(const System& sys, const Eigen::VectorXd& u) co
       if (dropped_.empty() || !dropped_[L.row + e]) worst = std::max(worst, relative(value[e], scale[e]));
   }
   return worst;
+}
+
+void Stepper::bodyScales(const System& sys, const Eigen::VectorXd& u, double floor) const {
+  for (int b = 0; b < sys.nb; ++b) {
+    const double v0 = u.segment<3>(6 * b).cwiseAbs().maxCoeff(), w0 = u.segment<3>(6 * b + 3).cwiseAbs().maxCoeff();
+    body_scale_[b] = {std::max({v0, w0 * length_scale_, floor}), std::max({w0, v0 / length_scale_, floor / length_scale_})};
+  }
 }
 
 // max over bodies of max(|v|, |w'| L) (or of accelerations): the system's motion scale.

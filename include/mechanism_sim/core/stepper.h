@@ -152,6 +152,10 @@ class Stepper {
   bool releaseLimits(const System& sys, State& s);
   void jointRows(const System& sys, const State& s, int j, Row* rows) const;
   double motionScale(const System& sys, const Eigen::VectorXd& u) const;
+  // body_scale_[b] = {max(|u_r|, |u_theta| L, floor), max(|u_theta|, |u_r| / L, floor / L)}:
+  // what the translational and rotational parts of body b's velocities (or accelerations)
+  // u are measured against.
+  void bodyScales(const System& sys, const Eigen::VectorXd& u, double floor) const;
   // The loaded states of c's bodies in c.bodies() order, as Constraint calls take them.
   void gather(const Constraint& c, const BodyKin** ptrs) const;
   [[noreturn]] void leftConstraints(const System& sys, double t, double err) const;
@@ -163,7 +167,7 @@ class Stepper {
   std::vector<Jacobian> J_, J_frozen_;  // J_frozen_: the last stage's, during projection
   std::vector<int> sizes_;
   mutable Eigen::VectorXd query_;
-  mutable std::vector<std::array<double, 2>> body_scale_;  // velocityResidual: per body
+  mutable std::vector<std::array<double, 2>> body_scale_;  // bodyScales(): per body
   Eigen::VectorXd Phi_, nu_, gamma_, W_, Q_, a_, lam_, r1_, r2_, s1_, s2_, dn_, dm_, dl_;
   std::vector<Eigen::Matrix<double, 6, 6>> Minv_;  // per moving body, with stand-ins
   BlockCholesky chol_;
