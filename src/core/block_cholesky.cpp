@@ -204,6 +204,21 @@ inline void backwardLT(const BlockCholesky::Block& L, const BlockCholesky::Vec6&
   }
 }
 
+// T <- T - s A A^T on the lower triangle only (T a diagonal block: factorDiagonal reads
+// nothing above it): 126 multiply-adds where the full product takes 216.
+template <int c>
+inline void lowerUpdateColumn(BlockCholesky::Block& T, const BlockCholesky::Block& A, double s) {
+  T.col(c).template tail<6 - c>().noalias() -= s * (A.template bottomRows<6 - c>() * A.row(c).transpose());
+}
+inline void lowerUpdate(BlockCholesky::Block& T, const BlockCholesky::Block& A, double s) {
+  lowerUpdateColumn<0>(T, A, s);
+  lowerUpdateColumn<1>(T, A, s);
+  lowerUpdateColumn<2>(T, A, s);
+  lowerUpdateColumn<3>(T, A, s);
+  lowerUpdateColumn<4>(T, A, s);
+  lowerUpdateColumn<5>(T, A, s);
+}
+
 }  // namespace
 
 int BlockCholesky::factorize(double pivot_tol, bool skip_zero) {
@@ -226,7 +241,8 @@ int BlockCholesky::factorize(double pivot_tol, bool skip_zero) {
     }
     for (int u = update_start_[k]; u < update_start_[k + 1]; ++u) {  // H_ij -= L_ik s_k L_jk^T
       const Update& up = updates_[u];
-      if (s > 0) blocks_[up.target].noalias() -= blocks_[up.a] * blocks_[up.b].transpose();
+      if (up.target < nb_) lowerUpdate(blocks_[up.target], blocks_[up.a], s);  // a diagonal block: up.a == up.b
+      else if (s > 0) blocks_[up.target].noalias() -= blocks_[up.a] * blocks_[up.b].transpose();
       else blocks_[up.target].noalias() += blocks_[up.a] * blocks_[up.b].transpose();
     }
   }
