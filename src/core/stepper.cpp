@@ -46,6 +46,16 @@ inline double scaledMax(const Eigen::VectorXd& r1, const Eigen::VectorXd& s1, co
   return m;
 }
 
+// The size of the terms of the rows of Jb, a body's six columns of a Jacobian, in a
+// position residual: |J_r| (|r|max + L) + |J_theta| per row, r the body's position and L
+// the system's length scale (rowScale and positionResidual both take it from here).
+template <class Rows>
+inline Eigen::Matrix<double, Rows::RowsAtCompileTime, 1> termScale(const Rows& Jb, const Eigen::Vector3d& r,
+                                                                   double length) {
+  return Jb.template leftCols<3>().cwiseAbs().rowwise().sum() * (r.cwiseAbs().maxCoeff() + length) +
+         Jb.template rightCols<3>().cwiseAbs().rowwise().sum();
+}
+
 // |r| / scale, where scale is the size of the terms r was computed from; 0/0 = 0.
 inline double relative(double r, double scale) {
   r = std::fabs(r);
@@ -1150,11 +1160,8 @@ bool Stepper::releaseLimits(const System& sys, State& s) {
 // coordinates they multiply (|J_r| |r| for positions, |J_theta| for rotations).
 double Stepper::rowScale(const Constraint& c, const Eigen::Ref<const Eigen::MatrixXd>& J, int e) const {
   double scale = 0;
-  for (size_t k = 0; k < c.bodies().size(); ++k) {
-    const double r = kin_[c.bodies()[k]].r.cwiseAbs().maxCoeff();
-    scale += J.block<1, 3>(e, 6 * k).cwiseAbs().sum() * (r + length_scale_) +
-             J.block<1, 3>(e, 6 * k + 3).cwiseAbs().sum();
-  }
+  for (size_t k = 0; k < c.bodies().size(); ++k)
+    scale += termScale(J.block<1, 6>(e, 6 * k), kin_[c.bodies()[k]].r, length_scale_)(0);
   return scale;
 }
 
@@ -1170,18 +1177,14 @@ double Stepper::rowWeight(const System& sys, int constraint, const Eigen::Ref<co
 }
 
 double Stepper::positionResidual(const System& sys) const {
-  // per constraint, all rows at once: the scale of row e is rowScale(c, J, e)
+  // per constraint, all rows at once: row e's scale is rowScale(c, J, e)
   double worst = 0;
   for (int ci = 0; ci < sys.numConstraints(); ++ci) {
     const ConstraintLayout& L = sys.layout[ci];
     const Jacobian& J = J_[ci];
     Vec6 scale = Vec6::Zero();
-    for (size_t k = 0; k < L.bodies.size(); ++k) {
-      const double r = kin_[L.bodies[k] + 1].r.cwiseAbs().maxCoeff();  // (the ground's r is 0)
-      const auto Jb = J.middleCols<6>(6 * k);
-      scale += Jb.leftCols<3>().cwiseAbs().rowwise().sum() * (r + length_scale_) +
-               Jb.rightCols<3>().cwiseAbs().rowwise().sum();
-    }
+    for (size_t k = 0; k < L.bodies.size(); ++k)  // (kin_[0] is the ground's: r = 0)
+      scale += termScale(J.middleCols<6>(6 * k), kin_[L.bodies[k] + 1].r, length_scale_);
     for (int e = 0; e < L.size; ++e)
       if (dropped_.empty() || !dropped_[L.row + e]) worst = std::max(worst, relative(Phi_[L.row + e], scale[e]));
   }
