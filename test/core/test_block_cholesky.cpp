@@ -101,7 +101,9 @@ TEST(BlockCholesky, QuasiDefiniteKktInTreeOrderSolvesLikeDense) {
     if (reversed) std::reverse(o.begin(), o.end());
     BlockCholesky kkt;
     kkt.analyze(nodes, edges, o, signs);
-    if (!reversed) EXPECT_EQ(kkt.offDiagonalBlocks(), static_cast<int>(edges.size()));  // no fill
+    if (!reversed) {
+      EXPECT_EQ(kkt.offDiagonalBlocks(), static_cast<int>(edges.size()));  // no fill
+    }
     kkt.setZero();
     Eigen::MatrixXd A = Eigen::MatrixXd::Zero(6 * nodes, 6 * nodes);
     auto put = [&](int i, int j, const BlockCholesky::Block& B) {

@@ -87,7 +87,7 @@ TEST(Mechanisms, CardanShaftOutputSpeed) {
 }
 
 TEST(Mechanisms, MimicCouplingHoldsToTheBound) {
-  auto m = load("test/urdf/mimic.urdf", LoadOptions{{{"left_joint", 0.4}}, {}, ""});
+  auto m = load("test/urdf/mimic.urdf", LoadOptions{{{"left_joint", 0.4}}, {}, "", {}});
   const int a = m->dofIndex("left_joint"), b = m->dofIndex("right_joint");
   EXPECT_NEAR(m->position(a), 0.4, 1e-12);
   for (int s = 0; s < 3000; ++s) {
@@ -328,7 +328,7 @@ TEST(RunLoop, SamplesEveryNStepsAndKeepsTheLargestViolation) {
 // joints, "joint.dof" otherwise; fixed and floating joints have none.
 TEST(Loader, InitialValuesNameDofsAsTheRegistryDoes) {
   auto named = [](const std::string& dof) {
-    return load("test/urdf/floating_and_planar.urdf", LoadOptions{{{dof, 0.25}}, {}, ""});
+    return load("test/urdf/floating_and_planar.urdf", LoadOptions{{{dof, 0.25}}, {}, "", {}});
   };
   for (const std::string dof : {"table.y", "table.rotation"}) {
     auto m = named(dof);
@@ -338,9 +338,9 @@ TEST(Loader, InitialValuesNameDofsAsTheRegistryDoes) {
   EXPECT_THROW(named("table.z"), LoadError);    // but no z
   EXPECT_THROW(named("free"), LoadError);       // floating: none
   EXPECT_THROW(named("free.x"), LoadError);
-  auto cardan = load("urdf/cardan_shaft.urdf", LoadOptions{{{"input_joint", 0.5}}, {}, ""});
+  auto cardan = load("urdf/cardan_shaft.urdf", LoadOptions{{{"input_joint", 0.5}}, {}, "", {}});
   EXPECT_NEAR(cardan->position(cardan->dofIndex("input_joint")), 0.5, 1e-12);
-  EXPECT_THROW(load("urdf/cardan_shaft.urdf", LoadOptions{{{"input_joint.", 0.5}}, {}, ""}), LoadError);
+  EXPECT_THROW(load("urdf/cardan_shaft.urdf", LoadOptions{{{"input_joint.", 0.5}}, {}, "", {}}), LoadError);
   std::vector<std::string> names;
   for (const Dof& d : cardan->dofs()) names.push_back(d.name);
   EXPECT_EQ(names, (std::vector<std::string>{"input_joint", "output_joint", "cross.axis1", "cross.axis2"}));
@@ -418,8 +418,8 @@ TEST(InvalidModels, ElementErrorsCarryTheLine) {
 
 TEST(InvalidModels, MissingFileAndUnknownInitialOption) {
   EXPECT_THROW(loadModelFile(kSource + "/test/invalid/does_not_exist.urdf"), LoadError);
-  EXPECT_THROW(load("urdf/four_bar.urdf", LoadOptions{{{"crank", 1.0}}, {}, ""}), LoadError);
-  EXPECT_THROW(load("urdf/four_bar.urdf", LoadOptions{{}, {}, "euler"}), LoadError);
+  EXPECT_THROW(load("urdf/four_bar.urdf", LoadOptions{{{"crank", 1.0}}, {}, "", {}}), LoadError);
+  EXPECT_THROW(load("urdf/four_bar.urdf", LoadOptions{{}, {}, "euler", {}}), LoadError);
 }
 
 // Fuzz finding: a body whose inertia has a zero principal moment (a 7 kg ram with ixx = 0
