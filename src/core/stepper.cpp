@@ -278,6 +278,24 @@ void Stepper::assembleH(const System& sys, double kappa, double mass, double shi
     addPenalty(sys, ci, kappa, chol_, sys.layout[ci].address.data(), sys.layout[ci].transposed.data());
 }
 
+namespace {
+// T += Jb^T W Jb on the lower triangle only (T a diagonal block of H: the factorization
+// reads nothing above it), WJ = W Jb: entry (r, c), r >= c, gains the dot product of
+// columns r of Jb and c of WJ. 126 multiply-adds where the full product takes 216.
+template <int c>
+inline void lowerPenaltyColumn(BlockCholesky::Block& T, const Eigen::Ref<const Mat6>& Jb, const Mat6& WJ) {
+  T.col(c).template tail<6 - c>().noalias() += Jb.template rightCols<6 - c>().transpose() * WJ.col(c);
+}
+inline void lowerPenalty(BlockCholesky::Block& T, const Eigen::Ref<const Mat6>& Jb, const Mat6& WJ) {
+  lowerPenaltyColumn<0>(T, Jb, WJ);
+  lowerPenaltyColumn<1>(T, Jb, WJ);
+  lowerPenaltyColumn<2>(T, Jb, WJ);
+  lowerPenaltyColumn<3>(T, Jb, WJ);
+  lowerPenaltyColumn<4>(T, Jb, WJ);
+  lowerPenaltyColumn<5>(T, Jb, WJ);
+}
+}  // namespace
+
 void Stepper::addPenalty(const System& sys, int ci, double kappa, BlockCholesky& target, const int* address,
                          const char* transposed) {
   const Jacobian& J = J_[ci];
@@ -287,7 +305,8 @@ void Stepper::addPenalty(const System& sys, int ci, double kappa, BlockCholesky&
   for (int k1 = 0; k1 < k; ++k1) {
     if (L.bodies[k1] < 0) continue;
     const Mat6 WJ = w.asDiagonal() * J.middleCols<6>(6 * k1);
-    for (int k2 = k1; k2 < k; ++k2) {
+    if (address[k1 * k + k1] >= 0) lowerPenalty(target.block(address[k1 * k + k1]), J.middleCols<6>(6 * k1), WJ);
+    for (int k2 = k1 + 1; k2 < k; ++k2) {
       const int a = address[k1 * k + k2];
       if (a < 0) continue;
       if (transposed[k1 * k + k2]) target.block(a).noalias() += J.middleCols<6>(6 * k2).transpose() * WJ;
