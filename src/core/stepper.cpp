@@ -251,8 +251,11 @@ const Eigen::VectorXd& Stepper::rowWeights(const System& sys, const std::vector<
     Vec6 sum = Vec6::Zero();  // diag(J M~^-1 J^T)
     for (size_t k = 0; k < L.bodies.size(); ++k) {
       if (L.bodies[k] < 0) continue;
+      // M~^-1 is block diagonal (1/m, J'^-1): j_r j_r^T / m + j_theta J'^-1 j_theta^T
       const auto Jb = J.middleCols<6>(6 * k);
-      sum += (Jb * Minv_[L.bodies[k]]).cwiseProduct(Jb).rowwise().sum();
+      const Eigen::Matrix<double, 6, 6>& Mi = Minv_[L.bodies[k]];
+      sum += Jb.leftCols<3>().rowwise().squaredNorm() * Mi(0, 0) +
+             (Jb.rightCols<3>() * Mi.bottomRightCorner<3, 3>()).cwiseProduct(Jb.rightCols<3>()).rowwise().sum();
     }
     for (int e = 0; e < L.size; ++e) {
       const double s = sum[e];
