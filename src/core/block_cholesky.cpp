@@ -206,17 +206,11 @@ inline void backwardLT(const BlockCholesky::Block& L, const BlockCholesky::Vec6&
 
 // T <- T - s A A^T on the lower triangle only (T a diagonal block: factorDiagonal reads
 // nothing above it): 126 multiply-adds where the full product takes 216.
-template <int c>
-inline void lowerUpdateColumn(BlockCholesky::Block& T, const BlockCholesky::Block& A, double s) {
-  T.col(c).template tail<6 - c>().noalias() -= s * (A.template bottomRows<6 - c>() * A.row(c).transpose());
-}
 inline void lowerUpdate(BlockCholesky::Block& T, const BlockCholesky::Block& A, double s) {
-  lowerUpdateColumn<0>(T, A, s);
-  lowerUpdateColumn<1>(T, A, s);
-  lowerUpdateColumn<2>(T, A, s);
-  lowerUpdateColumn<3>(T, A, s);
-  lowerUpdateColumn<4>(T, A, s);
-  lowerUpdateColumn<5>(T, A, s);
+  forEachColumn6([&](auto column) {
+    constexpr int c = decltype(column)::value;
+    T.col(c).template tail<6 - c>().noalias() -= s * (A.template bottomRows<6 - c>() * A.row(c).transpose());
+  });
 }
 
 }  // namespace

@@ -285,17 +285,11 @@ namespace {
 // T += Jb^T W Jb on the lower triangle only (T a diagonal block of H: the factorization
 // reads nothing above it), WJ = W Jb: entry (r, c), r >= c, gains the dot product of
 // columns r of Jb and c of WJ. 126 multiply-adds where the full product takes 216.
-template <int c>
-inline void lowerPenaltyColumn(BlockCholesky::Block& T, const Eigen::Ref<const Mat6>& Jb, const Mat6& WJ) {
-  T.col(c).template tail<6 - c>().noalias() += Jb.template rightCols<6 - c>().transpose() * WJ.col(c);
-}
 inline void lowerPenalty(BlockCholesky::Block& T, const Eigen::Ref<const Mat6>& Jb, const Mat6& WJ) {
-  lowerPenaltyColumn<0>(T, Jb, WJ);
-  lowerPenaltyColumn<1>(T, Jb, WJ);
-  lowerPenaltyColumn<2>(T, Jb, WJ);
-  lowerPenaltyColumn<3>(T, Jb, WJ);
-  lowerPenaltyColumn<4>(T, Jb, WJ);
-  lowerPenaltyColumn<5>(T, Jb, WJ);
+  forEachColumn6([&](auto column) {
+    constexpr int c = decltype(column)::value;
+    T.col(c).template tail<6 - c>().noalias() += Jb.template rightCols<6 - c>().transpose() * WJ.col(c);
+  });
 }
 }  // namespace
 

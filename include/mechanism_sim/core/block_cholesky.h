@@ -15,12 +15,25 @@
 // joint before the parent.
 #pragma once
 #include <array>
+#include <type_traits>
 #include <utility>
 #include <vector>
 
 #include <Eigen/Core>
 
 namespace mechanism_sim {
+
+// Calls f(std::integral_constant<int, c>{}) for c = 0, ..., 5: the columns of a 6x6 block as
+// compile-time indices, so that a column's part on and below the diagonal is a fixed-size
+// tail (the kernels that form only the lower triangle of a symmetric block).
+template <class F, int... C>
+inline void forEachColumn6(F&& f, std::integer_sequence<int, C...>) {
+  (f(std::integral_constant<int, C>{}), ...);
+}
+template <class F>
+inline void forEachColumn6(F&& f) {
+  forEachColumn6(f, std::make_integer_sequence<int, 6>{});
+}
 
 class BlockCholesky {
  public:
