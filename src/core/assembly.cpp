@@ -19,9 +19,30 @@ std::string fmt(double x) {
   return os.str();
 }
 
+// The constrained mass matrix H cannot be factored at the assembled pose although every
+// motion moves mass (checkMassRank passed): its condition is past double precision.
+constexpr const char* kSingularAtAssembly =
+    "assembly: the constrained mass matrix is numerically singular at the initial pose; the "
+    "model's lengths differ too much for double precision (a centre of mass far from the "
+    "joints of its link?)";
+
 // Rank of Phi_q by LDL^T of the Gram matrix of its normalized rows, in constraint order,
 // skipping zero pivots: row e is dependent when less than 1e-9 of its squared norm lies
 // outside the span of the rows before it.
+//
+// The test is made on Phi_q in coordinates of the joints' own geometry, which leaves its
+// rank as it is: a body's position is taken at the centroid c of its joints' points (body
+// frame) rather than at its centre of mass, delta r = delta r_c + A tilde(c) delta theta'
+// (so J_theta gains J_r A tilde(c)), and rotations are measured by the displacement they
+// make at l, the largest distance of a joint point from its body's centroid
+// (delta theta' = delta phi / l, one l for all bodies, so that rows between two bodies'
+// rotations keep their balance). Rows taken at the centre of mass carry the lever arm from
+// it: a rod whose centre of mass lay 425 km from its joints 0.35 m apart made a
+// slider-crank's loop look dependent at 1e-9 and lose all five equations of its wrist pin
+// (the fuzzer's find), and a double pendulum whose second link's centre of mass lay 100 km
+// off lost two of its joint's five. In the joints' geometry the loop keeps the three
+// dependent equations of a planar loop and the pendulum none, in metres or in millimetres
+// alike.
 DependencyReport analyzeDependencies(const System& sys, const Stepper& st, std::vector<char>* dropped) {
   const int m = sys.m_eq;
   std::vector<std::vector<std::pair<int, int>>> at_body(sys.bodies.size());  // (constraint, slot)
@@ -33,9 +54,32 @@ DependencyReport analyzeDependencies(const System& sys, const Stepper& st, std::
     for (size_t k = 0; k < bs.size(); ++k)
       if (bs[k] != System::kGround) at_body[bs[k]].push_back({ci, static_cast<int>(k)});
   }
+  // each body's joint points: their centroid c; l: the largest distance of a joint point
+  // from the centroid of its body's (the mechanism's size without its centres of mass)
+  std::vector<Vector3d> centroid(sys.bodies.size(), Vector3d::Zero());
+  double size = 0;
+  {
+    std::vector<std::vector<Vector3d>> points(sys.bodies.size());
+    for (const Joint* j : sys.joints) {
+      if (j->bodyI() != System::kGround) points[j->bodyI()].push_back(j->frameI().sp_B);
+      if (j->bodyJ() != System::kGround) points[j->bodyJ()].push_back(j->frameJ().sp_B);
+    }
+    for (size_t b = 1; b < points.size(); ++b) {
+      for (const Vector3d& p : points[b]) centroid[b] += p / static_cast<double>(points[b].size());
+      for (const Vector3d& p : points[b]) size = std::max(size, (p - centroid[b]).norm());
+    }
+    if (!(size > 0)) size = sys.length_scale;  // every body has one joint
+  }
   std::vector<Eigen::MatrixXd> Jn(nc);
   for (int ci = 0; ci < nc; ++ci) {
     Jn[ci] = st.jacobian(ci);
+    const auto& bs = sys.constraints[ci]->bodies();
+    for (size_t k = 0; k < bs.size(); ++k) {
+      if (bs[k] == System::kGround) continue;
+      auto Jb = Jn[ci].middleCols<6>(6 * k);
+      const Matrix3d shift = st.kin()[bs[k]].A_Oi * tilde(centroid[bs[k]]);
+      Jb.rightCols<3>() = (Jb.rightCols<3>() + Jb.leftCols<3>() * shift) / size;
+    }
     for (int e = 0; e < Jn[ci].rows(); ++e) {
       const double norm = Jn[ci].row(e).norm();
       if (norm > 0) Jn[ci].row(e) /= norm;
@@ -279,7 +323,13 @@ AssemblyReport assemble(const System& sys, State& s, Stepper& st,
 
   // ---- velocities: mass-orthogonal projection onto Phi_q v = 0 and G_k v = target by the
   // augmented Lagrangian, starting from the bodies' own velocities.
-  st.factorHere(sys, s.t);
+  try {
+    st.factorHere(sys, s.t);
+  } catch (const ModelError&) {
+    throw;
+  } catch (const std::runtime_error&) {
+    throw ModelError(kSingularAtAssembly);
+  }
   const Eigen::VectorXd W = st.rowWeights(sys);
   constexpr double kKappa = Stepper::kKappa;
   std::vector<Row> rows;
@@ -294,8 +344,7 @@ AssemblyReport assemble(const System& sys, State& s, Stepper& st,
       Eigen::MatrixXd R = rows[k].J;
       st.addRowsToH(sys, sys.joints[velocities[k].joint]->id(), R, wt[k]);
     }
-    if (st.cholesky().factorize(0.0, false) != 0)
-      throw ModelError("assembly: the constrained mass matrix is singular");
+    if (st.cholesky().factorize(0.0, false) != 0) throw ModelError(kSingularAtAssembly);
   }
   Eigen::VectorXd Mu(sys.n), mu_c = Eigen::VectorXd::Zero(sys.m), Ju(sys.m), y(sys.m);
   std::vector<double> mu_t(velocities.size(), 0.0);
@@ -330,6 +379,8 @@ AssemblyReport assemble(const System& sys, State& s, Stepper& st,
     std::ostringstream os;
     os << "initial velocities cannot be met (largest relative residual " << fmt(vres) << ")";
     for (const auto& t : velocities) os << " '" << sys.joints[t.joint]->name() << "'";
+    os << ": they contradict the joints, or the model's lengths differ too much for double "
+          "precision (a centre of mass far from the joints of its link?)";
     throw ModelError(os.str());
   }
   st.load(sys, s.x.data(), s.u.data());

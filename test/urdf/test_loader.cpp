@@ -262,6 +262,52 @@ TEST(EmbeddingApi, ModelQueriesAgreeWithTheCore) {
   EXPECT_THROW(m->setGravity(Vector3d(0, NAN, 0)), std::invalid_argument);
 }
 
+// The dependent equations are a property of the joints, not of where a link's centre of
+// mass lies: the slider-crank's rod with its centre of mass moved off the rod (its joints
+// stay 0.35 m apart) keeps the three dependent equations of a planar loop, and a double
+// pendulum whose second link's centre of mass is 100 km off has none. Taken at the centre
+// of mass, the rank test once saw all five of the wrist pin's equations dependent with the
+// centre of mass 425 km away (the loop came apart during the run with nothing reported),
+// and two of the pendulum's; the 425 km slider-crank is now refused at assembly, as a
+// badly conditioned model.
+TEST(Mechanisms, DependentEquationsDoNotDependOnWhereTheCentreOfMassLies) {
+  std::ifstream in(kSource + "/urdf/slider_crank.urdf");
+  std::stringstream buffer;
+  buffer << in.rdbuf();
+  const std::string xml = buffer.str();
+  const std::string com = "<inertial><origin xyz=\"0.174714052 0.000000000 0.010000000\"/>";
+  ASSERT_NE(xml.find(com), std::string::npos);
+  auto moved = [&](const std::string& y) {
+    std::string out = xml;
+    out.replace(out.find(com), com.size(), "<inertial><origin xyz=\"0.174714052 " + y + " 0.010000000\"/>");
+    return out;
+  };
+  for (const std::string y : {"0", "1", "30", "100"}) {
+    auto m = loadModelString(moved(y), "rod.urdf", {});
+    EXPECT_EQ(m->dependencies().dependent, 3) << "y = " << y;
+    ASSERT_EQ(m->dependencies().by_constraint.size(), 1u) << "y = " << y;
+    EXPECT_EQ(m->dependencies().by_constraint[0].first, "wrist_pin");
+  }
+  // a tree: a double pendulum whose second link has its centre of mass 100 km off
+  const std::string pendulum =
+      "<robot name='dp'><link name='base'/>"
+      "<link name='a'><inertial><origin xyz='0.5 0 0'/><mass value='1'/>"
+      "<inertia ixx='0.01' iyy='0.01' izz='0.01' ixy='0' ixz='0' iyz='0'/></inertial></link>"
+      "<link name='b'><inertial><origin xyz='0.5 100000 0'/><mass value='1'/>"
+      "<inertia ixx='0.01' iyy='0.01' izz='0.01' ixy='0' ixz='0' iyz='0'/></inertial></link>"
+      "<joint name='j1' type='continuous'><parent link='base'/><child link='a'/><axis xyz='0 1 0'/></joint>"
+      "<joint name='j2' type='continuous'><parent link='a'/><child link='b'/><origin xyz='1 0 0'/>"
+      "<axis xyz='0 1 0'/></joint></robot>";
+  EXPECT_EQ(loadModelString(pendulum, "dp.urdf", {})->dependencies().dependent, 0);
+  try {
+    loadModelString(moved("425100"), "rod.urdf", {});
+    ADD_FAILURE() << "a rod 425 km from its centre of mass loaded";
+  } catch (const LoadError& e) {
+    EXPECT_NE(std::string(e.what()).find("rod.urdf: "), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("double precision"), std::string::npos) << e.what();
+  }
+}
+
 // Loop closures with the points they tie together: these coincide (revolute joints) in
 // the assembled state and while the mechanism runs; Gazebo loop joints are listed too.
 TEST(EmbeddingApi, LoopJointsTieTheirTwoPointsTogether) {
