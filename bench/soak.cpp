@@ -17,8 +17,9 @@
 // stricter and the one to quote.
 // Conservative is decided from the built System, not from the URDF text: every joint
 // coordinate's damping and Coulomb friction is 0, every spring has zero damping and zero
-// actuation force, and no position limit is active at any step (a stop is perfectly
-// inelastic); the bench commands no efforts. Everything else is listed as the reason
+// actuation force, no joint coordinate is driven (a drive does work), and no position
+// limit is active at any step (a stop is perfectly inelastic); the bench commands no
+// efforts. Everything else is listed as the reason
 // the mechanism is not conservative.
 // µs/step is the wall time of the step() calls alone; "wall" includes the monitoring.
 // Progress, with E(t)-E(0) at every tenth of the run (a drift that grows steadily or not),
@@ -127,6 +128,7 @@ std::string dissipation(const ms::MechanismModel& m) {
   for (const ms::Dof& d : m.dofs()) {
     if (sys.damping[d.joint_index][d.k] != 0) why.push_back("damping on " + d.name);
     if (sys.friction[d.joint_index][d.k] != 0) why.push_back("friction on " + d.name);
+    if (d.drive >= 0) why.push_back("drive on " + d.name);  // it does work on the mechanism
   }
   for (const ms::SpringDamper& s : sys.springs) {
     if (s.c != 0) why.push_back("damped spring " + s.name);
