@@ -6,7 +6,9 @@ and tf stamps never repeat or run backwards (the node stamps with wall time here
 README "The node" promises that a pause, an advance or a reset moves the origin so that
 they never do); every joint_states message shows one whole command, never an older one
 than it showed before, and the last command sent is the one applied; every tf listener
-has every frame and is current; every service call returned within call_timeout.
+has every frame and is current; every service call returned within call_timeout. A call
+whose connection closed before the response ("transport error", rare: rospy and roscpp under
+this load) is made once more and counted; at most one in 1,000 calls may need it.
 
 A second instance, /clock/mechanism_sim, owns /clock (its tf remapped to /clock/tf), and a
 third client calls its services likewise. There a reset takes time back to 0 by design,
@@ -143,6 +145,7 @@ class Load:
         self.clock_js, self.clock_tf = [], {}  # CLOCK_NODE: (stamp ns, calls started); by frame
         self.calls = {n: {op: {"ok": 0, "refused": 0} for op in OPS} for n in (NODE, CLOCK_NODE)}
         self.errors, self.durations, self.inflight = [], [], {}
+        self.transport_drops = []  # connections closed before the response (retried once)
         self.publish_seconds = 0.0
 
     def remaining(self, at_most):
@@ -200,7 +203,18 @@ class Load:
             self.started[node][op] += 1
         outcome = "ok"
         try:
-            fn(*args)
+            try:
+                fn(*args)
+            except rospy.ServiceException as e:
+                # A connection closed before the response came (rospy: "transport error
+                # completing service call"): once in about 8,000 calls in one CI run, the node
+                # alive and logging nothing. It is counted (test_service_calls_all_returned
+                # bounds it) and the call is made once more; a second failure is an error.
+                if "transport error" not in str(e):
+                    raise
+                with self.lock:
+                    self.transport_drops.append("%s: %s" % (op, e))
+                fn(*args)
         except rospy.ServiceException as e:
             outcome = "refused"
             # only advance may refuse (while running); a failed connection is an error too
@@ -353,8 +367,9 @@ class Load:
                 self.final_k),
             "final command seen after %.3f s" % (self.final_seen - self.load_end) if self.final_seen else
             "final command NOT seen",
-            "service calls: %s; %d errors; duration median %.1f ms, 99%% %.1f ms, longest %.3f s (%s)" % (
-                ops, len(self.errors), 1e3 * d[len(d) // 2][0], 1e3 * d[len(d) * 99 // 100][0], d[-1][0], d[-1][1]),
+            "service calls: %s; %d errors, %d dropped connections retried; duration median %.1f ms, 99%% %.1f ms, "
+            "longest %.3f s (%s)" % (ops, len(self.errors), len(self.transport_drops), 1e3 * d[len(d) // 2][0],
+                                     1e3 * d[len(d) * 99 // 100][0], d[-1][0], d[-1][1]),
             "tf listeners: %d in %d processes, %d-%d messages each" % (len(self.listener_results), self.processes,
                                                                       min(msgs), max(msgs)),
             "joint_states: %d messages, tf: %d messages; load %.1f s, whole test %.1f s" % (
@@ -396,6 +411,9 @@ class NodeUnderLoad(unittest.TestCase):
     def test_service_calls_all_returned(self):
         L = self.load
         self.assertEqual(L.errors, [])
+        calls = sum(c["ok"] + c["refused"] for node in L.calls.values() for c in node.values())
+        self.assertLessEqual(len(L.transport_drops), max(1, calls // 1000),
+                             "connections dropped before the response, of %d calls: %s" % (calls, L.transport_drops))
         for node, calls in L.calls.items():
             for op, c in calls.items():
                 self.assertGreater(c["ok"], 0, (node, op))
