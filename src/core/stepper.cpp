@@ -56,6 +56,22 @@ inline Eigen::Matrix<double, Rows::RowsAtCompileTime, 1> termScale(const Rows& J
          Jb.template rightCols<3>().cwiseAbs().rowwise().sum();
 }
 
+// j M~^-1 j^T for each row j of Jb, a body's six columns of a Jacobian, with M~^-1 = Mi
+// block diagonal (1/m, J'^-1): |j_r|^2 / m + j_theta J'^-1 j_theta^T (rowWeights and
+// rowWeight both take it from here).
+template <class Rows>
+inline Eigen::Matrix<double, Rows::RowsAtCompileTime, 1> inverseMassTerms(const Rows& Jb,
+                                                                          const Eigen::Matrix<double, 6, 6>& Mi) {
+  return Jb.template leftCols<3>().rowwise().squaredNorm() * Mi(0, 0) +
+         (Jb.template rightCols<3>() * Mi.template bottomRightCorner<3, 3>())
+             .cwiseProduct(Jb.template rightCols<3>())
+             .rowwise()
+             .sum();
+}
+
+// A row's weight 1 / (j M~^-1 j^T), or 0 for a row that moves no mass.
+inline double weightOf(double s) { return (s > 0 && std::isfinite(s)) ? 1.0 / s : 0.0; }
+
 // |r| / scale, where scale is the size of the terms r was computed from; 0/0 = 0.
 inline double relative(double r, double scale) {
   r = std::fabs(r);
@@ -249,18 +265,9 @@ const Eigen::VectorXd& Stepper::rowWeights(const System& sys, const std::vector<
     const ConstraintLayout& L = sys.layout[ci];
     const Jacobian& J = J_[ci];
     Vec6 sum = Vec6::Zero();  // diag(J M~^-1 J^T)
-    for (size_t k = 0; k < L.bodies.size(); ++k) {
-      if (L.bodies[k] < 0) continue;
-      // M~^-1 is block diagonal (1/m, J'^-1): j_r j_r^T / m + j_theta J'^-1 j_theta^T
-      const auto Jb = J.middleCols<6>(6 * k);
-      const Eigen::Matrix<double, 6, 6>& Mi = Minv_[L.bodies[k]];
-      sum += Jb.leftCols<3>().rowwise().squaredNorm() * Mi(0, 0) +
-             (Jb.rightCols<3>() * Mi.bottomRightCorner<3, 3>()).cwiseProduct(Jb.rightCols<3>()).rowwise().sum();
-    }
-    for (int e = 0; e < L.size; ++e) {
-      const double s = sum[e];
-      W_[L.row + e] = (s > 0 && std::isfinite(s)) ? 1.0 / s : 0.0;
-    }
+    for (size_t k = 0; k < L.bodies.size(); ++k)
+      if (L.bodies[k] >= 0) sum += inverseMassTerms(J.middleCols<6>(6 * k), Minv_[L.bodies[k]]);
+    for (int e = 0; e < L.size; ++e) W_[L.row + e] = weightOf(sum[e]);
   }
   return W_;
 }
@@ -1184,12 +1191,9 @@ double Stepper::rowScale(const Constraint& c, const Eigen::Ref<const Eigen::Matr
 double Stepper::rowWeight(const System& sys, int constraint, const Eigen::Ref<const Eigen::MatrixXd>& row) const {
   const ConstraintLayout& L = sys.layout[constraint];
   double s = 0;
-  for (size_t k = 0; k < L.bodies.size(); ++k) {
-    if (L.bodies[k] < 0) continue;
-    const Eigen::Matrix<double, 1, 6> r = row.block<1, 6>(0, 6 * k);
-    s += r * Minv_[L.bodies[k]] * r.transpose();
-  }
-  return (s > 0 && std::isfinite(s)) ? 1.0 / s : 0.0;
+  for (size_t k = 0; k < L.bodies.size(); ++k)
+    if (L.bodies[k] >= 0) s += inverseMassTerms(row.block<1, 6>(0, 6 * k), Minv_[L.bodies[k]])(0);
+  return weightOf(s);
 }
 
 double Stepper::positionResidual(const System& sys) const {

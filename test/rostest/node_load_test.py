@@ -411,9 +411,9 @@ class NodeUnderLoad(unittest.TestCase):
     def test_service_calls_all_returned(self):
         L = self.load
         self.assertEqual(L.errors, [])
-        calls = sum(c["ok"] + c["refused"] for node in L.calls.values() for c in node.values())
-        self.assertLessEqual(len(L.transport_drops), max(1, calls // 1000),
-                             "connections dropped before the response, of %d calls: %s" % (calls, L.transport_drops))
+        total = sum(c["ok"] + c["refused"] for node in L.calls.values() for c in node.values())
+        self.assertLessEqual(len(L.transport_drops), max(1, total // 1000),
+                             "connections dropped before the response, of %d calls: %s" % (total, L.transport_drops))
         for node, calls in L.calls.items():
             for op, c in calls.items():
                 self.assertGreater(c["ok"], 0, (node, op))
