@@ -156,6 +156,7 @@ class Stepper {
   // what the translational and rotational parts of body b's velocities (or accelerations)
   // u are measured against.
   void bodyScales(const System& sys, const Eigen::VectorXd& u, double floor) const;
+  double velocityResidualAtScales(const System& sys, const Eigen::VectorXd& u) const;
   // The loaded states of c's bodies in c.bodies() order, as Constraint calls take them.
   void gather(const Constraint& c, const BodyKin** ptrs) const;
   [[noreturn]] void leftConstraints(const System& sys, double t, double err) const;
@@ -168,6 +169,7 @@ class Stepper {
   std::vector<int> sizes_;
   mutable Eigen::VectorXd query_;
   mutable std::vector<std::array<double, 2>> body_scale_;  // bodyScales(): per body
+  std::vector<std::array<double, 2>> start_scale_;  // projectVelocities(): those it started from
   Eigen::VectorXd Phi_, nu_, gamma_, W_, Q_, a_, lam_, r1_, r2_, s1_, s2_, dn_, dm_, dl_;
   std::vector<Eigen::Matrix<double, 6, 6>> Minv_;  // per moving body, with stand-ins
   BlockCholesky chol_;

@@ -50,7 +50,7 @@ struct IntegratorOptions {
   // Relative tolerances: of each equation against the size of its own terms (positions,
   // velocities, the equations of motion). Scale-free: metres or millimetres alike.
   double position_tol = 1e-13;
-  double velocity_tol = 1e-13;
+  double velocity_tol = 1e-14;
   double solve_tol = 1e-13;
   // Throws ModelError naming what is wrong (an unknown method, a tolerance not positive).
   void validate() const;
