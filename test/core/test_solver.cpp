@@ -81,7 +81,9 @@ TEST(Solver, PendulumErrorFallsAsHToTheFourth) {
     std::printf("pendulum h = %g: error %.3e\n", h, err);
     if (previous > 0) {
       EXPECT_GT(previous / err, 12.0) << "h = " << h;
-      if (h >= 1e-3) EXPECT_LT(previous / err, 20.0) << "h = " << h;
+      if (h >= 1e-3) {
+        EXPECT_LT(previous / err, 20.0) << "h = " << h;
+      }
     }
     previous = err;
   }
