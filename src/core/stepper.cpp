@@ -1356,6 +1356,8 @@ bool Stepper::projectVelocities(const System& sys, State& s) {
     r1_.setZero();
     precondition(sys, r1_.data(), r2_.data(), false);
     s.u += dn_;
+    err = velocityResidual(sys, s.u);
+    if (err <= tol) break;
     std::swap(body_scale_, start_scale_);
     const double previous = gauge;
     gauge = velocityResidualAtScales(sys, s.u);
@@ -1365,7 +1367,6 @@ bool Stepper::projectVelocities(const System& sys, State& s) {
       err = velocityResidual(sys, s.u);
       break;
     }
-    err = velocityResidual(sys, s.u);
     if (gauge > 0.5 * previous) break;
   }
   ++stats_.velocity_projections;
