@@ -69,9 +69,9 @@ TEST(Solver, PendulumAtOneMillisecondIsWithin1e10MetresAfter10Seconds) {
   EXPECT_EQ(stats.shortfalls(), 0);
 }
 
-// Errors fall as h^4 (ratio 16 per halving) down to about 1e-12 m. From 0.5 ms on the
-// positions drift less than position_tol in a step and are no longer projected every
-// step (the projection's own O(h^5) share of the error goes), so the last halving gains
+// Errors fall as h^4 (ratio 16 per halving) down to about 1e-12 m. The smaller the step,
+// the fewer steps drift past position_tol (at 0.5 ms almost none), and the position
+// projection's own O(h^5) share of the error goes with them, so the last halving gains
 // more than 16: there it must gain at least 12 and end below 1e-12 m.
 TEST(Solver, PendulumErrorFallsAsHToTheFourth) {
   const double T = 2.0;
