@@ -1216,11 +1216,12 @@ double Stepper::positionResidual(const System& sys) const {
 double Stepper::velocityResidual(const System& sys, const Eigen::VectorXd& u) const {
   const double floor = kFloor * std::max(motionScale(sys, u), sys.velocity_scale);
   bodyScales(sys, u, floor);
-  return velocityResidualAtScales(sys, u);
+  return velocityResidualAtScales(sys, u, body_scale_);
 }
 
-// As velocityResidual, against the body scales already in body_scale_.
-double Stepper::velocityResidualAtScales(const System& sys, const Eigen::VectorXd& u) const {
+// As velocityResidual, against given body scales (bodyScales()).
+double Stepper::velocityResidualAtScales(const System& sys, const Eigen::VectorXd& u,
+                                         const std::vector<std::array<double, 2>>& scales) const {
   double worst = 0;
   for (int ci = 0; ci < sys.numConstraints(); ++ci) {
     const ConstraintLayout& L = sys.layout[ci];
@@ -1230,7 +1231,7 @@ double Stepper::velocityResidualAtScales(const System& sys, const Eigen::VectorX
     for (size_t k = 0; k < L.bodies.size(); ++k) {
       if (L.bodies[k] < 0) continue;
       const auto Jb = J.middleCols<6>(6 * k);
-      const std::array<double, 2>& bs = body_scale_[L.bodies[k]];
+      const std::array<double, 2>& bs = scales[L.bodies[k]];
       value.noalias() += Jb * u.segment<6>(6 * L.bodies[k]);
       scale += Jb.leftCols<3>().cwiseAbs().rowwise().sum() * bs[0] + Jb.rightCols<3>().cwiseAbs().rowwise().sum() * bs[1];
     }
@@ -1358,10 +1359,8 @@ bool Stepper::projectVelocities(const System& sys, State& s) {
     s.u += dn_;
     err = velocityResidual(sys, s.u);
     if (err <= tol) break;
-    std::swap(body_scale_, start_scale_);
     const double previous = gauge;
-    gauge = velocityResidualAtScales(sys, s.u);
-    std::swap(body_scale_, start_scale_);
+    gauge = velocityResidualAtScales(sys, s.u, start_scale_);
     if (gauge > previous) {
       s.u -= dn_;
       err = velocityResidual(sys, s.u);

@@ -156,7 +156,8 @@ class Stepper {
   // what the translational and rotational parts of body b's velocities (or accelerations)
   // u are measured against.
   void bodyScales(const System& sys, const Eigen::VectorXd& u, double floor) const;
-  double velocityResidualAtScales(const System& sys, const Eigen::VectorXd& u) const;
+  double velocityResidualAtScales(const System& sys, const Eigen::VectorXd& u,
+                                  const std::vector<std::array<double, 2>>& scales) const;
   // The loaded states of c's bodies in c.bodies() order, as Constraint calls take them.
   void gather(const Constraint& c, const BodyKin** ptrs) const;
   [[noreturn]] void leftConstraints(const System& sys, double t, double err) const;
