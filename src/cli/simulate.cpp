@@ -29,7 +29,7 @@ const char* kUsage =
     "                [--set JOINT=POSITION]... [--velocity JOINT=VALUE]...\n"
     "                [--effort JOINT=VALUE]... [--drive JOINT=VELOCITY]...\n"
     "                [--reactions] [--bag FILE.bag] [--plot FILE.png] [--plot-columns LIST]\n"
-    "                [--quiet]\n";
+    "                [--closures FILE.yaml] [--quiet]\n";
 
 struct UsageError : std::runtime_error {
   using std::runtime_error::runtime_error;
@@ -81,6 +81,7 @@ Args parse(int argc, char** argv) {
     else if (arg == "--bag") a.bag = value();
     else if (arg == "--plot") a.plot = value();
     else if (arg == "--plot-columns") a.plot_columns = value();
+    else if (arg == "--closures") a.load.closures_file = value();  // doc/loop_dialects.md
     else if (arg == "--quiet") a.quiet = true;
     else if (arg == "-h" || arg == "--help") { std::cout << kUsage; std::exit(0); }
     else if (!arg.empty() && arg[0] == '-') throw UsageError("unknown option '" + arg + "'");
@@ -237,6 +238,8 @@ int main(int argc, char** argv) {
                 loop.worstPositionViolation(), loop.worstVelocityViolation(),
                 model->dependencies().describe().c_str(), drives.c_str(), model->solverStats().describe().c_str());
   if (!args.quiet) std::fprintf(stderr, "%s: %s\n", args.model.c_str(), summary);
+  for (const std::string& note : model->notes())
+    if (!args.quiet) std::fprintf(stderr, "%s: %s\n", args.model.c_str(), note.c_str());
   if (!args.plot.empty()) {
     char title[512];
     std::snprintf(title, sizeof title, "%s (%s): %ld steps of %g s", model->name().c_str(), args.model.c_str(), steps, args.dt);

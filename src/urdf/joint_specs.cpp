@@ -76,7 +76,7 @@ JointSpec treeJoint(const urdf::Joint& j, const tinyxml2::XMLElement* element, c
   if (override) {
     s.type = coreType(override->type);
     s.params.alpha = override->alpha;
-    if (override->element->FirstChildElement("axis")) axis = override->axis;
+    if (override->element && override->element->FirstChildElement("axis")) axis = override->axis;
     axis2 = override->axis2;
     if (override->damping > 0) s.damping = override->damping;
     if (override->friction > 0) s.friction = override->friction;
@@ -107,10 +107,13 @@ JointSpec loopJoint(const ExtJoint& e, const urdf::ModelInterface& urdf,
   if (!urdf.getLink(e.child)) reader.fail(e.element, "child link '" + e.child + "' does not exist");
   if (e.parent == e.child) reader.fail(e.element, "joint's parent is its child ('" + e.parent + "')");
   if (!e.sdf) {
+    Isometry3d child_origin = e.child_origin;
+    if (e.child_rotation_from_zero_pose)  // the frames' rotations coincide at the zero pose
+      child_origin.linear() = (nominal.at(e.child).inverse() * nominal.at(e.parent) * e.origin).linear();
     const Matrix3d R = frameAxes(s.type, e.axis, e.axis2, e.element, reader);
     s.P_J = e.origin * rotation(R);
-    s.C_J = e.child_origin * rotation(R);
-    s.C_U = e.child_origin;
+    s.C_J = child_origin * rotation(R);
+    s.C_U = child_origin;
     return s;
   }
   const Isometry3d W_J = nominal.at(e.child) * e.child_origin;

@@ -15,6 +15,7 @@
 #include <urdf_parser/urdf_parser.h>
 
 #include "joint_specs.h"
+#include "loop_dialects.h"
 #include "mechanism_sim/urdf/model.h"
 #include "rigid_bodies.h"
 #include "xml_input.h"
@@ -84,7 +85,8 @@ class ModelBuilder {
     const tinyxml2::XMLElement* robot = doc.RootElement();
     if (!robot || std::string(robot->Name()) != "robot") reader_.fail(robot, "the root element is not <robot>");
     validateStandard(robot, reader_);
-    const Extension ext = readExtension(robot, reader_);
+    Extension ext = readExtension(robot, reader_);
+    readClosuresFile(options_.closures_file, robot, &ext);  // "Extended URDF" (loop_dialects.h)
     const urdf::ModelInterfaceSharedPtr urdf = parseWithUrdfdom(xml_);
     if (!urdf) {
       // urdfdom reads the XML with TinyXML 1, which takes a raw '&' or '<' in a name
@@ -113,6 +115,8 @@ class ModelBuilder {
     for (const JointSpec& s : specs.tree) addJoint(s, bodies, true);
     for (const JointSpec& s : specs.loops) addJoint(s, bodies, false);
     for (const JointSpec& s : specs.tree) addMimic(s);
+    for (const Coupling& c : resolveCouplings(ext, specs, reader_)) addCoupling(c);
+    model_->notes_ = ext.notes;
     addDrives(specs, ext, initial);
     addSprings(ext, bodies, placed, *urdf);
     setGravityAndIntegrator(ext);
@@ -248,6 +252,16 @@ class ModelBuilder {
     mech().addCoupler(s.name + " mimic", a->second, 0, b->second, 0, s.mimic_multiplier, s.mimic_offset);
   }
 
+  // URDF+ <coupling>: q_follower = ratio * q_leader, an exact coupler like <mimic>; the
+  // offset 0 keeps the file's zero pose (both joints at zero there).
+  void addCoupling(const Coupling& c) {
+    const auto a = joint_index_.find(c.follower), b = joint_index_.find(c.leader);
+    if (a == joint_index_.end() || b == joint_index_.end() || mech().joint(a->second).dof() != 1 ||
+        mech().joint(b->second).dof() != 1)
+      fail(c.element, "a coupling needs two one-dof joints ('" + c.leader + "', '" + c.follower + "')");
+    mech().addCoupler(c.name, a->second, 0, b->second, 0, c.ratio, 0.0);
+  }
+
   // <mechanism_sim:drive> and the options' velocity drives (which replace the file's
   // drive of the same dof). A velocity drive starts from the dof's initial position (its
   // initial value, else where the file's pose puts it); a profile fixes the position.
@@ -369,14 +383,34 @@ class ModelBuilder {
       const int joint = joint_index_.at(v.first.first);
       if (mech().driveOf(joint, v.first.second) < 0) velocities.push_back({joint, v.first.second, v.second});
     }
+    std::vector<double> placed(model_->dofs_.size());
+    for (size_t d = 0; d < placed.size(); ++d) placed[d] = placedCoordinate(model_->dofs_[d].joint_index, model_->dofs_[d].k);
     try {
       mech().build();
       model_->assembly_ = mech().assemble(positions, velocities);
     } catch (const ModelError& e) {
       fail(e.what());
     }
+    noteAssemblyMoves(placed);
     model_->command_.assign(model_->dofs_.size(), 0.0);
     model_->initial_ = mech().snapshot();
+  }
+
+  // "assembly moved N of M dofs ...: dof old -> new, ...": the dofs whose positions the
+  // assembly changed by more than 1e-6 relative (1 m or 1 rad the smallest scale), as when
+  // a file's zero pose leaves its loops open.
+  void noteAssemblyMoves(const std::vector<double>& placed) {
+    std::ostringstream os;
+    os.precision(4);
+    int moved = 0;
+    for (size_t d = 0; d < placed.size(); ++d) {
+      const double now = model_->position(static_cast<int>(d));
+      if (!(std::fabs(now - placed[d]) > 1e-6 * std::max(1.0, std::fabs(placed[d])))) continue;
+      os << (moved++ ? ", " : "") << model_->dofs_[d].name << " " << placed[d] << " -> " << now;
+    }
+    if (moved)
+      model_->notes_.push_back("assembly moved " + std::to_string(moved) + " of " + std::to_string(placed.size()) +
+                               " dofs (the file's pose does not close its loops): " + os.str());
   }
 
   std::string xml_;
@@ -393,6 +427,12 @@ std::unique_ptr<MechanismModel> loadModelString(const std::string& xml, const st
 }
 
 std::unique_ptr<MechanismModel> loadModelFile(const std::string& path, const LoadOptions& options) {
+  if (options.closures_file.empty())  // an "Extended URDF" YAML beside the file (loop_dialects.h)
+    if (const std::string yaml = siblingClosuresFile(path); !yaml.empty()) {
+      LoadOptions with = options;
+      with.closures_file = yaml;
+      return loadModelFile(path, with);
+    }
   std::ifstream in(path);
   if (!in) throw LoadError(path + ": cannot open the file");
   std::stringstream ss;

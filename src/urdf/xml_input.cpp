@@ -9,6 +9,7 @@
 
 #include <Eigen/Eigenvalues>
 
+#include "loop_dialects.h"
 #include "mechanism_sim/core/joint.h"
 #include "mechanism_sim/urdf/model.h"
 
@@ -378,6 +379,7 @@ Extension readExtension(const XMLElement* robot, const XmlReader& r) {
         ext.joints.push_back(readSdfJoint(j, r));
       continue;
     }
+    if (readLoopDialect(robot, e, r, &ext)) continue;
     if (tag.rfind(kPrefix, 0) != 0) continue;
     const std::string what = tag.substr(std::strlen(kPrefix));
     if (what == "joint") {
@@ -464,6 +466,7 @@ Extension readExtension(const XMLElement* robot, const XmlReader& r) {
       r.fail(e, "unknown extension element (joint, spring, initial, drive, gravity)");
     }
   }
+  readOnshapeClosures(robot, r, &ext);
   return ext;
 }
 

@@ -56,6 +56,19 @@ struct ExtJoint {
   bool has_axis2 = false;
   double alpha = 0.0;  // screw lead per radian
   double damping = 0.0, friction = 0.0;
+  // The child side's rotation is the one that makes the two frames coincide with every
+  // tree joint at zero (Dojo's <loop_joint>); child_origin then gives only the translation.
+  bool child_rotation_from_zero_pose = false;
+};
+
+// A URDF+ <coupling>: the successor's rate is ratio times the predecessor's. Each side
+// names a joint, or a link meaning the joint above it (loop_dialects.h).
+struct ExtCoupling {
+  const tinyxml2::XMLElement* element = nullptr;
+  std::string name;
+  std::string predecessor, successor;  // joint names, or link names if *_is_link
+  bool predecessor_is_link = false, successor_is_link = false;
+  double ratio = 1.0;
 };
 
 struct ExtSpring {
@@ -88,11 +101,14 @@ struct Extension {
   std::vector<ExtSpring> springs;
   std::vector<ExtInitial> initial;
   std::optional<Vector3d> gravity;
+  std::vector<ExtCoupling> couplings;  // URDF+ <coupling>
+  std::vector<std::string> notes;      // what was read but is not simulated (MechanismModel::notes)
 };
 
 // Checks the standard URDF elements the loader relies on, with line numbers.
 void validateStandard(const tinyxml2::XMLElement* robot, const XmlReader& reader);
-// Reads <mechanism_sim:*> elements and <gazebo><joint> loop closures.
+// Reads <mechanism_sim:*> elements, <gazebo><joint> loop closures and the other tools'
+// loop dialects (loop_dialects.h).
 Extension readExtension(const tinyxml2::XMLElement* robot, const XmlReader& reader);
 
 }  // namespace urdf_input

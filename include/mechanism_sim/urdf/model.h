@@ -29,6 +29,10 @@ struct LoadOptions {
   std::string integrator;  // empty: the core's default
   // Velocity drives by dof name (simulate --drive), replacing the file's drive of that dof.
   std::vector<std::pair<std::string, double>> drives;
+  // "Extended URDF" closures (YAML: closed_loop, type, name_mot; doc/loop_dialects.md).
+  // Empty: loadModelFile reads FILE.yaml beside FILE.urdf if it lists closed_loop;
+  // loadModelString reads none.
+  std::string closures_file;
 };
 
 // One degree of freedom of a joint, tree or loop closure.
@@ -94,6 +98,10 @@ class MechanismModel {
   SolverStats solverStats() const { return mechanism_->solverStats(); }
   const AssemblyReport& assembly() const { return assembly_; }
   const Eigen::Vector3d& gravity() const;
+  // What loading changed or left out, one line each: "assembly moved ..." (dofs the
+  // assembly moved onto the loop closures, old -> new), actuated joints read but not
+  // simulated as actuated. Empty when the file ran as written.
+  const std::vector<std::string>& notes() const { return notes_; }
   void setGravity(const Eigen::Vector3d& g);  // overrides the file's <mechanism_sim:gravity>
 
   // ---- where it is now
@@ -149,6 +157,7 @@ class MechanismModel {
   std::vector<Eigen::Isometry3d> reaction_frames_;  // per core joint: its file frame in its child's body
   std::vector<double> command_;
   AssemblyReport assembly_;
+  std::vector<std::string> notes_;
   Mechanism::Snapshot initial_;
 };
 

@@ -1,0 +1,458 @@
+#include "loop_dialects.h"
+
+#include <cmath>
+#include <cstring>
+#include <fstream>
+#include <map>
+#include <set>
+#include <sstream>
+
+#include <yaml-cpp/yaml.h>
+
+#include "mechanism_sim/urdf/model.h"
+
+namespace mechanism_sim {
+namespace urdf_input {
+
+using tinyxml2::XMLElement;
+
+namespace {
+
+std::string attr(const XMLElement* e, const char* name) {
+  const char* v = e->Attribute(name);
+  return v ? v : "";
+}
+
+const XMLElement* linkElement(const XMLElement* robot, const std::string& name) {
+  for (const XMLElement* l = robot->FirstChildElement("link"); l; l = l->NextSiblingElement("link"))
+    if (attr(l, "name") == name) return l;
+  return nullptr;
+}
+
+// The link named by attribute `attribute` of e, which must exist.
+std::string linkOf(const XMLElement* robot, const XMLElement* e, const char* attribute, const XmlReader& r) {
+  if (!e->Attribute(attribute)) r.fail(e, std::string("missing attribute '") + attribute + "' (the link this side is on)");
+  const std::string name = attr(e, attribute);
+  if (!linkElement(robot, name)) r.fail(e, "link '" + name + "' does not exist");
+  return name;
+}
+
+// The required child `tag` of e.
+const XMLElement* child(const XMLElement* e, const char* tag, const XmlReader& r, const std::string& hint) {
+  const XMLElement* c = e->FirstChildElement(tag);
+  if (!c) r.fail(e, std::string("missing <") + tag + ">" + (hint.empty() ? "" : " (" + hint + ")"));
+  return c;
+}
+
+std::string nameOf(const XMLElement* e, const XmlReader& r) {
+  if (!e->Attribute("name") || !*e->Attribute("name")) r.fail(e, "missing attribute 'name'");
+  return attr(e, "name");
+}
+
+// A rotation taking `from` onto the unit vector `to`.
+Isometry3d turn(const Vector3d& from, const Vector3d& to) {
+  Isometry3d T = Isometry3d::Identity();
+  T.linear() = Eigen::Quaterniond::FromTwoVectors(from, to).toRotationMatrix();
+  return T;
+}
+
+// ---- Dojo.jl: <loop_joint name type><link1 link xyz rpy/><link2 link xyz rpy/><axis xyz/>
+// (DojoEnvironments' fourbar.urdf; Dojo's parser parse_loop_joint reads link1's pose, the
+// position only of link2 and <dynamics damping>). Semantics kept: the axis (default 1 0 0)
+// is in link1's loop frame; link2's rpy is ignored, its rotation being the one that makes
+// the two frames coincide at the file's zero pose (Dojo's "determined by the mechanism's
+// structure").
+ExtJoint readDojoLoopJoint(const XMLElement* robot, const XMLElement* e, const XmlReader& r) {
+  r.onlyAttributes(e, {"name", "type"});
+  ExtJoint j;
+  j.element = e;
+  j.loop = true;
+  j.child_rotation_from_zero_pose = true;
+  j.name = nameOf(e, r);
+  if (!e->Attribute("type")) r.fail(e, "missing attribute 'type' (revolute, continuous, prismatic, fixed, spherical, cylindrical, planar)");
+  static const std::map<std::string, std::string> types = {
+      {"revolute", "revolute"}, {"continuous", "revolute"}, {"prismatic", "prismatic"}, {"fixed", "fixed"},
+      {"spherical", "spherical"}, {"cylindrical", "cylindrical"}, {"planar", "planar"}};
+  const std::string type = attr(e, "type");
+  if (!types.count(type))
+    r.fail(e, "unsupported loop joint type '" + oneLine(type) +
+                  "' (revolute, continuous, prismatic, fixed, spherical, cylindrical, planar)");
+  j.type = types.at(type);
+  const XMLElement* l1 = e->FirstChildElement("link1");
+  const XMLElement* l2 = e->FirstChildElement("link2");
+  if (!l1 || !l2) r.fail(e, "a Dojo loop joint needs both <link1 link=... xyz rpy> and <link2 link=... xyz>");
+  for (const XMLElement* c = e->FirstChildElement(); c; c = c->NextSiblingElement()) {
+    const std::string tag = c->Name();
+    if (tag == "link1" || tag == "link2") r.onlyAttributes(c, {"link", "xyz", "rpy"});
+    else if (tag == "axis") r.onlyAttributes(c, {"xyz"});
+    else if (tag == "dynamics") r.onlyAttributes(c, {"damping", "friction"});
+    else r.fail(c, "unknown element in a Dojo loop joint (link1, link2, axis, dynamics)");
+  }
+  j.parent = linkOf(robot, l1, "link", r);
+  j.child = linkOf(robot, l2, "link", r);
+  j.origin = poseFromXyzRpy(r.vec3(l1, "xyz", Vector3d::Zero()), r.vec3(l1, "rpy", Vector3d::Zero(), 1e3));
+  r.vec3(l2, "rpy", Vector3d::Zero(), 1e3);  // read (and checked), not used: see above
+  j.child_origin = poseFromXyzRpy(r.vec3(l2, "xyz", Vector3d::Zero()), Vector3d::Zero());
+  j.axis = r.direction(e, "axis", Vector3d::UnitX());
+  if (const XMLElement* d = e->FirstChildElement("dynamics")) {
+    j.damping = r.number(d, "damping", 0.0, 1e9);
+    j.friction = r.number(d, "friction", 0.0, 1e9);
+    if (j.damping < 0 || j.friction < 0) r.fail(d, "damping and friction must be >= 0");
+  }
+  return j;
+}
+
+// ---- URDF+ (Chignoli et al., "URDF+: An Enhanced URDF for Robots with Kinematic Loops",
+// 2024; parser: the urdfdom fork of ROAM-Lab-ND/generalized_rbda, parseLoopConstraint):
+// <loop name type><predecessor link><origin/></predecessor><successor link><origin/>
+// </successor><axis xyz/></loop>. Each origin is its constraint frame in its own link; the
+// two frames coincide up to the joint's motion; the axis (default 1 0 0, as that parser) is
+// in the predecessor's frame. Types: revolute, continuous, prismatic, fixed, planar.
+ExtJoint readUrdfPlusLoop(const XMLElement* robot, const XMLElement* e, const XmlReader& r) {
+  r.onlyAttributes(e, {"name", "type"});
+  ExtJoint j;
+  j.element = e;
+  j.loop = true;
+  j.name = nameOf(e, r);
+  static const std::map<std::string, std::string> types = {
+      {"revolute", "revolute"}, {"continuous", "revolute"}, {"prismatic", "prismatic"}, {"fixed", "fixed"},
+      {"planar", "planar"}};
+  const std::string type = attr(e, "type");
+  if (!types.count(type))
+    r.fail(e, (type.empty() ? std::string("missing attribute 'type'") : "unknown URDF+ loop type '" + oneLine(type) + "'") +
+                  " (revolute, continuous, prismatic, fixed, planar)");
+  j.type = types.at(type);
+  const XMLElement* p = child(e, "predecessor", r, "<predecessor link=...><origin xyz rpy/></predecessor>");
+  const XMLElement* s = child(e, "successor", r, "<successor link=...><origin xyz rpy/></successor>");
+  for (const XMLElement* c = e->FirstChildElement(); c; c = c->NextSiblingElement()) {
+    const std::string tag = c->Name();
+    if (tag == "predecessor" || tag == "successor") {
+      r.onlyAttributes(c, {"link"});
+      for (const XMLElement* o = c->FirstChildElement(); o; o = o->NextSiblingElement())
+        if (std::string(o->Name()) != "origin") r.fail(o, "unknown element in <" + tag + "> (origin)");
+    } else if (tag == "axis") {
+      r.onlyAttributes(c, {"xyz"});
+    } else {
+      r.fail(c, "unknown element in a URDF+ loop (predecessor, successor, axis)");
+    }
+  }
+  j.parent = linkOf(robot, p, "link", r);
+  j.child = linkOf(robot, s, "link", r);
+  j.origin = r.origin(p);
+  j.child_origin = r.origin(s);
+  j.axis = r.direction(e, "axis", Vector3d::UnitX());
+  return j;
+}
+
+// URDF+ <coupling name><predecessor link|joint/><successor link|joint/><ratio value/>:
+// the successor's rate is `ratio` times the predecessor's (parseCouplingConstraint in the
+// same parser; a link stands for the joint above it, as in the published
+// mit_humanoid_leg.urdf).
+ExtCoupling readUrdfPlusCoupling(const XMLElement* robot, const XMLElement* e, const XmlReader& r) {
+  r.onlyAttributes(e, {"name"});
+  ExtCoupling c;
+  c.element = e;
+  c.name = nameOf(e, r);
+  auto side = [&](const char* tag, std::string* name, bool* is_link) {
+    const XMLElement* s = child(e, tag, r, "a link or a joint: <" + std::string(tag) + " link=...>");
+    r.onlyAttributes(s, {"link", "joint"});
+    if (s->Attribute("link") && s->Attribute("joint")) r.fail(s, "give a link or a joint, not both");
+    if (s->Attribute("joint")) {
+      *name = attr(s, "joint");
+      bool found = false;
+      for (const XMLElement* j = robot->FirstChildElement("joint"); j; j = j->NextSiblingElement("joint"))
+        found = found || attr(j, "name") == *name;
+      if (!found) r.fail(s, "joint '" + *name + "' does not exist");
+    } else {
+      *name = linkOf(robot, s, "link", r);
+      *is_link = true;
+    }
+  };
+  side("predecessor", &c.predecessor, &c.predecessor_is_link);
+  side("successor", &c.successor, &c.successor_is_link);
+  const XMLElement* ratio = child(e, "ratio", r, "<ratio value=\"successor rate / predecessor rate\"/>");
+  r.onlyAttributes(ratio, {"value"});
+  c.ratio = r.number(ratio, "value", std::nullopt);
+  if (c.ratio == 0.0) r.fail(ratio, "a ratio of zero holds the successor still: remove the coupling or give a non-zero ratio");
+  return c;
+}
+
+// ---- urdfdom <constraint name type> (ros/urdfdom PR 264, ros/urdfdom_headers PR 108):
+// <parent link/><parent_origin xyz rpy/><parent_axis xyz/><child link/><child_origin/>
+// <child_axis/>, each origin in its own link, each axis in its own origin's frame. Types:
+// revolute and prismatic (the axis on each side; child_axis defaults to parent_axis),
+// universal (parent_axis the first axis, on the parent; child_axis the second, on the
+// child), spherical (origins only), link (rigid: the frames coincide).
+ExtJoint readUrdfdomConstraint(const XMLElement* robot, const XMLElement* e, const XmlReader& r) {
+  r.onlyAttributes(e, {"name", "type"});
+  ExtJoint j;
+  j.element = e;
+  j.loop = true;
+  j.name = nameOf(e, r);
+  static const std::map<std::string, std::string> types = {
+      {"revolute", "revolute"}, {"continuous", "revolute"}, {"prismatic", "prismatic"},
+      {"universal", "universal"}, {"spherical", "spherical"}, {"link", "fixed"}};
+  const std::string type = attr(e, "type");
+  if (!types.count(type))
+    r.fail(e, (type.empty() ? std::string("missing attribute 'type'") : "unknown constraint type '" + oneLine(type) + "'") +
+                  " (revolute, prismatic, universal, spherical, link)");
+  j.type = types.at(type);
+  for (const XMLElement* c = e->FirstChildElement(); c; c = c->NextSiblingElement()) {
+    const std::string tag = c->Name();
+    if (tag == "parent" || tag == "child") r.onlyAttributes(c, {"link"});
+    else if (tag == "parent_origin" || tag == "child_origin") r.onlyAttributes(c, {"xyz", "rpy"});
+    else if (tag == "parent_axis" || tag == "child_axis") r.onlyAttributes(c, {"xyz"});
+    else r.fail(c, "unknown element in <constraint> (parent, parent_origin, parent_axis, child, child_origin, child_axis)");
+  }
+  j.parent = linkOf(robot, child(e, "parent", r, "<parent link=...>"), "link", r);
+  j.child = linkOf(robot, child(e, "child", r, "<child link=...>"), "link", r);
+  const Isometry3d P = r.origin(e, "parent_origin"), C = r.origin(e, "child_origin");
+  const bool axial = j.type == "revolute" || j.type == "prismatic" || j.type == "universal";
+  if (axial && !e->FirstChildElement("parent_axis")) r.fail(e, "a " + type + " constraint needs <parent_axis xyz=...>");
+  if (j.type == "universal" && !e->FirstChildElement("child_axis"))
+    r.fail(e, "a universal constraint needs <child_axis xyz=...> (its second axis, on the child)");
+  if (!axial && (e->FirstChildElement("parent_axis") || e->FirstChildElement("child_axis")))
+    r.fail(e, "a " + type + " constraint has no axis: remove <parent_axis> and <child_axis>");
+  j.origin = P;
+  j.child_origin = C;
+  if (!axial) return j;
+  const Vector3d a_p = r.direction(e, "parent_axis", Vector3d::UnitX());
+  const Vector3d a_c = r.direction(e, "child_axis", a_p);
+  // The axes turned into each side's frame: the joint's axis is then z (x and y for a
+  // universal joint) on both sides.
+  if (j.type == "universal") {
+    j.origin = P * turn(Vector3d::UnitX(), a_p);
+    j.child_origin = C * turn(Vector3d::UnitY(), a_c);
+    j.axis = Vector3d::UnitX();
+    j.axis2 = Vector3d::UnitY();
+    j.has_axis2 = true;
+  } else {
+    j.origin = P * turn(Vector3d::UnitZ(), a_p);
+    j.child_origin = C * turn(Vector3d::UnitZ(), a_c);
+    j.axis = Vector3d::UnitZ();
+  }
+  return j;
+}
+
+// ---- Drake <drake:ball_constraint> (Drake's URDF parser, detail_urdf_parser.cc; its
+// documentation "drake:ball_constraint"): point P of body A (p_AP, in A's frame) stays on
+// point Q of body B (p_BQ, in B's frame). A spherical joint between the two points.
+ExtJoint readDrakeBallConstraint(const XMLElement* robot, const XMLElement* e, const XmlReader& r, int index) {
+  r.onlyAttributes(e, {});
+  ExtJoint j;
+  j.element = e;
+  j.loop = true;
+  j.type = "spherical";
+  j.name = "ball_constraint_" + std::to_string(index);
+  for (const XMLElement* c = e->FirstChildElement(); c; c = c->NextSiblingElement()) {
+    const std::string tag = c->Name();
+    if (tag == "drake:ball_constraint_body_A" || tag == "drake:ball_constraint_body_B") r.onlyAttributes(c, {"name"});
+    else if (tag == "drake:ball_constraint_p_AP" || tag == "drake:ball_constraint_p_BQ") r.onlyAttributes(c, {"value"});
+    else r.fail(c, "unknown element in <drake:ball_constraint> (drake:ball_constraint_body_A, _p_AP, _body_B, _p_BQ)");
+  }
+  const std::string hint = "a ball constraint needs body_A, p_AP, body_B and p_BQ";
+  j.parent = linkOf(robot, child(e, "drake:ball_constraint_body_A", r, hint), "name", r);
+  j.child = linkOf(robot, child(e, "drake:ball_constraint_body_B", r, hint), "name", r);
+  const XMLElement* p = child(e, "drake:ball_constraint_p_AP", r, hint);
+  const XMLElement* q = child(e, "drake:ball_constraint_p_BQ", r, hint);
+  const std::vector<double> p_AP = r.numbers(p, "value", 3), p_BQ = r.numbers(q, "value", 3);
+  j.origin.translation() = Vector3d(p_AP[0], p_AP[1], p_AP[2]);
+  j.child_origin.translation() = Vector3d(p_BQ[0], p_BQ[1], p_BQ[2]);
+  return j;
+}
+
+// A YAML node's place: "FILE:LINE: " (yaml-cpp's lines count from 0).
+std::string where(const std::string& path, const YAML::Node& n) {
+  std::ostringstream os;
+  os << path;
+  if (n.Mark().line >= 0) os << ":" << n.Mark().line + 1;
+  return os.str() + ": ";
+}
+
+}  // namespace
+
+bool readLoopDialect(const XMLElement* robot, const XMLElement* e, const XmlReader& r, Extension* ext) {
+  const std::string tag = e->Name();
+  if (tag == "loop_joint" || tag == "loop") {
+    // Dojo and URDF+ are told apart by their children, not by the tag.
+    const bool dojo = e->FirstChildElement("link1") || e->FirstChildElement("link2");
+    const bool urdf_plus = e->FirstChildElement("predecessor") || e->FirstChildElement("successor");
+    if (dojo && urdf_plus) r.fail(e, "mixes Dojo's <link1>/<link2> with URDF+'s <predecessor>/<successor>: use one pair");
+    if (!dojo && !urdf_plus)
+      r.fail(e, "a loop closure needs <link1 link=...>/<link2 link=...> (Dojo) or <predecessor link=...>/<successor link=...> (URDF+)");
+    ext->joints.push_back(dojo ? readDojoLoopJoint(robot, e, r) : readUrdfPlusLoop(robot, e, r));
+    return true;
+  }
+  if (tag == "coupling") {
+    ext->couplings.push_back(readUrdfPlusCoupling(robot, e, r));
+    return true;
+  }
+  if (tag == "constraint") {
+    ext->joints.push_back(readUrdfdomConstraint(robot, e, r));
+    return true;
+  }
+  if (tag == "drake:ball_constraint") {
+    int index = 1;
+    for (const ExtJoint& j : ext->joints) index += j.name.rfind("ball_constraint_", 0) == 0 ? 1 : 0;
+    ext->joints.push_back(readDrakeBallConstraint(robot, e, r, index));
+    return true;
+  }
+  return false;
+}
+
+// ---- onshape-to-robot (Rhoban; its documentation "Handling loop closures" and placo's
+// loader): a frame named closing_<name>_1 on one branch and closing_<name>_2 on the other;
+// their origins must coincide. Exported as fixed-jointed dummy links; each pair is a ball.
+void readOnshapeClosures(const XMLElement* robot, const XmlReader& r, Extension* ext) {
+  const std::string prefix = "closing_";
+  for (const XMLElement* l = robot->FirstChildElement("link"); l; l = l->NextSiblingElement("link")) {
+    const std::string name = attr(l, "name");
+    if (name.rfind(prefix, 0) != 0 || name.size() < prefix.size() + 3) continue;
+    const std::string tail = name.substr(name.size() - 2);
+    if (tail != "_1" && tail != "_2") continue;
+    const std::string stem = name.substr(0, name.size() - 2);
+    const std::string other = stem + (tail == "_1" ? "_2" : "_1");
+    const XMLElement* partner = linkElement(robot, other);
+    if (!partner)
+      r.fail(l, "an onshape-to-robot closing frame without its partner '" + other +
+                    "' (add that link where the loop closes, or rename this one)");
+    if (tail == "_2") continue;  // the pair is read once, from _1
+    ExtJoint j;
+    j.element = l;
+    j.loop = true;
+    j.type = "spherical";
+    j.name = stem;
+    j.parent = name;
+    j.child = other;
+    ext->joints.push_back(j);
+  }
+}
+
+// ---- "Extended URDF" (Gepetto/example-parallel-robots, robot_loader.py
+// completeRobotLoader): closed_loop: [[frameA, frameB], ...] frames (links) to join;
+// type: [3d|6d, ...] (3d: the origins coincide, a ball; 6d: the frames coincide, fixed;
+// default 6d); name_mot: the actuated joints; joint_name/joint_type: joints made SPHERICAL
+// or FIXED.
+void readClosuresFile(const std::string& path, const XMLElement* robot, Extension* ext) {
+  if (path.empty()) return;
+  std::ifstream in(path);
+  if (!in) throw LoadError(path + ": cannot open the closures file");
+  YAML::Node doc;
+  try {
+    doc = YAML::Load(in);
+  } catch (const YAML::Exception& e) {
+    std::ostringstream os;
+    os << path << ":" << e.mark.line + 1 << ": malformed YAML: " << e.msg;
+    throw LoadError(os.str());
+  }
+  auto fail = [&](const YAML::Node& n, const std::string& what) { throw LoadError(where(path, n) + oneLine(what, 400)); };
+  if (!doc.IsMap()) fail(doc, "a closures file is a map with closed_loop: [[frameA, frameB], ...] and type: [3d|6d, ...]");
+  auto stringList = [&](const char* key) {
+    std::vector<std::pair<std::string, YAML::Node>> out;
+    const YAML::Node n = doc[key];
+    if (!n) return out;
+    if (!n.IsSequence()) fail(n, std::string(key) + ": a list is needed, as [a, b]");
+    for (size_t i = 0; i < n.size(); ++i) {
+      if (!n[i].IsScalar()) fail(n[i], std::string(key) + "[" + std::to_string(i) + "]: a name is needed");
+      out.emplace_back(n[i].as<std::string>(), n[i]);
+    }
+    return out;
+  };
+  std::set<std::string> joints;
+  std::map<std::string, std::string> joint_type;
+  for (const XMLElement* j = robot->FirstChildElement("joint"); j; j = j->NextSiblingElement("joint"))
+    joints.insert(attr(j, "name")), joint_type[attr(j, "name")] = attr(j, "type");
+  for (auto it = doc.begin(); it != doc.end(); ++it) {
+    const std::string key = it->first.as<std::string>();
+    if (key != "closed_loop" && key != "type" && key != "name_mot" && key != "joint_name" && key != "joint_type")
+      fail(it->first, "unknown key '" + key + "' (closed_loop, type, name_mot, joint_name, joint_type)");
+  }
+  const YAML::Node loops = doc["closed_loop"];
+  if (!loops || !loops.IsSequence()) fail(loops ? loops : doc, "closed_loop: a list of frame pairs is needed, as [[frameA, frameB]]");
+  const auto types = stringList("type");
+  if (doc["type"] && types.size() != loops.size())
+    fail(doc["type"], "type: " + std::to_string(types.size()) + " entries for " + std::to_string(loops.size()) +
+                          " closed_loop pairs: give one (3d or 6d) per pair");
+  for (size_t i = 0; i < loops.size(); ++i) {
+    const YAML::Node pair = loops[i];
+    const std::string at = "closed_loop[" + std::to_string(i) + "]: ";
+    if (!pair.IsSequence() || pair.size() != 2 || !pair[0].IsScalar() || !pair[1].IsScalar())
+      fail(pair, at + "a pair of frame names is needed, as [frameA, frameB]");
+    ExtJoint j;
+    j.loop = true;
+    j.parent = pair[0].as<std::string>();
+    j.child = pair[1].as<std::string>();
+    for (const std::string* f : {&j.parent, &j.child})
+      if (!linkElement(robot, *f)) fail(pair, at + "frame '" + *f + "' is not a link of the URDF (frames are links here)");
+    if (j.parent == j.child) fail(pair, at + "a frame cannot close a loop with itself");
+    const std::string type = types.empty() ? "6d" : types[i].first;
+    if (type == "3d" || type == "3D") j.type = "spherical";
+    else if (type == "6d" || type == "6D") j.type = "fixed";
+    else fail(types[i].second, "type[" + std::to_string(i) + "]: unknown closure type '" + type + "' (3d: a ball; 6d: rigid)");
+    j.name = j.parent + "-" + j.child;
+    ext->joints.push_back(j);
+  }
+  const auto names = stringList("joint_name"), replaced = stringList("joint_type");
+  if (names.size() != replaced.size())
+    fail(doc["joint_type"] ? doc["joint_type"] : doc["joint_name"], "joint_name and joint_type need one entry each per joint");
+  for (size_t i = 0; i < names.size(); ++i) {
+    if (!joints.count(names[i].first)) fail(names[i].second, "joint_name: no joint '" + names[i].first + "' in the URDF");
+    const std::string t = joint_type[names[i].first];
+    if (t == "fixed" || t == "floating")
+      fail(names[i].second, "joint_name: '" + names[i].first + "' is a " + t + " joint, whose type cannot change");
+    ExtJoint j;
+    j.name = names[i].first;
+    if (replaced[i].first == "SPHERICAL") j.type = "spherical";
+    else if (replaced[i].first == "FIXED") j.type = "fixed";
+    else fail(replaced[i].second, "joint_type: unknown type '" + replaced[i].first + "' (SPHERICAL, FIXED)");
+    ext->joints.push_back(j);
+  }
+  std::string motors;
+  for (const auto& m : stringList("name_mot")) {
+    if (!joints.count(m.first)) fail(m.second, "name_mot: no joint '" + m.first + "' in the URDF");
+    motors += (motors.empty() ? "" : ", ") + m.first;
+  }
+  if (!motors.empty())
+    ext->notes.push_back("actuated joints (name_mot in " + path + "): " + motors +
+                         " read, not simulated as actuated: they move freely (drive them with "
+                         "<mechanism_sim:drive> or --drive)");
+}
+
+std::string siblingClosuresFile(const std::string& urdf_path) {
+  std::string stem = urdf_path;
+  const std::string xacro = ".xacro";
+  if (stem.size() > xacro.size() && stem.compare(stem.size() - xacro.size(), xacro.size(), xacro) == 0)
+    stem.resize(stem.size() - xacro.size());
+  const size_t slash = stem.find_last_of('/'), dot = stem.find_last_of('.');
+  if (dot != std::string::npos && (slash == std::string::npos || dot > slash)) stem.resize(dot);
+  const std::string yaml = stem + ".yaml";
+  std::ifstream in(yaml);
+  if (!in) return "";
+  std::stringstream text;
+  text << in.rdbuf();
+  return text.str().find("closed_loop") != std::string::npos ? yaml : "";
+}
+
+std::vector<Coupling> resolveCouplings(const Extension& ext, const JointSpecs& specs, const XmlReader& r) {
+  std::vector<Coupling> out;
+  for (const ExtCoupling& c : ext.couplings) {
+    auto jointOf = [&](const std::string& name, bool is_link) -> std::string {
+      if (!is_link) return name;
+      for (const JointSpec& s : specs.tree)
+        if (s.child == name) return s.name;
+      r.fail(c.element, "link '" + name + "' is the root: it has no joint to couple");
+    };
+    Coupling k;
+    k.name = c.name;
+    k.element = c.element;
+    k.leader = jointOf(c.predecessor, c.predecessor_is_link);
+    k.follower = jointOf(c.successor, c.successor_is_link);
+    k.ratio = c.ratio;
+    if (k.leader == k.follower) r.fail(c.element, "couples joint '" + k.leader + "' with itself");
+    out.push_back(k);
+  }
+  return out;
+}
+
+}  // namespace urdf_input
+}  // namespace mechanism_sim

@@ -1,0 +1,208 @@
+// Loop closures in the dialects of other tools (doc/loop_dialects.md): one four-bar written
+// in every dialect loads with its closure's equations and moves as the extension's; a loop
+// open at the file's zero pose is assembled and reported; each dialect's bad input fails
+// with its exact error (test/dialects/invalid/expected.txt).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <set>
+#include <sstream>
+
+#include "mechanism_sim/urdf/model.h"
+
+namespace mechanism_sim {
+namespace {
+
+const std::string kDir = std::string(MECHANISM_SIM_SOURCE_DIR) + "/test/dialects";
+const int kTreeEquations = 15;  // the four-bar's three tree hinges, 5 equations each
+
+std::string readText(const std::string& path) {
+  std::ifstream in(path);
+  EXPECT_TRUE(in) << path;
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+// text with `from` (which must occur once) replaced by `to`.
+std::string replaced(std::string text, const std::string& from, const std::string& to) {
+  const size_t at = text.find(from);
+  EXPECT_NE(at, std::string::npos) << from;
+  EXPECT_EQ(text.find(from, at + 1), std::string::npos) << from;
+  return at == std::string::npos ? text : text.replace(at, from.size(), to);
+}
+
+std::vector<double> positionsAfter(MechanismModel& m, double seconds, double h = 1e-3) {
+  for (long s = 0; s < std::lround(seconds / h); ++s) {
+    m.step(h);
+    const double violation = m.mechanism().positionViolation();
+    EXPECT_LE(violation, 1e-10) << m.name() << " t = " << m.time();
+    if (!(violation <= 1e-10)) break;
+  }
+  std::vector<double> q;
+  for (const char* dof : {"crank_joint", "coupler_joint", "rocker_joint"}) q.push_back(m.position(m.dofIndex(dof)));
+  return q;
+}
+
+struct Dialect {
+  std::string file;
+  int closure_equations;  // 5: a hinge, 3: a ball
+};
+
+const std::vector<Dialect> kDialects = {
+    {"four_bar_mechanism_sim.urdf", 5}, {"four_bar_gazebo.urdf", 5}, {"four_bar_dojo.urdf", 5},
+    {"four_bar_urdfplus.urdf", 5},      {"four_bar_constraint.urdf", 5}, {"four_bar_drake.urdf", 3},
+    {"four_bar_onshape.urdf", 3},       {"four_bar_extended.urdf", 3}};
+
+// A closure not read would leave the tree's 15 equations: the mechanism run open.
+TEST(Dialects, EachLoadsWithItsClosureEquations) {
+  for (const Dialect& d : kDialects) {
+    auto m = loadModelFile(kDir + "/" + d.file);
+    EXPECT_EQ(m->numEquations(), kTreeEquations + d.closure_equations) << d.file;
+    EXPECT_EQ(m->loopJoints().size(), 1u) << d.file;
+    EXPECT_LE(m->assembly().position_residual, 1e-12) << d.file;
+    for (const std::string& note : m->notes())  // each closes at its zero pose
+      EXPECT_EQ(note.find("assembly moved"), std::string::npos) << d.file << ": " << note;
+  }
+}
+
+// The same four-bar, whichever way its loop is written (a hinge, or a ball whose third
+// equation the hinges make dependent), moves the same: after 2 s of falling the joint
+// positions agree with the extension's within 1e-12.
+TEST(Dialects, TheSameFourBarMovesIdenticallyInEveryDialect) {
+  auto reference = loadModelFile(kDir + "/four_bar_mechanism_sim.urdf");
+  const std::vector<double> q_ref = positionsAfter(*reference, 2.0);
+  ASSERT_GT(std::fabs(q_ref[0]), 0.1) << "the four-bar should have moved";
+  for (const Dialect& d : kDialects) {
+    auto m = loadModelFile(kDir + "/" + d.file);
+    const std::vector<double> q = positionsAfter(*m, 2.0);
+    for (size_t k = 0; k < q.size(); ++k) EXPECT_NEAR(q[k], q_ref[k], 1e-12) << d.file << " dof " << k;
+  }
+}
+
+// Dojo's child side: its rotation is the one that makes the two frames coincide at the
+// zero pose, and link2's rpy is ignored. The same four-bar with the rocker's link frame
+// turned 90 degrees about z (its hinge axis then x, its pin at (0, -0.12, 0.46)) and a
+// wrong rpy on link2 moves as the straight one; with the child's rotation taken from
+// link2's rpy or left at identity, the hinge on the rocker side would lie along -x
+// instead of y.
+TEST(Dialects, DojoTakesTheChildRotationFromTheZeroPose) {
+  const std::string xml = readText(kDir + "/four_bar_dojo.urdf");
+  std::string turned = replaced(xml, "<origin xyz=\"0.4 0 0\"/>\n    <axis xyz=\"0 1 0\"/>",
+                                "<origin xyz=\"0.4 0 0\" rpy=\"0 0 1.5707963267948966\"/>\n    <axis xyz=\"1 0 0\"/>");
+  turned = replaced(turned, "<origin xyz=\"0.06 0 0.23\"/>", "<origin xyz=\"0 -0.06 0.23\"/>");
+  turned = replaced(turned, R"(xyz="0.12 0 0.46" rpy="0 0 0")", R"(xyz="0 -0.12 0.46" rpy="0.7 0.2 0.1")");
+  auto straight = loadModelString(xml, "dojo");
+  auto rotated = loadModelString(turned, "dojo turned");
+  EXPECT_EQ(rotated->numEquations(), kTreeEquations + 5);
+  for (const std::string& note : rotated->notes()) ADD_FAILURE() << note;
+  const std::vector<double> a = positionsAfter(*straight, 1.0), b = positionsAfter(*rotated, 1.0);
+  for (size_t k = 0; k < a.size(); ++k) EXPECT_NEAR(a[k], b[k], 1e-12) << k;
+}
+
+// The rocker's zero pose turned 0.5 rad leaves the loop 0.23 m open at zero: the loader
+// assembles it and says which dofs moved, from where to where.
+TEST(Dialects, ALoopOpenAtTheZeroPoseIsAssembledAndReported) {
+  auto m = loadModelFile(kDir + "/four_bar_dojo_open.urdf");
+  EXPECT_LE(m->relativePositionViolation(), 1e-12);
+  ASSERT_EQ(m->notes().size(), 1u);
+  const std::string& note = m->notes()[0];
+  EXPECT_EQ(note.rfind("assembly moved ", 0), 0u) << note;
+  int named = 0;
+  for (const char* dof : {"crank_joint 0 -> ", "coupler_joint 0 -> ", "rocker_joint 0 -> "})
+    named += note.find(dof) != std::string::npos;
+  EXPECT_GE(named, 2) << note;
+  // and it runs closed
+  positionsAfter(*m, 1.0);
+}
+
+// URDF+ <coupling>: the successor's rate is ratio times the predecessor's, exactly.
+TEST(Dialects, UrdfPlusCouplingHoldsItsRatio) {
+  auto m = loadModelFile(kDir + "/urdfplus_coupling.urdf");
+  EXPECT_EQ(m->numEquations(), 5 + 5 + 1);
+  const int arm = m->dofIndex("arm_joint"), rotor = m->dofIndex("rotor_joint");
+  for (int s = 0; s < 1000; ++s) m->step(1e-3);
+  EXPECT_GT(std::fabs(m->position(arm)), 0.1);
+  EXPECT_NEAR(m->position(rotor), 3.0 * m->position(arm), 1e-10);
+  EXPECT_NEAR(m->velocity(rotor), 3.0 * m->velocity(arm), 1e-9);
+}
+
+// "Extended URDF": the YAML beside the file is read by loadModelFile, or given by
+// LoadOptions::closures_file; loadModelString looks for none. name_mot is reported.
+TEST(Dialects, ExtendedUrdfClosuresFile) {
+  const std::string urdf = kDir + "/four_bar_extended.urdf", yaml = kDir + "/four_bar_extended.yaml";
+  auto beside = loadModelFile(urdf);
+  EXPECT_EQ(beside->numEquations(), kTreeEquations + 3);
+  ASSERT_EQ(beside->notes().size(), 1u);
+  EXPECT_NE(beside->notes()[0].find("actuated joints (name_mot in " + yaml + "): crank_joint read, not simulated"),
+            std::string::npos)
+      << beside->notes()[0];
+  const std::string xml = readText(urdf);
+  EXPECT_EQ(loadModelString(xml, "string")->numEquations(), kTreeEquations);
+  LoadOptions with;
+  with.closures_file = yaml;
+  EXPECT_EQ(loadModelString(xml, "string", with)->numEquations(), kTreeEquations + 3);
+  // 6d: the frames coincide (fixed): the four-bar is locked, with 6 equations more
+  std::ofstream six(testing::TempDir() + "/closures_6d.yaml");
+  six << "closed_loop: [[pin_on_coupler, pin_on_rocker]]\ntype: [6d]\n";
+  six.close();
+  with.closures_file = testing::TempDir() + "/closures_6d.yaml";
+  EXPECT_EQ(loadModelString(xml, "string", with)->numEquations(), kTreeEquations + 6);
+}
+
+// urdfdom <constraint>: each type's equations (a revolute's 5 were checked above).
+TEST(Dialects, UrdfdomConstraintTypes) {
+  const std::string xml = readText(kDir + "/four_bar_constraint.urdf");
+  const std::string axes = "    <parent_axis xyz=\"0 1 0\"/>\n";
+  const std::string child_axis = "    <child_axis xyz=\"0 1 0\"/>\n";
+  const std::string no_axes = replaced(replaced(xml, axes, ""), child_axis, "");
+  EXPECT_EQ(loadModelString(replaced(no_axes, R"(type="revolute")", R"(type="spherical")"), "spherical")->numEquations(),
+            kTreeEquations + 3);
+  // universal: the hinge axis y on the coupler, the second axis x on the rocker
+  const std::string universal =
+      replaced(replaced(xml, R"(type="revolute")", R"(type="universal")"), child_axis, "    <child_axis xyz=\"1 0 0\"/>\n");
+  auto u = loadModelString(universal, "universal");
+  EXPECT_EQ(u->numEquations(), kTreeEquations + 4);
+  EXPECT_TRUE(u->notes().empty());
+}
+
+// One file per dialect and per way it can be wrong, each with its exact one-line error
+// naming the file (the URDF, or its YAML closures file) and line.
+TEST(Dialects, EachInvalidFileFailsWithItsMessage) {
+  const std::string dir = kDir + "/invalid";
+  std::set<std::string> files;
+  for (const auto& entry : std::filesystem::directory_iterator(dir))
+    if (entry.path().extension() == ".urdf") files.insert(entry.path().filename().string());
+  std::ifstream table(dir + "/expected.txt");
+  ASSERT_TRUE(table);
+  std::map<std::string, std::string> expected;
+  std::string line;
+  while (std::getline(table, line)) {
+    if (line.empty() || line[0] == '#') continue;
+    const size_t bar = line.find(" | ");
+    ASSERT_NE(bar, std::string::npos) << line;
+    expected[line.substr(0, bar)] = line.substr(bar + 3);
+  }
+  EXPECT_EQ(files.size(), expected.size());
+  for (const std::string& f : files) {
+    ASSERT_TRUE(expected.count(f)) << f << " has no line in expected.txt";
+    const std::string path = dir + "/" + f, stem = path.substr(0, path.size() - 5);
+    try {
+      loadModelFile(path);
+      ADD_FAILURE() << f << " loaded";
+    } catch (const LoadError& e) {
+      const std::string msg = e.what();
+      EXPECT_EQ(msg.rfind(stem + ".", 0), 0u) << msg;
+      // FILE:LINE: then the message
+      EXPECT_NE(msg.find(":", stem.size() + 1), std::string::npos) << msg;
+      EXPECT_NE(msg.find(expected[f]), std::string::npos) << f << ": expected '" << expected[f] << "' in: " << msg;
+      EXPECT_EQ(msg.find('\n'), std::string::npos) << msg;
+    }
+  }
+}
+
+}  // namespace
+}  // namespace mechanism_sim
