@@ -527,6 +527,10 @@ void Stepper::buildTree(const System& sys) {
       kkt_address_[ci].push_back(kkt_.address(tree_node_[ci], tree_node_[ci], &t));
       continue;
     }
+    // A drive or limit merged into its joint's block has no blocks of its own: its body
+    // pair is coupled through the joint's block row, not directly (a tree has no
+    // body-body block). Asking for one failed for every limited joint below a moving body.
+    if (merged[ci]) continue;
     kkt_address_[ci].assign(k * k, -1);
     kkt_transposed_[ci].assign(k * k, 0);
     for (int k1 = 0; k1 < k; ++k1)
@@ -1116,10 +1120,19 @@ void Stepper::finishStep(const System& sys, State& s, const Inputs& in, bool aft
   // is not in them: then full Newton, H refactored each iteration.
   // (H consistent with the evaluation: factored at the same positions)
   const bool consistent = factored_x_ == evaluated_x_ && factored_side_ == evaluated_side_;
-  const bool frozen = !updateLimits(sys, s) && after_stages && consistent;
+  bool frozen = !updateLimits(sys, s) && after_stages && consistent;
   if (frozen) std::swap(J_, J_frozen_);
   evaluate(sys, s);
-  const bool moved = projectPositions(sys, s, frozen);
+  bool moved = projectPositions(sys, s, frozen);
+  // A projection that stops one joint on its limit moves the joints around it: in a chain
+  // it can carry another joint past its own stop (a three-rod chain swinging onto its
+  // stops ended 3.4e-4 rad past one this way). Such limits become active and the
+  // positions are projected again, at most once per limit.
+  for (size_t pass = 0; pass < sys.limits.size() && updateLimits(sys, s); ++pass) {
+    frozen = false;
+    evaluate(sys, s);
+    moved = projectPositions(sys, s, false) || moved;
+  }
   if (moved || !frozen) factor(sys, "projection", s.t, !frozen);  // velocities need H at this Phi_q
   const bool sped = projectVelocities(sys, s);
   // Tracked angles move to the new pose. The evaluation above stands when neither
