@@ -216,7 +216,7 @@ int main(int argc, char** argv) {
     std::cerr << (last_bar > 0 ? "\n" : "") << "simulate: cannot write '" << args.bag << "'\n";
     return 1;
   } catch (const std::exception& e) {
-    std::cerr << "\nsimulate: " << args.model << ": at t = " << model->time() << " s: " << e.what() << "\n";
+    std::cerr << "\nsimulate: " << e.what() << "\n";  // "FILE: at t = T s: what" (MechanismModel::step)
     return 1;
   }
   out->flush();

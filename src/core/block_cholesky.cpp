@@ -5,6 +5,8 @@
 #include <set>
 #include <stdexcept>
 
+#include "mechanism_sim/core/errors.h"
+
 namespace mechanism_sim {
 
 // Symbolic phase.
@@ -21,11 +23,11 @@ void BlockCholesky::analyze(int nb, const std::vector<std::pair<int, int>>& edge
                             const std::vector<signed char>& signs) {
   nb_ = nb;
   if ((!given.empty() && static_cast<int>(given.size()) != nb) || (!signs.empty() && static_cast<int>(signs.size()) != nb))
-    throw std::invalid_argument("BlockCholesky::analyze: order or signs of the wrong size");
+    throw InternalError("the block factorization was given an order or signs of the wrong size");
   std::vector<std::set<int>> adj(nb);
   for (const auto& e : edges) {
     if (e.first < 0 || e.second < 0 || e.first >= nb || e.second >= nb)
-      throw std::out_of_range("BlockCholesky::analyze: edge out of range");
+      throw InternalError("the block factorization was given a coupling of a body it does not have");
     if (e.first == e.second) continue;
     adj[e.first].insert(e.second);
     adj[e.second].insert(e.first);
@@ -37,7 +39,7 @@ void BlockCholesky::analyze(int nb, const std::vector<std::pair<int, int>>& edge
     order_ = given;
     for (int k = 0; k < nb; ++k) {
       if (given[k] < 0 || given[k] >= nb || position_[given[k]] >= 0)
-        throw std::invalid_argument("BlockCholesky::analyze: the order is not a permutation");
+        throw InternalError("the block factorization was given an elimination order that is not a permutation");
       position_[given[k]] = k;
     }
   } else {
@@ -86,7 +88,7 @@ void BlockCholesky::analyze(int nb, const std::vector<std::pair<int, int>>& edge
   auto find = [&](int i, int j) {  // block of L(i, j), i > j
     for (const auto& e : lookup_[j])
       if (e.first == i) return e.second;
-    throw std::logic_error("BlockCholesky: fill block missing");
+    throw InternalError("the block factorization misses a fill block");
   };
   updates_.clear();
   update_start_.assign(nb + 1, 0);
@@ -117,7 +119,7 @@ int BlockCholesky::address(int i, int j, bool* transposed) const {
   *transposed = pi < pj;
   for (const auto& e : lookup_[col])
     if (e.first == row) return e.second;
-  throw std::logic_error("BlockCholesky::address: bodies are not adjacent");
+  throw InternalError("the block factorization was asked for a block between two bodies no constraint couples");
 }
 
 std::vector<std::array<int, 3>> BlockCholesky::storedBlocks() const {

@@ -554,7 +554,7 @@ void Stepper::buildTree(const System& sys) {
   std::sort(edges.begin(), edges.end());
   edges.erase(std::unique(edges.begin(), edges.end()), edges.end());
   if (kkt_.offDiagonalBlocks() != static_cast<int>(edges.size()))  // (no fill in a tree)
-    throw std::logic_error("Stepper: the tree KKT factorization has fill");
+    throw InternalError("the tree KKT factorization has fill");
 }
 
 // Adds weight * rows^T rows for rows over the bodies of a constraint (assembly targets).
@@ -594,7 +594,7 @@ void Stepper::factor(const System& sys, const char* where, double t, bool reweig
     std::ostringstream os;
     os << "at t = " << t << " s (" << where
        << "): the constrained mass matrix is singular; some motion moves no mass";
-    throw std::runtime_error(os.str());
+    throw SimulationError(os.str());
   }
 }
 
@@ -995,7 +995,7 @@ void Stepper::advance(const System& sys, State& s, const Inputs& in, double h, i
       os << "body '" << sys.bodies[fastest].name << "' turns " << fmt(spin * asked) << " rad in one step of "
          << asked << " s (" << (1 << depth) << " substeps still turn " << fmt(spin * h)
          << " rad each); steps of at most " << fmt(kMaxTurn / spin) << " s follow it";
-      throw std::runtime_error(os.str());
+      throw SimulationError(os.str());
     }
     ++stats_.halved_steps;
     advance(sys, s, in, 0.5 * h, depth + 1);
@@ -1171,7 +1171,7 @@ bool Stepper::updateLimits(const System& sys, State& s) {
         os << "at t = " << s.t << " s: the drive of joint '" << sys.joints[L.joint]->name()
            << "' moves it to " << fmt(q) << ", past its limits [" << fmt(L.lower) << ", "
            << fmt(L.upper) << "]; change the drive or the limits";
-        throw std::runtime_error(os.str());
+        throw SimulationError(os.str());
       }
     s.limit_side[l] = static_cast<signed char>(side);
     changed = true;

@@ -9,6 +9,8 @@
 #include <cstring>
 #include <fstream>
 #include <map>
+#include <optional>
+#include <set>
 #include <sstream>
 
 #include <console_bridge/console.h>
@@ -27,25 +29,37 @@ using namespace urdf_input;
 
 namespace {
 
-// urdfdom reports its parse errors through console_bridge, and the loader reports its own,
-// so console_bridge is silenced while urdfdom parses and its level restored after (also
-// when parsing throws): the embedding program's own logging is left as it was.
-class ConsoleBridgeSilenced {
+// urdfdom reports its parse errors through console_bridge, and the loader reports its own:
+// while urdfdom parses, its errors are captured (the first one explains a refusal) instead
+// of printed, and console_bridge's level and handler are restored after (also when parsing
+// throws): the embedding program's own logging is left as it was.
+class ConsoleBridgeCaptured : public console_bridge::OutputHandler {
  public:
-  ConsoleBridgeSilenced() : saved_(console_bridge::getLogLevel()) {
-    console_bridge::setLogLevel(console_bridge::CONSOLE_BRIDGE_LOG_NONE);
+  ConsoleBridgeCaptured() : saved_(console_bridge::getLogLevel()) {
+    console_bridge::setLogLevel(console_bridge::CONSOLE_BRIDGE_LOG_ERROR);
+    console_bridge::useOutputHandler(this);
   }
-  ~ConsoleBridgeSilenced() { console_bridge::setLogLevel(saved_); }
-  ConsoleBridgeSilenced(const ConsoleBridgeSilenced&) = delete;
-  ConsoleBridgeSilenced& operator=(const ConsoleBridgeSilenced&) = delete;
+  ~ConsoleBridgeCaptured() override {
+    console_bridge::restorePreviousOutputHandler();
+    console_bridge::setLogLevel(saved_);
+  }
+  ConsoleBridgeCaptured(const ConsoleBridgeCaptured&) = delete;
+  ConsoleBridgeCaptured& operator=(const ConsoleBridgeCaptured&) = delete;
+  void log(const std::string& text, console_bridge::LogLevel level, const char*, int) override {
+    if (level >= console_bridge::CONSOLE_BRIDGE_LOG_ERROR && first_.empty()) first_ = text;
+  }
+  const std::string& first() const { return first_; }
 
  private:
   console_bridge::LogLevel saved_;
 };
+  std::string first_;
 
-urdf::ModelInterfaceSharedPtr parseWithUrdfdom(const std::string& xml) {
-  ConsoleBridgeSilenced quiet;
-  return urdf::parseURDF(xml);
+urdf::ModelInterfaceSharedPtr parseWithUrdfdom(const std::string& xml, std::string* why) {
+  ConsoleBridgeCaptured captured;
+  urdf::ModelInterfaceSharedPtr model = urdf::parseURDF(xml);
+  *why = captured.first();
+  return model;
 }
 
 // A joint coordinate: (joint name, coordinate index).
@@ -57,11 +71,17 @@ struct InitialValues {
   std::map<Coordinate, double> velocities;  // held in assembly
   std::map<Coordinate, bool> velocity_from_file;  // whether the file gave it (else the options)
   JointValues coordinates() const {
+  // Where a joint starts that nobody placed, because the file's zero pose lies outside its
+  // limits (the nearest limit): placed and held like `positions`, but not the user's.
+  std::map<Coordinate, double> limit_starts;
+  // A mimic follower's place, from its leader's start: placed, not held (the coupler holds it).
+  std::map<Coordinate, double> followers;
     JointValues q;
-    for (const auto& p : positions) {
-      q[p.first.first].resize(3, 0.0);
-      q[p.first.first][p.first.second] = p.second;
-    }
+    for (const auto* m : {&followers, &limit_starts, &positions})
+      for (const auto& p : *m) {
+        q[p.first.first].resize(3, 0.0);
+        q[p.first.first][p.first.second] = p.second;
+      }
     return q;
   }
 };
@@ -87,7 +107,8 @@ class ModelBuilder {
     validateStandard(robot, reader_);
     Extension ext = readExtension(robot, reader_);
     readClosuresFile(options_.closures_file, robot, &ext);  // "Extended URDF" (loop_dialects.h)
-    const urdf::ModelInterfaceSharedPtr urdf = parseWithUrdfdom(xml_);
+    std::string why;
+    const urdf::ModelInterfaceSharedPtr urdf = parseWithUrdfdom(xml_, &why);
     if (!urdf) {
       // urdfdom reads the XML with TinyXML 1, which takes a raw '&' or '<' in a name
       // differently from tinyxml2: name the element instead of a bare refusal
@@ -98,17 +119,20 @@ class ModelBuilder {
             reader_.fail(e, std::string("urdfdom could not parse the robot description: it reads this ") + tag +
                                 "'s name differently (an unescaped '&' or '<'? write &amp; or &lt;)");
         }
-      throw LoadError(reader_.file + ": urdfdom could not parse the robot description");
+      throw LoadError(reader_.file + ": urdfdom could not parse the robot description" +
+                      (why.empty() ? std::string() : ": " + oneLine(why)));
     }
 
     model_ = std::make_unique<MechanismModel>();
     model_->mechanism_ = std::make_unique<Mechanism>();
+    model_->source_ = reader_.file;
     model_->name_ = urdf->getName();
     model_->root_link_ = urdf->getRoot()->name;
     const JointSpecs specs = collectJointSpecs(robot, *urdf, ext, reader_);
     const LinkTree tree(specs.tree, model_->root_link_);
     const RigidBodies bodies(tree, *urdf);
-    const InitialValues initial = initialValues(specs, ext);
+    InitialValues initial = initialValues(specs, ext);
+    startInsideLimits(specs, ext, initial);
     const std::map<std::string, Isometry3d> placed = tree.poses(initial.coordinates());
     addBodies(bodies, placed, *urdf);
     for (const JointSpec& s : specs.tree) model_->tree_.push_back(TreeJoint{s.name, s.parent, s.child, s.type == "fixed"});
@@ -118,6 +142,7 @@ class ModelBuilder {
     for (const Coupling& c : resolveCouplings(ext, specs, reader_)) addCoupling(c);
     model_->notes_ = ext.notes;
     addDrives(specs, ext, initial);
+    model_->notes_.insert(model_->notes_.end(), limit_notes_.begin(), limit_notes_.end());
     addSprings(ext, bodies, placed, *urdf);
     setGravityAndIntegrator(ext);
     assemble(initial);
@@ -173,6 +198,63 @@ class ModelBuilder {
   }
 
   // One core body per moving group, placed where the initial values put its first link;
+  // Real files often have a zero pose outside some joints' limits (a humanoid's elbows
+  // whose range excludes 0). Such a joint, when no position is given for it, starts at its
+  // nearest limit, with a note per joint (MuJoCo and pybullet start it outside and let the
+  // soft limit push it in; a hard limit here cannot start violated). A position the user
+  // gives outside the limits is still refused (assembly). A mimic follower is placed from
+  // its leader's start; if that lies outside the follower's limits, the leader (when free
+  // to) starts where the follower sits on its nearest limit. Driven joints are left to
+  // their drives.
+  void startInsideLimits(const JointSpecs& specs, const Extension& ext, InitialValues& in) {
+    std::set<std::string> driven;
+    for (const ExtDrive& d : ext.drives) driven.insert(d.dof.substr(0, d.dof.find('.')));
+    for (const auto& d : options_.drives) driven.insert(d.first.substr(0, d.first.find('.')));
+    std::map<std::string, const JointSpec*> by_name;
+    for (const JointSpec& s : specs.tree) by_name[s.name] = &s;
+    auto limited = [](const JointSpec& s) { return s.upper > s.lower && dofNames(s).size() == 1; };
+    auto given = [&](const std::string& joint) -> std::optional<double> {
+      for (const auto* m : {&in.positions, &in.limit_starts}) {
+        const auto it = m->find({joint, 0});
+        if (it != m->end()) return it->second;
+      }
+      return std::nullopt;
+    };
+    auto note = [&](const JointSpec& s, double zero, double start) {
+      std::ostringstream os;
+      os << "joint '" << s.name << "': its zero pose (" << zero << ") lies outside its limits [" << s.lower << ", "
+         << s.upper << "]; it starts at " << start;
+      limit_notes_.push_back(os.str());
+    };
+    // leaders and unrelated joints first, then mimic followers
+    for (const JointSpec& s : specs.tree) {
+      if (!s.mimic.empty() || !limited(s) || driven.count(s.name) || given(s.name)) continue;
+      if (0.0 >= s.lower && 0.0 <= s.upper) continue;
+      const double start = 0.0 < s.lower ? s.lower : s.upper;
+      in.limit_starts[{s.name, 0}] = start;
+      note(s, 0.0, start);
+    }
+    for (const JointSpec& s : specs.tree) {
+      if (s.mimic.empty() || given(s.name)) continue;
+      const auto leader = by_name.find(s.mimic);
+      if (leader == by_name.end() || dofNames(*leader->second).size() != 1) continue;
+      const double q_leader = given(s.mimic).value_or(0.0);
+      double q = s.mimic_multiplier * q_leader + s.mimic_offset;
+      if (limited(s) && (q < s.lower || q > s.upper) && s.mimic_multiplier != 0.0 && !driven.count(s.mimic) &&
+          !in.positions.count({s.mimic, 0})) {
+        const double target = q < s.lower ? s.lower : s.upper;
+        const double q_new = (target - s.mimic_offset) / s.mimic_multiplier;
+        const JointSpec& l = *leader->second;
+        if (!limited(l) || (q_new >= l.lower && q_new <= l.upper)) {
+          in.limit_starts[{s.mimic, 0}] = q_new;
+          note(s, q, target);
+          q = target;
+        }
+      }
+      in.followers[{s.name, 0}] = q;
+    }
+  }
+
   // then every link with its body.
   void addBodies(const RigidBodies& bodies, const std::map<std::string, Isometry3d>& placed,
                  const urdf::ModelInterface& urdf) {
@@ -378,7 +460,8 @@ class ModelBuilder {
 
   void assemble(const InitialValues& initial) {
     std::vector<CoordinateTarget> positions, velocities;
-    for (const auto& p : initial.positions) positions.push_back({joint_index_.at(p.first.first), p.first.second, p.second});
+    for (const auto* m : {&initial.positions, &initial.limit_starts})
+      for (const auto& p : *m) positions.push_back({joint_index_.at(p.first.first), p.first.second, p.second});
     for (const auto& v : initial.velocities) {
       const int joint = joint_index_.at(v.first.first);
       if (mech().driveOf(joint, v.first.second) < 0) velocities.push_back({joint, v.first.second, v.second});
@@ -420,10 +503,27 @@ class ModelBuilder {
   std::vector<int> body_of_group_;          // core body of each rigid group
   std::map<std::string, int> joint_index_;  // core joint of each joint with one
 };
+  std::vector<std::string> limit_notes_;     // joints started at a limit (startInsideLimits)
 
 std::unique_ptr<MechanismModel> loadModelString(const std::string& xml, const std::string& source,
                                                 const LoadOptions& options) {
-  return ModelBuilder(xml, source, options).build();
+  // The error contract: one line naming the file and, from the core, the joint or body at
+  // fault; nothing else escapes.
+  std::unique_ptr<MechanismModel> model;
+  try {
+    model = ModelBuilder(xml, source, options).build();
+  } catch (const LoadError&) {
+    throw;
+  } catch (const InternalError& e) {
+    throw LoadError(source + ": " + e.what());
+  } catch (const Error& e) {
+    throw LoadError(source + ": " + e.what());
+  } catch (const std::bad_alloc&) {
+    throw LoadError(source + ": out of memory while building the model");
+  } catch (const std::exception& e) {
+    throw LoadError(source + ": " + InternalError(e.what()).what());
+  }
+  return model;
 }
 
 std::unique_ptr<MechanismModel> loadModelFile(const std::string& path, const LoadOptions& options) {

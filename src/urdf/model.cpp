@@ -1,6 +1,7 @@
-#include <cmath>
-
 #include "mechanism_sim/urdf/model.h"
+
+#include <cmath>
+#include <sstream>
 
 namespace mechanism_sim {
 
@@ -108,7 +109,23 @@ void MechanismModel::step(double h) {
     }
     mechanism_->setJointEffort(dofs_[d].joint_index, dofs_[d].k, tau);
   }
-  mechanism_->step(h);
+  // Whatever stops a step reaches the caller as one line with the file and the time.
+  auto where = [&] {
+    std::ostringstream os;
+    os << source_ << ": at t = " << time() << " s: ";
+    return os.str();
+  };
+  try {
+    mechanism_->step(h);
+  } catch (const StepFailure& e) {
+    throw StepFailure(where() + e.what());
+  } catch (const Error& e) {  // SimulationError, InternalError (a bad h: a caller's error)
+    throw SimulationError(where() + e.what());
+  } catch (const std::invalid_argument& e) {
+    throw SimulationError(where() + e.what());
+  } catch (const std::exception& e) {
+    throw SimulationError(where() + InternalError(e.what()).what());
+  }
 }
 
 void MechanismModel::reset() {

@@ -40,11 +40,6 @@ struct SolverStats {
 // r += dr, p <- p (x) exp(dtheta'/2) per moving body: a displacement in variation coordinates.
 void displace(const System& sys, Eigen::VectorXd& x, const double* dq);
 
-// A step that left the constraints beyond what projection can repair.
-class StepFailure : public std::runtime_error {
- public:
-  using std::runtime_error::runtime_error;
-};
 
 // Body kinematics of a state, ground first.
 void loadKinematics(const System& sys, const double* x, const double* u, std::vector<BodyKin>& kin);

@@ -14,15 +14,11 @@
 
 #include "mechanism_sim/core/block_cholesky.h"
 #include "mechanism_sim/core/drive.h"
+#include "mechanism_sim/core/errors.h"
 #include "mechanism_sim/core/joint.h"
 
 namespace mechanism_sim {
 
-// A model that cannot be simulated; the message names what is at fault.
-class ModelError : public std::runtime_error {
- public:
-  using std::runtime_error::runtime_error;
-};
 
 struct Body {
   std::string name;

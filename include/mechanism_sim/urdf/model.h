@@ -17,9 +17,12 @@
 namespace mechanism_sim {
 
 // A file that cannot be simulated: "FILE:LINE: element 'name': what is wrong".
-class LoadError : public std::runtime_error {
+// Every failure while loading, building or assembling reaches the caller as a LoadError,
+// one line naming the file (a core ModelError gets the file put before it; an internal
+// error says it is one).
+class LoadError : public Error {
  public:
-  using std::runtime_error::runtime_error;
+  using Error::Error;
 };
 
 struct LoadOptions {
@@ -83,6 +86,7 @@ class MechanismModel {
   const std::string& rootLink() const { return root_link_; }
   const std::vector<Dof>& dofs() const { return dofs_; }  // tree joints in file order, then loops
   const std::vector<Link>& links() const { return links_; }
+  const std::string& source() const { return source_; }  // the file (or the name given to a string)
   const std::vector<TreeJoint>& treeJoints() const { return tree_; }
   const std::vector<LoopJoint>& loopJoints() const { return loops_; }
   int dofIndex(const std::string& name) const;   // -1 if there is none
@@ -137,7 +141,8 @@ class MechanismModel {
   void commandDriveVelocity(int dof, double v, double acc);
   // What the drive of a dof prescribes now (throws if the dof is not driven).
   double driveVelocity(int dof) const;
-  // One step of h seconds. Throws std::runtime_error when the step fails.
+  // One step of h seconds. Throws SimulationError "FILE: at t = T s: what" when the step
+  // fails (the state stays at the last accepted step).
   void step(double h);
   // Back to the assembled initial state, commands zeroed.
   void reset();
@@ -149,7 +154,7 @@ class MechanismModel {
  private:
   friend class ModelBuilder;
   std::unique_ptr<Mechanism> mechanism_;
-  std::string name_, root_link_;
+  std::string name_, root_link_, source_;
   std::vector<Dof> dofs_;
   std::vector<Link> links_;
   std::vector<TreeJoint> tree_;
