@@ -1,5 +1,5 @@
 # gtests of the loader and the simulate CLI; rostests of the node.
-catkin_add_gtest(test_loader test/urdf/test_loader.cpp test/urdf/test_drive_files.cpp)
+catkin_add_gtest(test_loader test/urdf/test_loader.cpp test/urdf/test_drive_files.cpp test/urdf/test_real_files.cpp)
 target_link_libraries(test_loader mechanism_sim_urdf gtest_main)
 target_compile_definitions(test_loader PRIVATE MECHANISM_SIM_SOURCE_DIR="${PROJECT_SOURCE_DIR}")
 
@@ -25,21 +25,13 @@ target_compile_definitions(test_bag PRIVATE MECHANISM_SIM_SOURCE_DIR="${PROJECT_
   SIMULATE_BIN="$<TARGET_FILE:simulate>")
 add_dependencies(test_bag simulate ${PROJECT_NAME}_generate_messages_cpp)
 
-# The robot zoo (test/zoo/) and MuJoCo as an oracle for its trees (test-only dependency
-# libmujoco-dev; without it the oracle is not built).
-catkin_add_gtest(test_zoo test/urdf/test_zoo.cpp)
-target_link_libraries(test_zoo mechanism_sim_urdf gtest_main)
-target_compile_definitions(test_zoo PRIVATE MECHANISM_SIM_SOURCE_DIR="${PROJECT_SOURCE_DIR}")
-find_path(MUJOCO_INCLUDE_DIR mujoco/mujoco.h)
-find_library(MUJOCO_LIBRARY mujoco)
-if(MUJOCO_INCLUDE_DIR AND MUJOCO_LIBRARY)
-  catkin_add_gtest(test_mujoco_oracle test/urdf/test_mujoco_oracle.cpp)
-  target_include_directories(test_mujoco_oracle PRIVATE ${MUJOCO_INCLUDE_DIR})
-  target_link_libraries(test_mujoco_oracle mechanism_sim_urdf ${MUJOCO_LIBRARY} gtest_main)
-  target_compile_definitions(test_mujoco_oracle PRIVATE MECHANISM_SIM_SOURCE_DIR="${PROJECT_SOURCE_DIR}")
-else()
-  message(STATUS "MuJoCo not found (libmujoco-dev): test_mujoco_oracle is not built")
-endif()
+# xacro models (tools/xacro on Node.js, doc/xacro.md): the loader, simulate and scripts/xacro.
+catkin_add_gtest(test_xacro test/urdf/test_xacro.cpp)
+target_include_directories(test_xacro PRIVATE src/urdf)
+target_link_libraries(test_xacro mechanism_sim_urdf gtest_main)
+target_compile_definitions(test_xacro PRIVATE MECHANISM_SIM_SOURCE_DIR="${PROJECT_SOURCE_DIR}"
+  SIMULATE_BIN="$<TARGET_FILE:simulate>")
+add_dependencies(test_xacro simulate)
 
 if(EXISTS ${PROJECT_SOURCE_DIR}/test/rostest/CMakeLists.txt)
   include(${PROJECT_SOURCE_DIR}/test/rostest/CMakeLists.txt)

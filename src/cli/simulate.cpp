@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cctype>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -24,12 +25,13 @@ using namespace mechanism_sim;
 namespace {
 
 const char* kUsage =
-    "usage: simulate MODEL.urdf [--duration S] [--dt S] [--output-every N]\n"
+    "usage: simulate MODEL.urdf|MODEL.urdf.xacro [name:=value]... (xacro arguments)\n"
+    "                [--duration S] [--dt S] [--output-every N]\n"
     "                [--csv FILE] [--poses] [--integrator rk4|rk3|rk2]\n"
     "                [--set JOINT=POSITION]... [--velocity JOINT=VALUE]...\n"
     "                [--effort JOINT=VALUE]... [--drive JOINT=VELOCITY]...\n"
     "                [--reactions] [--bag FILE.bag] [--plot FILE.png] [--plot-columns LIST]\n"
-    "                [--closures FILE.yaml] [--quiet]\n";
+    "                [--quiet]\n";
 
 struct UsageError : std::runtime_error {
   using std::runtime_error::runtime_error;
@@ -48,6 +50,17 @@ std::pair<std::string, double> parseAssignment(const std::string& text, const st
   const size_t eq = text.find('=');
   if (eq == std::string::npos || eq == 0) throw UsageError(flag + " needs JOINT=VALUE, not '" + text + "'");
   return {text.substr(0, eq), parseNumber(text.substr(eq + 1), flag + " " + text.substr(0, eq))};
+}
+
+bool endsWith(const std::string& s, const std::string& tail) {
+  return s.size() >= tail.size() && s.compare(s.size() - tail.size(), tail.size(), tail) == 0;
+}
+
+// name:=value (a xacro argument, doc/xacro.md), name an identifier.
+bool isXacroArgument(const std::string& arg) {
+  const size_t op = arg.find(":=");
+  if (op == std::string::npos || op == 0 || !(std::isalpha(static_cast<unsigned char>(arg[0])) || arg[0] == '_')) return false;
+  return std::all_of(arg.begin(), arg.begin() + op, [](char c) { return std::isalnum(static_cast<unsigned char>(c)) || c == '_'; });
 }
 
 struct Args {
@@ -81,14 +94,16 @@ Args parse(int argc, char** argv) {
     else if (arg == "--bag") a.bag = value();
     else if (arg == "--plot") a.plot = value();
     else if (arg == "--plot-columns") a.plot_columns = value();
-    else if (arg == "--closures") a.load.closures_file = value();  // doc/loop_dialects.md
     else if (arg == "--quiet") a.quiet = true;
     else if (arg == "-h" || arg == "--help") { std::cout << kUsage; std::exit(0); }
     else if (!arg.empty() && arg[0] == '-') throw UsageError("unknown option '" + arg + "'");
+    else if (isXacroArgument(arg)) a.load.xacro_args.emplace_back(arg.substr(0, arg.find(":=")), arg.substr(arg.find(":=") + 2));
     else if (a.model.empty()) a.model = arg;
     else throw UsageError("more than one model file given");
   }
   if (a.model.empty()) throw UsageError("no model file given");
+  if (!a.load.xacro_args.empty() && !endsWith(a.model, ".xacro"))
+    throw UsageError("name:=value sets a xacro argument, but '" + a.model + "' is not a .xacro file");
   if (!a.plot_columns.empty() && a.plot.empty()) throw UsageError("--plot-columns needs --plot FILE.png");
   if (!(a.duration >= 0) || a.duration > 1e7) throw UsageError("--duration must be between 0 and 1e7 s");
   if (!(a.dt > 0) || a.dt > 1.0) throw UsageError("--dt must be in (0, 1] s");
@@ -216,7 +231,7 @@ int main(int argc, char** argv) {
     std::cerr << (last_bar > 0 ? "\n" : "") << "simulate: cannot write '" << args.bag << "'\n";
     return 1;
   } catch (const std::exception& e) {
-    std::cerr << "\nsimulate: " << e.what() << "\n";  // "FILE: at t = T s: what" (MechanismModel::step)
+    std::cerr << "\nsimulate: " << args.model << ": at t = " << model->time() << " s: " << e.what() << "\n";
     return 1;
   }
   out->flush();
@@ -238,8 +253,6 @@ int main(int argc, char** argv) {
                 loop.worstPositionViolation(), loop.worstVelocityViolation(),
                 model->dependencies().describe().c_str(), drives.c_str(), model->solverStats().describe().c_str());
   if (!args.quiet) std::fprintf(stderr, "%s: %s\n", args.model.c_str(), summary);
-  for (const std::string& note : model->notes())
-    if (!args.quiet) std::fprintf(stderr, "%s: %s\n", args.model.c_str(), note.c_str());
   if (!args.plot.empty()) {
     char title[512];
     std::snprintf(title, sizeof title, "%s (%s): %ld steps of %g s", model->name().c_str(), args.model.c_str(), steps, args.dt);

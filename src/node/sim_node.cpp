@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <map>
+#include <sstream>
 
 #include <geometry_msgs/Vector3Stamped.h>
 #include <rosgraph_msgs/Clock.h>
@@ -30,12 +31,26 @@ bool NodeParams::read(const ros::NodeHandle& pnh) {
     return false;
   }
   pnh.param<std::string>("integrator", load.integrator, "");
-  pnh.param<std::string>("closures_file", load.closures_file, "");  // doc/loop_dialects.md
   std::map<std::string, double> positions, velocities;
   pnh.getParam("initial_positions", positions);
   pnh.getParam("initial_velocities", velocities);
   load.positions.assign(positions.begin(), positions.end());
   load.velocities.assign(velocities.begin(), velocities.end());
+  // ~xacro_args: "name:=value name:=value" (or name=value: roslaunch's command line takes
+  // no ":=" inside a value) for a ~model_file ending in .xacro (doc/xacro.md)
+  std::string xacro_args;
+  if (pnh.getParam("xacro_args", xacro_args)) {
+    std::istringstream words(xacro_args);
+    std::string word;
+    while (words >> word) {
+      const size_t eq = word.find('='), op = eq != std::string::npos && eq > 0 && word[eq - 1] == ':' ? eq - 1 : eq;
+      if (eq == std::string::npos || op == 0) {
+        ROS_FATAL("mechanism_sim: ~xacro_args: '%s' is not name:=value", word.c_str());
+        return false;
+      }
+      load.xacro_args.emplace_back(word.substr(0, op), word.substr(eq + 1));
+    }
+  }
   return true;
 }
 
@@ -98,7 +113,6 @@ bool SimNode::load() {
     ROS_FATAL("mechanism_sim: %s", e.what());
     return false;
   }
-  for (const std::string& note : model_->notes()) ROS_WARN("mechanism_sim: %s", note.c_str());
   return true;
 }
 

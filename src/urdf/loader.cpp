@@ -20,6 +20,7 @@
 #include "loop_dialects.h"
 #include "mechanism_sim/urdf/model.h"
 #include "rigid_bodies.h"
+#include "xacro.h"
 #include "xml_input.h"
 
 namespace mechanism_sim {
@@ -52,8 +53,8 @@ class ConsoleBridgeCaptured : public console_bridge::OutputHandler {
 
  private:
   console_bridge::LogLevel saved_;
-};
   std::string first_;
+};
 
 urdf::ModelInterfaceSharedPtr parseWithUrdfdom(const std::string& xml, std::string* why) {
   ConsoleBridgeCaptured captured;
@@ -70,12 +71,12 @@ struct InitialValues {
   std::map<Coordinate, double> positions;   // placed by forward kinematics, held in assembly
   std::map<Coordinate, double> velocities;  // held in assembly
   std::map<Coordinate, bool> velocity_from_file;  // whether the file gave it (else the options)
-  JointValues coordinates() const {
   // Where a joint starts that nobody placed, because the file's zero pose lies outside its
   // limits (the nearest limit): placed and held like `positions`, but not the user's.
   std::map<Coordinate, double> limit_starts;
   // A mimic follower's place, from its leader's start: placed, not held (the coupler holds it).
   std::map<Coordinate, double> followers;
+  JointValues coordinates() const {
     JointValues q;
     for (const auto* m : {&followers, &limit_starts, &positions})
       for (const auto& p : *m) {
@@ -124,13 +125,14 @@ class ModelBuilder {
     }
 
     model_ = std::make_unique<MechanismModel>();
-    model_->mechanism_ = std::make_unique<Mechanism>();
     model_->source_ = reader_.file;
+    model_->mechanism_ = std::make_unique<Mechanism>();
     model_->name_ = urdf->getName();
     model_->root_link_ = urdf->getRoot()->name;
     const JointSpecs specs = collectJointSpecs(robot, *urdf, ext, reader_);
     const LinkTree tree(specs.tree, model_->root_link_);
     const RigidBodies bodies(tree, *urdf);
+    checkInertias(robot, bodies, *urdf);
     InitialValues initial = initialValues(specs, ext);
     startInsideLimits(specs, ext, initial);
     const std::map<std::string, Isometry3d> placed = tree.poses(initial.coordinates());
@@ -141,8 +143,9 @@ class ModelBuilder {
     for (const JointSpec& s : specs.tree) addMimic(s);
     for (const Coupling& c : resolveCouplings(ext, specs, reader_)) addCoupling(c);
     model_->notes_ = ext.notes;
-    addDrives(specs, ext, initial);
     model_->notes_.insert(model_->notes_.end(), limit_notes_.begin(), limit_notes_.end());
+    model_->notes_.insert(model_->notes_.end(), inertia_notes_.begin(), inertia_notes_.end());
+    addDrives(specs, ext, initial);
     addSprings(ext, bodies, placed, *urdf);
     setGravityAndIntegrator(ext);
     assemble(initial);
@@ -197,7 +200,55 @@ class ModelBuilder {
     return in;
   }
 
-  // One core body per moving group, placed where the initial values put its first link;
+  // Inertia is judged where it acts: on the rigid body that links joined by fixed joints
+  // make. A link whose own inertia is not physical (a finger pad's six entries of 1e-10)
+  // but merges into a body whose inertia is runs, with a note; a body whose merged inertia
+  // is not physical is refused at the <inertia> of the link at fault. Mass-0 links' inertia
+  // is dropped (RigidBodies), with a note.
+  void checkInertias(const tinyxml2::XMLElement* robot, const RigidBodies& bodies, const urdf::ModelInterface& urdf) {
+    auto element = [&](const std::string& link) -> const tinyxml2::XMLElement* {
+      for (auto* e = robot->FirstChildElement("link"); e; e = e->NextSiblingElement("link"))
+        if (e->Attribute("name") && link == e->Attribute("name")) {
+          const tinyxml2::XMLElement* in = e->FirstChildElement("inertial");
+          const tinyxml2::XMLElement* I = in ? in->FirstChildElement("inertia") : nullptr;
+          return I ? I : e;
+        }
+      return robot;
+    };
+    // group -> (link, fault) of the links whose own inertia is not physical
+    std::map<int, std::vector<std::pair<std::string, std::string>>> own_faults;
+    for (const auto& entry : urdf.links_) {
+      const urdf::Link& l = *entry.second;
+      const int g = bodies.groupOf(l.name);
+      if (!l.inertial || g == 0 || l.inertial->mass == 0.0) continue;
+      Matrix3d I;
+      I << l.inertial->ixx, l.inertial->ixy, l.inertial->ixz, l.inertial->ixy, l.inertial->iyy, l.inertial->iyz,
+          l.inertial->ixz, l.inertial->iyz, l.inertial->izz;
+      const std::string fault = inertiaFault(I);
+      if (!fault.empty()) own_faults[g].push_back({l.name, fault});
+    }
+    const std::vector<RigidGroup>& groups = bodies.groups();
+    for (size_t g = 1; g < groups.size(); ++g) {
+      const std::string fault = inertiaFault(groups[g].Jp);
+      const auto own = own_faults.find(static_cast<int>(g));
+      if (!fault.empty()) {
+        const std::string link = own != own_faults.end() ? own->second.front().first : groups[g].first_link;
+        fail(element(link), "the rigid body of link '" + groups[g].first_link + "' (with the links fixed to it): " +
+                                fault + "; fix the <inertia> of link '" + link + "'");
+      }
+      if (own == own_faults.end()) continue;
+      for (const auto& [link, why] : own->second)
+        inertia_notes_.push_back("link '" + link + "': its own " + why + "; it is fixed to body '" +
+                                 groups[g].first_link + "', whose inertia is physical, and runs");
+    }
+    if (!bodies.massless().empty()) {
+      std::string names;
+      for (const std::string& l : bodies.massless()) names += (names.empty() ? "'" : ", '") + l + "'";
+      inertia_notes_.push_back("links of mass 0 with a non-zero inertia: " + names +
+                               ": their inertia is dropped (a body without mass has none; MuJoCo does the same)");
+    }
+  }
+
   // Real files often have a zero pose outside some joints' limits (a humanoid's elbows
   // whose range excludes 0). Such a joint, when no position is given for it, starts at its
   // nearest limit, with a note per joint (MuJoCo and pybullet start it outside and let the
@@ -255,6 +306,7 @@ class ModelBuilder {
     }
   }
 
+  // One core body per moving group, placed where the initial values put its first link;
   // then every link with its body.
   void addBodies(const RigidBodies& bodies, const std::map<std::string, Isometry3d>& placed,
                  const urdf::ModelInterface& urdf) {
@@ -502,8 +554,9 @@ class ModelBuilder {
   std::unique_ptr<MechanismModel> model_;
   std::vector<int> body_of_group_;          // core body of each rigid group
   std::map<std::string, int> joint_index_;  // core joint of each joint with one
-};
   std::vector<std::string> limit_notes_;     // joints started at a limit (startInsideLimits)
+  std::vector<std::string> inertia_notes_;   // inertias dropped or judged on their body (checkInertias)
+};
 
 std::unique_ptr<MechanismModel> loadModelString(const std::string& xml, const std::string& source,
                                                 const LoadOptions& options) {
@@ -533,6 +586,9 @@ std::unique_ptr<MechanismModel> loadModelFile(const std::string& path, const Loa
       with.closures_file = yaml;
       return loadModelFile(path, with);
     }
+  if (isXacroFile(path)) return loadModelString(expandXacro(path, options.xacro_args), path + " (xacro expansion)", options);
+  if (!options.xacro_args.empty())
+    throw LoadError(path + ": xacro arguments (name:=value) given, but the file is not a .xacro file");
   std::ifstream in(path);
   if (!in) throw LoadError(path + ": cannot open the file");
   std::stringstream ss;

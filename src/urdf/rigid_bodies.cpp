@@ -38,6 +38,14 @@ RigidBodies::RigidBodies(const LinkTree& tree, const urdf::ModelInterface& urdf)
     Matrix3d I;
     I << l.inertial->ixx, l.inertial->ixy, l.inertial->ixz, l.inertial->ixy, l.inertial->iyy,
         l.inertial->iyz, l.inertial->ixz, l.inertial->iyz, l.inertial->izz;
+    // A rotational inertia is mass times squared distance: without mass there is none. Real
+    // files give frame links mass 0 with inertia 0.1 (a hand's frames): kept, that inertia
+    // (of a 0.8 kg hand's order) turned an arm 0.7 rad away from MuJoCo in 1 s, which drops
+    // it as pybullet does by default. Noted once per link (the loader says so).
+    if (l.inertial->mass == 0.0 && !I.isZero(0.0)) {
+      massless_.push_back(l.name);
+      I.setZero();
+    }
     parts[g].push_back({l.inertial->mass, {G_I.translation(), G_I.linear() * I * G_I.linear().transpose()}});
     groups_[g].mass += l.inertial->mass;
     first[g] += l.inertial->mass * G_I.translation();

@@ -31,11 +31,15 @@ class RigidBodies {
   int groupOf(const std::string& link) const { return group_of_.at(link); }
   // A link's pose in its group's body frame.
   const Isometry3d& bodyTLink(const std::string& link) const { return body_T_link_.at(link); }
+  // Moving links whose <inertial> has mass 0 and a non-zero inertia: the inertia is dropped
+  // (README "Robots": a body without mass has no rotational inertia; MuJoCo drops it too).
+  const std::vector<std::string>& massless() const { return massless_; }
 
  private:
   std::vector<RigidGroup> groups_;
   std::map<std::string, int> group_of_;
   std::map<std::string, Isometry3d> body_T_link_;
+  std::vector<std::string> massless_;
 };
 
 }  // namespace urdf_input

@@ -158,14 +158,19 @@ void checkInertial(const XMLElement* link, const XmlReader& r) {
                zz = r.number(I, "izz", 0.0, 1e10), xy = r.number(I, "ixy", 0.0, 1e10),
                xz = r.number(I, "ixz", 0.0, 1e10), yz = r.number(I, "iyz", 0.0, 1e10);
   J << xx, xy, xz, xy, yy, yz, xz, yz, zz;
-  const Eigen::Vector3d ev = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(J).eigenvalues();
-  const double tol = 1e-9 * std::max(1e-12, J.cwiseAbs().maxCoeff());
-  if (ev(0) < -tol) r.fail(I, "inertia has a negative principal moment");
-  if (ev(2) > ev(0) + ev(1) + tol)
-    r.fail(I, "inertia violates the triangle inequality (a principal moment exceeds the sum of the other two)");
+  (void)J;  // whether it is physical is judged on the rigid body it merges into (inertiaFault)
 }
 
 }  // namespace
+
+std::string inertiaFault(const Eigen::Matrix3d& J) {
+  const Eigen::Vector3d ev = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(J).eigenvalues();
+  const double tol = 1e-9 * std::max(1e-300, J.cwiseAbs().maxCoeff());
+  if (ev(0) < -tol) return "inertia has a negative principal moment";
+  if (ev(2) > ev(0) + ev(1) + tol)
+    return "inertia violates the triangle inequality (a principal moment exceeds the sum of the other two)";
+  return "";
+}
 
 void validateStandard(const XMLElement* robot, const XmlReader& r) {
   std::map<std::string, const XMLElement*> links, joints;
@@ -208,6 +213,11 @@ void validateStandard(const XMLElement* robot, const XmlReader& r) {
     if (const XMLElement* lim = e->FirstChildElement("limit")) {
       const double lo = r.number(lim, "lower", 0.0), hi = r.number(lim, "upper", 0.0);
       if (lo > hi) r.fail(lim, "lower limit exceeds upper limit");
+      // URDF requires both (urdfdom refuses the file without them, naming no joint)
+      if (t == "revolute" || t == "prismatic")
+        for (const char* a : {"effort", "velocity"})
+          if (!lim->Attribute(a))
+            r.fail(lim, std::string("missing attribute '") + a + "' (URDF requires effort and velocity in <limit>)");
       if (r.number(lim, "effort", 0.0, 1e9) < 0) r.fail(lim, "effort limit is negative");
       if (r.number(lim, "velocity", 0.0, 1e9) < 0) r.fail(lim, "velocity limit is negative");
     } else if (t == "revolute" || t == "prismatic") {

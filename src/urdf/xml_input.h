@@ -105,6 +105,10 @@ struct Extension {
   std::vector<std::string> notes;      // what was read but is not simulated (MechanismModel::notes)
 };
 
+// What makes an inertia matrix (about a centre of mass) unphysical, or "" if it is physical:
+// a negative principal moment, or one larger than the sum of the other two (relative 1e-9).
+std::string inertiaFault(const Eigen::Matrix3d& J);
+
 // Checks the standard URDF elements the loader relies on, with line numbers.
 void validateStandard(const tinyxml2::XMLElement* robot, const XmlReader& reader);
 // Reads <mechanism_sim:*> elements, <gazebo><joint> loop closures and the other tools'

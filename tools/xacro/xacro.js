@@ -135,7 +135,8 @@ async function main(argv) {
   const file = argv[0];
   const args = {};
   for (const a of argv.slice(1)) {
-    const m = /^([A-Za-z_][A-Za-z0-9_]*):=(.*)$/s.exec(a);
+    // name=value too: roslaunch's command line takes no ':=' inside an argument's value
+    const m = /^([A-Za-z_][A-Za-z0-9_]*):?=(.*)$/s.exec(a);
     if (!m) {
       process.stderr.write(`xacro: ${file}: argument '${a}' is not name:=value\n${USAGE}\n`);
       return 2;

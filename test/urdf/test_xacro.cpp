@@ -1,0 +1,222 @@
+// xacro models (doc/xacro.md): test/xacro/robot.urdf.xacro expands to what its macros,
+// properties and arguments say; arguments change it; broken files give one line naming
+// the file; the simulate CLI and scripts/xacro take xacro arguments.
+#include <gtest/gtest.h>
+
+#include <sys/stat.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdlib>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+#include <Eigen/Eigenvalues>
+
+#include "mechanism_sim/urdf/model.h"
+#include "run_command.h"
+#include "xacro.h"
+
+namespace mechanism_sim {
+namespace {
+
+const std::string kSource = MECHANISM_SIM_SOURCE_DIR;
+const std::string kRobot = kSource + "/test/xacro/robot.urdf.xacro";
+
+// $(find mechanism_sim) in the fixture: this source tree is the package.
+class Xacro : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() { setenv("ROS_PACKAGE_PATH", kSource.c_str(), 1); }
+};
+
+// One rod of the fixture's macro: its mass, length and inertia as the model has them.
+struct Rod {
+  double mass, joint_to_next, joint_to_com;
+  Eigen::Vector3d moments;  // principal moments about the centre of mass, ascending
+};
+
+Rod rod(const MechanismModel& m, const std::string& link, const std::string& next) {
+  const int l = m.linkIndex(link);
+  EXPECT_GE(l, 0) << link;
+  const Body& b = m.mechanism().body(m.links()[l].body);
+  const Eigen::Vector3d origin = m.linkPose(l).translation();
+  Rod r;
+  r.mass = b.m;
+  r.joint_to_com = (b.r - origin).norm();
+  r.joint_to_next = next.empty() ? 0.0 : (m.linkPose(m.linkIndex(next)).translation() - origin).norm();
+  r.moments = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(b.Jp).eigenvalues();
+  return r;
+}
+
+// A solid rod of radius 0.01 (the fixture's property): ixx = iyy = m (3 r^2 + L^2) / 12, izz = m r^2 / 2.
+void expectRod(const Rod& r, double mass, double length, const std::string& what) {
+  const double radius = 0.01;
+  EXPECT_NEAR(r.mass, mass, 1e-12) << what;
+  EXPECT_NEAR(r.joint_to_com, length / 2, 1e-9) << what;
+  EXPECT_NEAR(r.moments[0], mass * radius * radius / 2, 1e-12) << what;
+  EXPECT_NEAR(r.moments[1], mass * (3 * radius * radius + length * length) / 12, 1e-12) << what;
+  EXPECT_NEAR(r.moments[2], mass * (3 * radius * radius + length * length) / 12, 1e-12) << what;
+}
+
+TEST_F(Xacro, DefaultsGiveWhatTheMacrosSay) {
+  auto m = loadModelFile(kRobot);
+  EXPECT_EQ(m->name(), "xacro_pendulum");
+  ASSERT_EQ(m->links().size(), 3u);
+  ASSERT_EQ(m->dofs().size(), 2u);
+  EXPECT_EQ(m->dofs()[0].name, "upper_joint");  // the macro's ${name}_joint
+  EXPECT_EQ(m->dofs()[1].name, "lower_joint");
+  ASSERT_EQ(m->treeJoints().size(), 2u);
+  EXPECT_EQ(m->treeJoints()[1].parent, "upper");
+  EXPECT_EQ(m->treeJoints()[1].child, "lower");
+  const Rod upper = rod(*m, "upper", "lower"), lower = rod(*m, "lower", "");
+  expectRod(upper, 1.0, 0.3, "upper: length $(arg length) default 0.3");
+  EXPECT_NEAR(upper.joint_to_next, 0.3, 1e-9);  // lower hangs at xyz="0 0 ${-l}"
+  expectRod(lower, 0.5, 0.6, "lower: length ${2*l}, mass $(arg tip_mass) default 0.5");
+  // <mechanism_sim:initial position="${pi/2}"> passed through the expansion
+  EXPECT_NEAR(m->position(m->dofIndex("upper_joint")), M_PI / 2, 1e-9);
+  EXPECT_NEAR(m->position(m->dofIndex("lower_joint")), 0.0, 1e-9);
+}
+
+TEST_F(Xacro, ArgumentsOverrideTheDefaults) {
+  LoadOptions o;
+  o.xacro_args = {{"length", "0.5"}, {"tip_mass", "0.8"}};
+  auto m = loadModelFile(kRobot, o);
+  const Rod upper = rod(*m, "upper", "lower"), lower = rod(*m, "lower", "");
+  expectRod(upper, 1.0, 0.5, "upper with length:=0.5");
+  EXPECT_NEAR(upper.joint_to_next, 0.5, 1e-9);
+  expectRod(lower, 0.8, 1.0, "lower with length:=0.5 tip_mass:=0.8");
+  // and the model runs
+  for (int i = 0; i < 100; ++i) m->step(1e-3);
+  EXPECT_LE(m->positionViolation(), 1e-10);
+}
+
+// Each broken file: a LoadError of one line, "FILE: xacro: what".
+TEST_F(Xacro, BrokenFilesGiveOneLineNamingTheFile) {
+  const std::string dir = kSource + "/test/xacro/broken/";
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"undefined_property.urdf.xacro", "xacro: in \"${wheel_radius}\": undefined variable: wheel_radius"},
+      {"unknown_macro.urdf.xacro", "xacro: Cannot find macro \"wheel\""},
+      {"bad_xml.urdf.xacro", "xacro: " + dir + "bad_xml.urdf.xacro:4: XML: Opening and ending tag mismatch"},
+      {"missing_include.urdf.xacro",
+       "xacro: include: " + dir + "no_such_file.xacro: cannot read the included file (ENOENT)"},
+      {"unsupported_eval.urdf.xacro", "xacro: $(eval 'base'): substitution 'eval' is not supported"},
+      {"undefined_arg.urdf.xacro", "xacro: in \"$(arg prefix)base\": Undefined substitution argument prefix"},
+      // expands; the URDF it expands to is wrong: the loader's message, lines of the expansion
+      {"negative_mass.urdf.xacro", "(xacro expansion):"},
+  };
+  for (const auto& [file, expect] : cases) {
+    const std::string path = dir + file;
+    try {
+      loadModelFile(path);
+      ADD_FAILURE() << file << " loaded";
+    } catch (const LoadError& e) {
+      const std::string msg = e.what();
+      EXPECT_EQ(msg.rfind(path + ": " + expect, 0) == 0 || msg.rfind(path + " " + expect, 0) == 0, true)
+          << file << ": expected '" << path << ": " << expect << "...', got: " << msg;
+      EXPECT_EQ(msg.find('\n'), std::string::npos) << msg;
+    }
+  }
+  try {
+    loadModelFile(dir + "negative_mass.urdf.xacro");
+  } catch (const LoadError& e) {
+    EXPECT_NE(std::string(e.what()).find("mass"), std::string::npos) << e.what();
+  }
+}
+
+TEST_F(Xacro, ArgumentsForAPlainUrdfAreAnError) {
+  LoadOptions o;
+  o.xacro_args = {{"length", "0.5"}};
+  try {
+    loadModelFile(kSource + "/urdf/four_bar.urdf", o);
+    FAIL();
+  } catch (const LoadError& e) {
+    EXPECT_NE(std::string(e.what()).find("four_bar.urdf: xacro arguments (name:=value) given, but the file is not a .xacro file"),
+              std::string::npos)
+        << e.what();
+  }
+}
+
+// Restores an environment variable on leaving the scope.
+class EnvOverride {
+ public:
+  EnvOverride(const char* name, const std::string& value) : name_(name) {
+    const char* old = std::getenv(name);
+    had_ = old != nullptr;
+    if (had_) old_ = old;
+    setenv(name, value.c_str(), 1);
+  }
+  ~EnvOverride() { had_ ? setenv(name_, old_.c_str(), 1) : unsetenv(name_); }
+
+ private:
+  const char* name_;
+  bool had_;
+  std::string old_;
+};
+
+TEST_F(Xacro, MissingNodeSaysToRunInstallDeps) {
+  EnvOverride node("MECHANISM_SIM_NODE", "/nonexistent/node");
+  try {
+    loadModelFile(kRobot);
+    FAIL();
+  } catch (const LoadError& e) {
+    EXPECT_EQ(std::string(e.what()), kRobot + ": xacro: Node.js ('node') is not installed: run scripts/install-deps");
+  }
+}
+
+// A script that never answers is killed at the time limit.
+TEST_F(Xacro, AHungExpansionIsKilled) {
+  const std::string hang = ::testing::TempDir() + "/hang.sh";
+  std::ofstream(hang) << "#!/bin/sh\nexec sleep 30\n";
+  ASSERT_EQ(chmod(hang.c_str(), 0755), 0);
+  EnvOverride node("MECHANISM_SIM_NODE", hang);
+  const auto start = std::chrono::steady_clock::now();
+  try {
+    expandXacro(kRobot, {}, 0.5);
+    FAIL();
+  } catch (const LoadError& e) {
+    EXPECT_NE(std::string(e.what()).find("within 0.5 s (killed)"), std::string::npos) << e.what();
+  }
+  EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), 5.0);
+}
+
+using mechanism_sim::testing_util::runCommand;
+
+TEST_F(Xacro, SimulateTakesXacroArguments) {
+  const std::string csv = ::testing::TempDir() + "/xacro.csv";
+  auto r = runCommand(std::string(SIMULATE_BIN) + " " + kRobot + " length:=0.5 --duration 0.1 --csv " + csv + " 2>&1");
+  ASSERT_EQ(r.code, 0) << r.out;
+  std::ifstream in(csv);
+  std::string header;
+  std::getline(in, header);
+  EXPECT_EQ(header.rfind("time,upper_joint.position,", 0), 0u) << header;
+  // a xacro argument for a plain URDF is a usage error
+  r = runCommand(std::string(SIMULATE_BIN) + " " + kSource + "/urdf/four_bar.urdf length:=0.5 --duration 0.1 2>&1");
+  EXPECT_EQ(r.code, 2) << r.out;
+  EXPECT_NE(r.out.find("is not a .xacro file"), std::string::npos) << r.out;
+  // a broken xacro: one line, exit code 1
+  r = runCommand(std::string(SIMULATE_BIN) + " " + kSource + "/test/xacro/broken/unknown_macro.urdf.xacro 2>&1");
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_EQ(r.out, "simulate: " + kSource + "/test/xacro/broken/unknown_macro.urdf.xacro: xacro: Cannot find macro \"wheel\"\n");
+}
+
+// scripts/xacro (launch/simulate.launch's robot_description): a plain URDF byte for byte,
+// a xacro file expanded with its arguments.
+TEST_F(Xacro, ScriptCopiesPlainUrdfAndExpandsXacro) {
+  const std::string plain = kSource + "/urdf/four_bar.urdf";
+  std::ifstream in(plain);
+  std::stringstream file;
+  file << in.rdbuf();
+  EXPECT_EQ(runCommand(kSource + "/scripts/xacro " + plain).out, file.str());
+  const auto r = runCommand(kSource + "/scripts/xacro " + kRobot + " length:=0.5");
+  ASSERT_EQ(r.code, 0);
+  EXPECT_NE(r.out.find("<origin xyz=\"0 0 -0.5\" rpy=\"0 0 0\"/>"), std::string::npos) << r.out;
+  EXPECT_EQ(r.out.find("xacro:"), std::string::npos) << r.out;
+  const auto bad = runCommand(kSource + "/scripts/xacro " + kSource + "/test/xacro/broken/unknown_macro.urdf.xacro 2>&1");
+  EXPECT_EQ(bad.code, 1);
+  EXPECT_EQ(std::count(bad.out.begin(), bad.out.end(), '\n'), 1) << bad.out;
+}
+
+}  // namespace
+}  // namespace mechanism_sim
