@@ -33,6 +33,22 @@ target_compile_definitions(test_xacro PRIVATE MECHANISM_SIM_SOURCE_DIR="${PROJEC
   SIMULATE_BIN="$<TARGET_FILE:simulate>")
 add_dependencies(test_xacro simulate)
 
+# The robot zoo (test/zoo/) and MuJoCo as an oracle for its trees (test-only dependency
+# libmujoco-dev; without it the oracle is not built).
+catkin_add_gtest(test_zoo test/urdf/test_zoo.cpp)
+target_link_libraries(test_zoo mechanism_sim_urdf gtest_main)
+target_compile_definitions(test_zoo PRIVATE MECHANISM_SIM_SOURCE_DIR="${PROJECT_SOURCE_DIR}")
+find_path(MUJOCO_INCLUDE_DIR mujoco/mujoco.h)
+find_library(MUJOCO_LIBRARY mujoco)
+if(MUJOCO_INCLUDE_DIR AND MUJOCO_LIBRARY)
+  catkin_add_gtest(test_mujoco_oracle test/urdf/test_mujoco_oracle.cpp)
+  target_include_directories(test_mujoco_oracle PRIVATE ${MUJOCO_INCLUDE_DIR})
+  target_link_libraries(test_mujoco_oracle mechanism_sim_urdf ${MUJOCO_LIBRARY} gtest_main)
+  target_compile_definitions(test_mujoco_oracle PRIVATE MECHANISM_SIM_SOURCE_DIR="${PROJECT_SOURCE_DIR}")
+else()
+  message(STATUS "MuJoCo not found (libmujoco-dev): test_mujoco_oracle is not built")
+endif()
+
 if(EXISTS ${PROJECT_SOURCE_DIR}/test/rostest/CMakeLists.txt)
   include(${PROJECT_SOURCE_DIR}/test/rostest/CMakeLists.txt)
 endif()

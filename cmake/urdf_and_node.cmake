@@ -4,12 +4,16 @@ add_library(mechanism_sim_urdf
   src/urdf/joint_specs.cpp
   src/urdf/rigid_bodies.cpp
   src/urdf/loader.cpp
+  src/urdf/loop_dialects.cpp
   src/urdf/model.cpp
   src/urdf/run_loop.cpp
   src/urdf/xacro.cpp
 )
 target_include_directories(mechanism_sim_urdf PUBLIC include ${urdfdom_INCLUDE_DIRS})
 target_link_libraries(mechanism_sim_urdf mechanism_sim_core ${urdfdom_LIBRARIES} ${TINYXML2_TARGET} console_bridge)
+# "Extended URDF" closures files (src/urdf/loop_dialects.cpp): Debian libyaml-cpp-dev.
+find_package(yaml-cpp REQUIRED)
+target_link_libraries(mechanism_sim_urdf yaml-cpp)
 # .xacro models run tools/xacro/xacro.js (Node.js) from the source tree; MECHANISM_SIM_XACRO overrides it.
 target_compile_definitions(mechanism_sim_urdf PRIVATE MECHANISM_SIM_XACRO_SCRIPT="${PROJECT_SOURCE_DIR}/tools/xacro/xacro.js")
 

@@ -31,7 +31,7 @@ const char* kUsage =
     "                [--set JOINT=POSITION]... [--velocity JOINT=VALUE]...\n"
     "                [--effort JOINT=VALUE]... [--drive JOINT=VELOCITY]...\n"
     "                [--reactions] [--bag FILE.bag] [--plot FILE.png] [--plot-columns LIST]\n"
-    "                [--quiet]\n";
+    "                [--closures FILE.yaml] [--quiet]\n";
 
 struct UsageError : std::runtime_error {
   using std::runtime_error::runtime_error;
@@ -94,6 +94,7 @@ Args parse(int argc, char** argv) {
     else if (arg == "--bag") a.bag = value();
     else if (arg == "--plot") a.plot = value();
     else if (arg == "--plot-columns") a.plot_columns = value();
+    else if (arg == "--closures") a.load.closures_file = value();  // doc/loop_dialects.md
     else if (arg == "--quiet") a.quiet = true;
     else if (arg == "-h" || arg == "--help") { std::cout << kUsage; std::exit(0); }
     else if (!arg.empty() && arg[0] == '-') throw UsageError("unknown option '" + arg + "'");
@@ -231,7 +232,7 @@ int main(int argc, char** argv) {
     std::cerr << (last_bar > 0 ? "\n" : "") << "simulate: cannot write '" << args.bag << "'\n";
     return 1;
   } catch (const std::exception& e) {
-    std::cerr << "\nsimulate: " << args.model << ": at t = " << model->time() << " s: " << e.what() << "\n";
+    std::cerr << "\nsimulate: " << e.what() << "\n";  // "FILE: at t = T s: what" (MechanismModel::step)
     return 1;
   }
   out->flush();
@@ -253,6 +254,8 @@ int main(int argc, char** argv) {
                 loop.worstPositionViolation(), loop.worstVelocityViolation(),
                 model->dependencies().describe().c_str(), drives.c_str(), model->solverStats().describe().c_str());
   if (!args.quiet) std::fprintf(stderr, "%s: %s\n", args.model.c_str(), summary);
+  for (const std::string& note : model->notes())
+    if (!args.quiet) std::fprintf(stderr, "%s: %s\n", args.model.c_str(), note.c_str());
   if (!args.plot.empty()) {
     char title[512];
     std::snprintf(title, sizeof title, "%s (%s): %ld steps of %g s", model->name().c_str(), args.model.c_str(), steps, args.dt);

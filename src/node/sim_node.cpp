@@ -31,6 +31,7 @@ bool NodeParams::read(const ros::NodeHandle& pnh) {
     return false;
   }
   pnh.param<std::string>("integrator", load.integrator, "");
+  pnh.param<std::string>("closures_file", load.closures_file, "");  // doc/loop_dialects.md
   std::map<std::string, double> positions, velocities;
   pnh.getParam("initial_positions", positions);
   pnh.getParam("initial_velocities", velocities);
@@ -113,6 +114,7 @@ bool SimNode::load() {
     ROS_FATAL("mechanism_sim: %s", e.what());
     return false;
   }
+  for (const std::string& note : model_->notes()) ROS_WARN("mechanism_sim: %s", note.c_str());
   return true;
 }
 

@@ -17,9 +17,12 @@
 namespace mechanism_sim {
 
 // A file that cannot be simulated: "FILE:LINE: element 'name': what is wrong".
-class LoadError : public std::runtime_error {
+// Every failure while loading, building or assembling reaches the caller as a LoadError,
+// one line naming the file (a core ModelError gets the file put before it; an internal
+// error says it is one).
+class LoadError : public Error {
  public:
-  using std::runtime_error::runtime_error;
+  using Error::Error;
 };
 
 struct LoadOptions {
@@ -29,6 +32,10 @@ struct LoadOptions {
   std::string integrator;  // empty: the core's default
   // Velocity drives by dof name (simulate --drive), replacing the file's drive of that dof.
   std::vector<std::pair<std::string, double>> drives;
+  // "Extended URDF" closures (YAML: closed_loop, type, name_mot; doc/loop_dialects.md).
+  // Empty: loadModelFile reads FILE.yaml beside FILE.urdf if it lists closed_loop;
+  // loadModelString reads none.
+  std::string closures_file;
   // xacro arguments (name:=value) for a file ending in .xacro, which loadModelFile expands
   // first (doc/xacro.md); given for another file, they are an error.
   std::vector<std::pair<std::string, std::string>> xacro_args;
@@ -79,6 +86,7 @@ class MechanismModel {
  public:
   // ---- what the model is
   const std::string& name() const { return name_; }
+  const std::string& source() const { return source_; }  // the file (or the name given to a string)
   const std::string& rootLink() const { return root_link_; }
   const std::vector<Dof>& dofs() const { return dofs_; }  // tree joints in file order, then loops
   const std::vector<Link>& links() const { return links_; }
@@ -97,6 +105,10 @@ class MechanismModel {
   SolverStats solverStats() const { return mechanism_->solverStats(); }
   const AssemblyReport& assembly() const { return assembly_; }
   const Eigen::Vector3d& gravity() const;
+  // What loading changed or left out, one line each: "assembly moved ..." (dofs the
+  // assembly moved onto the loop closures, old -> new), actuated joints read but not
+  // simulated as actuated. Empty when the file ran as written.
+  const std::vector<std::string>& notes() const { return notes_; }
   void setGravity(const Eigen::Vector3d& g);  // overrides the file's <mechanism_sim:gravity>
 
   // ---- where it is now
@@ -132,7 +144,8 @@ class MechanismModel {
   void commandDriveVelocity(int dof, double v, double acc);
   // What the drive of a dof prescribes now (throws if the dof is not driven).
   double driveVelocity(int dof) const;
-  // One step of h seconds. Throws std::runtime_error when the step fails.
+  // One step of h seconds. Throws SimulationError "FILE: at t = T s: what" when the step
+  // fails (the state stays at the last accepted step).
   void step(double h);
   // Back to the assembled initial state, commands zeroed.
   void reset();
@@ -144,7 +157,7 @@ class MechanismModel {
  private:
   friend class ModelBuilder;
   std::unique_ptr<Mechanism> mechanism_;
-  std::string name_, root_link_;
+  std::string name_, root_link_, source_;
   std::vector<Dof> dofs_;
   std::vector<Link> links_;
   std::vector<TreeJoint> tree_;
@@ -152,6 +165,7 @@ class MechanismModel {
   std::vector<Eigen::Isometry3d> reaction_frames_;  // per core joint: its file frame in its child's body
   std::vector<double> command_;
   AssemblyReport assembly_;
+  std::vector<std::string> notes_;
   Mechanism::Snapshot initial_;
 };
 
