@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstring>
 #include <fstream>
+#include <functional>
 #include <map>
 #include <optional>
 #include <set>
@@ -103,13 +104,15 @@ class ModelBuilder {
       os << reader_.file << ":" << doc.ErrorLineNum() << ": malformed XML: " << doc.ErrorName();
       throw LoadError(os.str());
     }
-    const tinyxml2::XMLElement* robot = doc.RootElement();
+    tinyxml2::XMLElement* robot = doc.RootElement();
     if (!robot || std::string(robot->Name()) != "robot") reader_.fail(robot, "the root element is not <robot>");
-    validateStandard(robot, reader_);
+    const std::vector<std::string> roots = validateStandard(robot, reader_);
+    if (roots.size() > 1) floatExtraRoots(doc, robot, roots);
+    noteIgnored(robot);
     Extension ext = readExtension(robot, reader_);
     readClosuresFile(options_.closures_file, robot, &ext);  // "Extended URDF" (loop_dialects.h)
     std::string why;
-    const urdf::ModelInterfaceSharedPtr urdf = parseWithUrdfdom(xml_, &why);
+    const urdf::ModelInterfaceSharedPtr urdf = parseWithUrdfdom(roots.size() > 1 ? printed(doc) : xml_, &why);
     if (!urdf) {
       // urdfdom reads the XML with TinyXML 1, which takes a raw '&' or '<' in a name
       // differently from tinyxml2: name the element instead of a bare refusal
@@ -143,6 +146,8 @@ class ModelBuilder {
     for (const JointSpec& s : specs.tree) addMimic(s);
     for (const Coupling& c : resolveCouplings(ext, specs, reader_)) addCoupling(c);
     model_->notes_ = ext.notes;
+    model_->notes_.insert(model_->notes_.end(), root_notes_.begin(), root_notes_.end());
+    if (!ignored_note_.empty()) model_->notes_.push_back(ignored_note_);
     model_->notes_.insert(model_->notes_.end(), limit_notes_.begin(), limit_notes_.end());
     model_->notes_.insert(model_->notes_.end(), inertia_notes_.begin(), inertia_notes_.end());
     addDrives(specs, ext, initial);
@@ -198,6 +203,82 @@ class ModelBuilder {
       in.velocity_from_file[at] = false;
     }
     return in;
+  }
+
+  // Elements that are read (valid URDF) but not simulated, listed once so nothing is
+  // dropped without a word: transmissions, safety controllers, calibrations, collision
+  // shapes (no contact is simulated), Gazebo extensions other than loop joints (plugins,
+  // materials, sensors) and other tools' top-level elements (<mujoco>, ...). Visuals and
+  // materials are for viewers (rviz reads them) and not listed.
+  void noteIgnored(const tinyxml2::XMLElement* robot) {
+    std::map<std::string, int> count;
+    static const std::set<std::string> read = {"link", "joint", "material", "loop_joint", "loop", "coupling",
+                                               "constraint", "drake:ball_constraint"};
+    for (const tinyxml2::XMLElement* e = robot->FirstChildElement(); e; e = e->NextSiblingElement()) {
+      const std::string tag = e->Name();
+      if (tag == "gazebo") {
+        for (const tinyxml2::XMLElement* c = e->FirstChildElement(); c; c = c->NextSiblingElement())
+          if (std::string(c->Name()) != "joint") {
+            ++count["<gazebo> " + std::string(c->Name())];
+          }
+      } else if (tag == "link") {
+        for (const tinyxml2::XMLElement* c = e->FirstChildElement("collision"); c; c = c->NextSiblingElement("collision"))
+          ++count["<collision> (no contact is simulated)"];
+      } else if (tag == "joint") {
+        for (const char* t : {"safety_controller", "calibration"})
+          if (e->FirstChildElement(t)) ++count["<" + std::string(t) + ">"];
+      } else if (!read.count(tag) && tag.rfind("mechanism_sim:", 0) != 0) {
+        ++count["<" + tag + ">"];
+      }
+    }
+    if (count.empty()) return;
+    std::string list;
+    for (const auto& [what, n] : count) list += (list.empty() ? "" : ", ") + std::to_string(n) + " " + what;
+    ignored_note_ = "ignored (read, not simulated): " + list;
+  }
+
+  // Several root links (links no joint has as child: a stray object beside a robot, a
+  // second robot): the root with the most links below it (the first in the file among
+  // equals) is the model's root; each other root gets a floating joint from it, so it and
+  // its subtree move freely, as Drake does with a model's extra roots (MuJoCo welds them to
+  // the world). urdfdom takes only one root, so it reads the document with these joints.
+  void floatExtraRoots(tinyxml2::XMLDocument& doc, tinyxml2::XMLElement* robot, const std::vector<std::string>& roots) {
+    std::map<std::string, std::vector<std::string>> children;
+    std::set<std::string> joint_names;
+    for (auto* j = robot->FirstChildElement("joint"); j; j = j->NextSiblingElement("joint")) {
+      joint_names.insert(j->Attribute("name"));
+      children[j->FirstChildElement("parent")->Attribute("link")].push_back(j->FirstChildElement("child")->Attribute("link"));
+    }
+    std::function<size_t(const std::string&)> size = [&](const std::string& l) {
+      size_t n = 1;
+      for (const std::string& c : children[l]) n += size(c);
+      return n;
+    };
+    std::string main = roots.front();
+    for (const std::string& r : roots)
+      if (size(r) > size(main)) main = r;
+    std::string floating;
+    for (const std::string& r : roots) {
+      if (r == main) continue;
+      std::string name = r + "_floating";
+      while (joint_names.count(name)) name += "_";
+      joint_names.insert(name);
+      tinyxml2::XMLElement* j = doc.NewElement("joint");
+      j->SetAttribute("name", name.c_str());
+      j->SetAttribute("type", "floating");
+      j->InsertNewChildElement("parent")->SetAttribute("link", main.c_str());
+      j->InsertNewChildElement("child")->SetAttribute("link", r.c_str());
+      robot->InsertEndChild(j);
+      floating += (floating.empty() ? "'" : ", '") + r + "' (joint '" + name + "')";
+    }
+    root_notes_.push_back("several root links: '" + main + "' is the model's root; " + floating +
+                          " float free of it (a floating joint each)");
+  }
+
+  static std::string printed(const tinyxml2::XMLDocument& doc) {
+    tinyxml2::XMLPrinter printer;
+    doc.Print(&printer);
+    return printer.CStr();
   }
 
   // Inertia is judged where it acts: on the rigid body that links joined by fixed joints
@@ -556,6 +637,8 @@ class ModelBuilder {
   std::map<std::string, int> joint_index_;  // core joint of each joint with one
   std::vector<std::string> limit_notes_;     // joints started at a limit (startInsideLimits)
   std::vector<std::string> inertia_notes_;   // inertias dropped or judged on their body (checkInertias)
+  std::vector<std::string> root_notes_;      // extra roots floated (floatExtraRoots)
+  std::string ignored_note_;                 // elements read but not simulated (noteIgnored)
 };
 
 std::unique_ptr<MechanismModel> loadModelString(const std::string& xml, const std::string& source,

@@ -172,7 +172,7 @@ std::string inertiaFault(const Eigen::Matrix3d& J) {
   return "";
 }
 
-void validateStandard(const XMLElement* robot, const XmlReader& r) {
+std::vector<std::string> validateStandard(const XMLElement* robot, const XmlReader& r) {
   std::map<std::string, const XMLElement*> links, joints;
   std::map<std::string, std::string> parent_of;  // child link -> joint
   for (const XMLElement* e = robot->FirstChildElement(); e; e = e->NextSiblingElement()) {
@@ -237,12 +237,10 @@ void validateStandard(const XMLElement* robot, const XmlReader& r) {
       r.number(mimic, "offset", 0.0);
     }
   // Exactly one root, and every link reachable from it (no cycles).
-  std::vector<std::string> roots;
-  for (const auto& l : links)
-    if (!parent_of.count(l.first)) roots.push_back(l.first);
+  std::vector<std::string> roots;  // in file order
+  for (const XMLElement* e = robot->FirstChildElement("link"); e; e = e->NextSiblingElement("link"))
+    if (!parent_of.count(e->Attribute("name"))) roots.push_back(e->Attribute("name"));
   if (roots.empty()) r.fail(robot, "the joints form a cycle: no root link");
-  if (roots.size() > 1)
-    r.fail(robot, "several root links ('" + roots[0] + "', '" + roots[1] + "'): connect them with joints");
   for (const auto& l : links) {
     std::string at = l.first;
     size_t hops = 0;
@@ -250,6 +248,7 @@ void validateStandard(const XMLElement* robot, const XmlReader& r) {
       at = joints[parent_of[at]]->FirstChildElement("parent")->Attribute("link");
     if (hops > links.size()) r.fail(links[l.first], "link is on a cycle of joints");
   }
+  return roots;
 }
 
 // ---- extension

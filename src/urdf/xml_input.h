@@ -109,8 +109,9 @@ struct Extension {
 // a negative principal moment, or one larger than the sum of the other two (relative 1e-9).
 std::string inertiaFault(const Eigen::Matrix3d& J);
 
-// Checks the standard URDF elements the loader relies on, with line numbers.
-void validateStandard(const tinyxml2::XMLElement* robot, const XmlReader& reader);
+// Checks the standard URDF elements the loader relies on, with line numbers. Returns the
+// root links (no parent joint) in file order: one, or several (the loader floats the extra).
+std::vector<std::string> validateStandard(const tinyxml2::XMLElement* robot, const XmlReader& reader);
 // Reads <mechanism_sim:*> elements, <gazebo><joint> loop closures and the other tools'
 // loop dialects (loop_dialects.h).
 Extension readExtension(const tinyxml2::XMLElement* robot, const XmlReader& reader);

@@ -152,5 +152,35 @@ TEST(RealFiles, AFailedStepNamesTheFileAndTheTime) {
   }
 }
 
+// A file with a second root link (a loose part beside the arm): the root with the most
+// links below it is the model's root, the other floats: under gravity alone it falls as
+// a free body, z(t) = z0 - g t^2 / 2, with a note naming it.
+TEST(RealFiles, AnExtraRootLinkFloats) {
+  const std::string loose = R"(<link name="loose"><inertial><origin xyz="0.3 0 0"/><mass value="0.5"/>
+    <inertia ixx="1e-3" iyy="1e-3" izz="1e-3" ixy="0" ixz="0" iyz="0"/></inertial></link>
+)";
+  auto m = loadModelString(arm(loose), "robot.urdf");
+  EXPECT_TRUE(hasNote(*m, "several root links: 'base' is the model's root; 'loose' (joint 'loose_floating') float"));
+  const int loose_link = m->linkIndex("loose");
+  ASSERT_GE(loose_link, 0);
+  const Eigen::Vector3d p0 = m->linkPose(loose_link).translation();
+  for (int i = 0; i < 1000; ++i) m->step(1e-3);
+  const Eigen::Vector3d p1 = m->linkPose(loose_link).translation();
+  EXPECT_NEAR(p1.z() - p0.z(), -0.5 * 9.81 * 1.0, 1e-9);
+  EXPECT_NEAR((p1 - p0).head<2>().norm(), 0.0, 1e-12);
+}
+
+// What a file holds that is read but not simulated is listed once.
+TEST(RealFiles, ElementsReadButNotSimulatedAreListed) {
+  const std::string extra = R"(<transmission name="t1"><type>transmission_interface/SimpleTransmission</type></transmission>
+  <transmission name="t2"><type>transmission_interface/SimpleTransmission</type></transmission>
+  <gazebo><plugin name="control" filename="libgazebo_ros_control.so"/></gazebo>
+)";
+  auto m = loadModelString(arm(extra), "robot.urdf");
+  EXPECT_TRUE(hasNote(*m, "ignored (read, not simulated): 1 <gazebo> plugin, 2 <transmission>")) << m->notes().size();
+  auto plain = loadModelString(arm(), "robot.urdf");
+  EXPECT_TRUE(plain->notes().empty());
+}
+
 }  // namespace
 }  // namespace mechanism_sim
