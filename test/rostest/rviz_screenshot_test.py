@@ -1,7 +1,9 @@
 #!/usr/bin/env python3
 """Screenshot of the X display rviz draws on; the slider-crank's green connecting rod and
 orange slider must be on screen (an empty scene has neither colour), and the magenta
-reaction arrows of ~constraint_markers (namespace "reactions")."""
+reaction arrows of ~constraint_markers (namespace "reactions"). Private parameters set how
+many pixels of each colour a model must show: ~min_green, ~min_orange (150 each: links in
+those materials) and ~min_magenta (40: the reaction arrows, drawn for every model)."""
 import os
 import subprocess
 import tempfile
@@ -38,6 +40,8 @@ class RvizDrawsTheMechanism(unittest.TestCase):
         self.assertTrue(os.environ.get("DISPLAY"), "no DISPLAY: scripts/test starts Xvfb")
         rospy.wait_for_message("/joint_states", JointState, 30.0)
         shot = os.path.join(tempfile.gettempdir(), "mechanism_sim_rviz.png")
+        need = (rospy.get_param("~min_green", 150), rospy.get_param("~min_orange", 150),
+                rospy.get_param("~min_magenta", 40))
         best = (0, 0, 0)
         deadline = time.time() + 60
         while time.time() < deadline:  # rviz takes a while to start under software GL
@@ -48,12 +52,12 @@ class RvizDrawsTheMechanism(unittest.TestCase):
             w, h, pixels = read_ppm(ppm)
             counts = count_colours(pixels)
             best = tuple(max(a, b) for a, b in zip(best, counts))
-            if min(best[:2]) >= 150 and best[2] >= 40:
+            if all(b >= n for b, n in zip(best, need)):
                 break
         rospy.loginfo("rviz screenshot %s: %d rod pixels, %d slider pixels, %d arrow pixels", shot, *best)
-        self.assertGreaterEqual(best[0], 150, "the connecting rod is not drawn (screenshot: %s)" % shot)
-        self.assertGreaterEqual(best[1], 150, "the slider is not drawn (screenshot: %s)" % shot)
-        self.assertGreaterEqual(best[2], 40, "the reaction arrows are not drawn (screenshot: %s)" % shot)
+        self.assertGreaterEqual(best[0], need[0], "the green links are not drawn (screenshot: %s)" % shot)
+        self.assertGreaterEqual(best[1], need[1], "the orange links are not drawn (screenshot: %s)" % shot)
+        self.assertGreaterEqual(best[2], need[2], "the reaction arrows are not drawn (screenshot: %s)" % shot)
 
 
 if __name__ == "__main__":
