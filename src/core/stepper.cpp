@@ -161,6 +161,7 @@ Stepper::Stepper(const System& sys) {
     Minv_[b - 1].bottomRightCorner<3, 3>() = Jp.inverse();
   }
   buildTree(sys);
+  initDamping(sys);
 }
 
 void Stepper::load(const System& sys, const double* x, const double* u) {
@@ -663,7 +664,7 @@ void Stepper::forces(const System& sys, const State& s, const Inputs& in,
   Row rows[3];
   for (int j = 0; j < sys.numJoints(); ++j) {
     const auto& tau = in.effort[j];
-    const auto& c = sys.damping[j];
+    const auto& c = split_ ? stage_damping_[j] : sys.damping[j];  // (stiff_damping.cpp)
     const auto& fr = friction[j];
     const int dof = sys.joints[j]->dof();
     bool any = false;
@@ -971,6 +972,7 @@ void Stepper::step(const System& sys, State& s, const Inputs& in, double h) {
   } catch (...) {
     s = start_;
     have_eval_ = false;
+    split_ = false;
     throw;
   }
 }
@@ -1024,6 +1026,8 @@ void Stepper::stepOnce(const System& sys, State& s, const Inputs& in, double h) 
   const bool reuse = have_eval_ && eval_x_ == s.x && eval_u_ == s.u && eval_side_ == s.limit_side &&
                      eval_t_ == s.t && eval_drive_ == s.drive;
   if (!reuse) evaluate(sys, s);
+  // Damped coordinates too stiff for the stages leave them (finishStep integrates them).
+  classifyDamping(sys, s, h);
   bool factored = false;
   if (frictionActs(sys)) {
     factor(sys, "stage 1", s.t);
@@ -1114,6 +1118,14 @@ bool Stepper::frictionActs(const System& sys) const {
 //     (refined on its own Jacobian) and stored in the State; limits that would pull let go.
 void Stepper::finishStep(const System& sys, State& s, const Inputs& in, bool after_stages) {
   load(sys, s.x.data(), s.u.data());
+  // 0. stiff joint damping, implicit Euler (stiff_damping.cpp): velocities and positions
+  //    move, and H is left factored with the damping in it (refactored below)
+  if (after_stages && split_) {
+    evaluate(sys, s);
+    implicitDamping(sys, s, split_h_);
+    load(sys, s.x.data(), s.u.data());
+  }
+  split_ = false;  // from here on forces() applies all the damping (the state's own)
   // After the stages, H and Phi_q of the last stage are a consistent pair: the Newton
   // steps use them frozen (the correction's direction is off by O(h) in a step of the
   // size of the local error: below RK4's truncation). A limit that just became active

@@ -138,6 +138,12 @@ class Stepper {
              const std::vector<std::array<double, 3>>& friction, const double* x, const double* u,
              double* xdot, double* udot, bool reweight);
   void frictionFor(const System& sys, State& s, const Inputs& in, double h);
+  // Joint damping too stiff for the explicit stages (stiff_damping.cpp): which damped
+  // coordinates leave the stages this step (sets split_, stage_damping_; kin_ loaded at s),
+  // and the implicit Euler velocity step for them after the stages (J_ evaluated at s).
+  void initDamping(const System& sys);
+  bool classifyDamping(const System& sys, const State& s, double h);
+  void implicitDamping(const System& sys, State& s, double h);
   void advance(const System& sys, State& s, const Inputs& in, double h, int depth);
   void stepOnce(const System& sys, State& s, const Inputs& in, double h);
   void finishStep(const System& sys, State& s, const Inputs& in, bool after_stages);
@@ -197,6 +203,21 @@ class Stepper {
   std::vector<State> backup_;  // per halving depth
   State start_;                // the state a step started from (restored when it fails)
   std::vector<Tracked> tracked0_, tracked_rate_;  // at the step's start
+  // Stiff joint damping (stiff_damping.cpp). While split_ is set (the stages of a step that
+  // has stiff coordinates) forces() takes the damping from stage_damping_, in which the
+  // stiff coordinates have none; they are integrated implicitly in finishStep.
+  bool split_ = false;
+  double split_h_ = 0.0;
+  std::vector<std::array<double, 3>> stage_damping_;  // per joint coordinate
+  std::vector<std::array<double, 3>> damping_bound_;  // s_k of the step (0: undamped)
+  std::vector<std::vector<int>> joints_at_;           // per moving body: the joints on it
+  struct StiffRow {
+    int joint, k;
+    double c;
+  };
+  std::vector<StiffRow> stiff_;                        // capacity: every coordinate
+  std::vector<std::array<Row, 3>> damp_rows_;          // per joint: its rows (damped joints)
+  Eigen::VectorXd damp_u0_, damp_b_, damp_mu_;
   // positions loaded, evaluated and factored at: H and Phi_q are a consistent pair when
   // the last two agree
   Eigen::VectorXd loaded_x_, evaluated_x_, factored_x_;
