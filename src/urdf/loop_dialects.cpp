@@ -56,6 +56,24 @@ Isometry3d turn(const Vector3d& from, const Vector3d& to) {
   return T;
 }
 
+// What every loop-closure element starts with: only `name` and `type` attributes, its name,
+// and its type mapped to the core's by `types` (`unknown` names a type not in it, `known`
+// lists the accepted ones for the message).
+ExtJoint loopClosure(const XMLElement* e, const XmlReader& r, const std::map<std::string, std::string>& types,
+                     const char* unknown, const char* known) {
+  r.onlyAttributes(e, {"name", "type"});
+  ExtJoint j;
+  j.element = e;
+  j.loop = true;
+  j.name = nameOf(e, r);
+  const std::string type = attr(e, "type");
+  if (!types.count(type))
+    r.fail(e, (e->Attribute("type") ? std::string(unknown) + " '" + oneLine(type) + "'" : std::string("missing attribute 'type'")) +
+                  " (" + known + ")");
+  j.type = types.at(type);
+  return j;
+}
+
 // ---- Dojo.jl: <loop_joint name type><link1 link xyz rpy/><link2 link xyz rpy/><axis xyz/>
 // (DojoEnvironments' fourbar.urdf; Dojo's parser parse_loop_joint reads link1's pose, the
 // position only of link2 and <dynamics damping>). Semantics kept: the axis (default 1 0 0)
@@ -63,21 +81,12 @@ Isometry3d turn(const Vector3d& from, const Vector3d& to) {
 // the two frames coincide at the file's zero pose (Dojo's "determined by the mechanism's
 // structure").
 ExtJoint readDojoLoopJoint(const XMLElement* robot, const XMLElement* e, const XmlReader& r) {
-  r.onlyAttributes(e, {"name", "type"});
-  ExtJoint j;
-  j.element = e;
-  j.loop = true;
-  j.child_rotation_from_zero_pose = true;
-  j.name = nameOf(e, r);
-  if (!e->Attribute("type")) r.fail(e, "missing attribute 'type' (revolute, continuous, prismatic, fixed, spherical, cylindrical, planar)");
   static const std::map<std::string, std::string> types = {
       {"revolute", "revolute"}, {"continuous", "revolute"}, {"prismatic", "prismatic"}, {"fixed", "fixed"},
       {"spherical", "spherical"}, {"cylindrical", "cylindrical"}, {"planar", "planar"}};
-  const std::string type = attr(e, "type");
-  if (!types.count(type))
-    r.fail(e, "unsupported loop joint type '" + oneLine(type) +
-                  "' (revolute, continuous, prismatic, fixed, spherical, cylindrical, planar)");
-  j.type = types.at(type);
+  ExtJoint j = loopClosure(e, r, types, "unsupported loop joint type",
+                           "revolute, continuous, prismatic, fixed, spherical, cylindrical, planar");
+  j.child_rotation_from_zero_pose = true;
   const XMLElement* l1 = e->FirstChildElement("link1");
   const XMLElement* l2 = e->FirstChildElement("link2");
   if (!l1 || !l2) r.fail(e, "a Dojo loop joint needs both <link1 link=... xyz rpy> and <link2 link=... xyz>");
@@ -109,19 +118,10 @@ ExtJoint readDojoLoopJoint(const XMLElement* robot, const XMLElement* e, const X
 // two frames coincide up to the joint's motion; the axis (default 1 0 0, as that parser) is
 // in the predecessor's frame. Types: revolute, continuous, prismatic, fixed, planar.
 ExtJoint readUrdfPlusLoop(const XMLElement* robot, const XMLElement* e, const XmlReader& r) {
-  r.onlyAttributes(e, {"name", "type"});
-  ExtJoint j;
-  j.element = e;
-  j.loop = true;
-  j.name = nameOf(e, r);
   static const std::map<std::string, std::string> types = {
       {"revolute", "revolute"}, {"continuous", "revolute"}, {"prismatic", "prismatic"}, {"fixed", "fixed"},
       {"planar", "planar"}};
-  const std::string type = attr(e, "type");
-  if (!types.count(type))
-    r.fail(e, (type.empty() ? std::string("missing attribute 'type'") : "unknown URDF+ loop type '" + oneLine(type) + "'") +
-                  " (revolute, continuous, prismatic, fixed, planar)");
-  j.type = types.at(type);
+  ExtJoint j = loopClosure(e, r, types, "unknown URDF+ loop type", "revolute, continuous, prismatic, fixed, planar");
   const XMLElement* p = child(e, "predecessor", r, "<predecessor link=...><origin xyz rpy/></predecessor>");
   const XMLElement* s = child(e, "successor", r, "<successor link=...><origin xyz rpy/></successor>");
   for (const XMLElement* c = e->FirstChildElement(); c; c = c->NextSiblingElement()) {
@@ -184,19 +184,11 @@ ExtCoupling readUrdfPlusCoupling(const XMLElement* robot, const XMLElement* e, c
 // universal (parent_axis the first axis, on the parent; child_axis the second, on the
 // child), spherical (origins only), link (rigid: the frames coincide).
 ExtJoint readUrdfdomConstraint(const XMLElement* robot, const XMLElement* e, const XmlReader& r) {
-  r.onlyAttributes(e, {"name", "type"});
-  ExtJoint j;
-  j.element = e;
-  j.loop = true;
-  j.name = nameOf(e, r);
   static const std::map<std::string, std::string> types = {
       {"revolute", "revolute"}, {"continuous", "revolute"}, {"prismatic", "prismatic"},
       {"universal", "universal"}, {"spherical", "spherical"}, {"link", "fixed"}};
-  const std::string type = attr(e, "type");
-  if (!types.count(type))
-    r.fail(e, (type.empty() ? std::string("missing attribute 'type'") : "unknown constraint type '" + oneLine(type) + "'") +
-                  " (revolute, prismatic, universal, spherical, link)");
-  j.type = types.at(type);
+  ExtJoint j = loopClosure(e, r, types, "unknown constraint type", "revolute, prismatic, universal, spherical, link");
+  const std::string type = attr(e, "type");  // as written, for the messages below
   for (const XMLElement* c = e->FirstChildElement(); c; c = c->NextSiblingElement()) {
     const std::string tag = c->Name();
     if (tag == "parent" || tag == "child") r.onlyAttributes(c, {"link"});

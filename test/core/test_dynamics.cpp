@@ -13,17 +13,8 @@ namespace {
 
 constexpr double g0 = 9.81;
 
-JointFrame frame(const Vector3d& sp, const Matrix3d& Rp = Matrix3d::Identity()) {
-  JointFrame f;
-  f.sp_B = sp;
-  f.Rp = Rp;
-  return f;
-}
-
-// principal moments on the diagonal
-Body body(const std::string& name, double m, const Vector3d& inertia, const Vector3d& r) {
-  return mechanism_sim::body(name, m, Matrix3d(inertia.asDiagonal()), r);
-}
+using test_util::body;
+using test_util::frame;
 
 // Runs and checks the violation bound at every step.
 void runChecked(Mechanism& m, int steps, double h, double bound = 1e-10) {

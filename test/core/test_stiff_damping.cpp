@@ -17,16 +17,8 @@
 namespace mechanism_sim {
 namespace {
 
-JointFrame frame(const Vector3d& sp, const Matrix3d& Rp = Matrix3d::Identity()) {
-  JointFrame f;
-  f.sp_B = sp;
-  f.Rp = Rp;
-  return f;
-}
-
-Body body(const std::string& name, double m, const Vector3d& inertia, const Vector3d& r) {
-  return mechanism_sim::body(name, m, Matrix3d(inertia.asDiagonal()), r);
-}
+using test_util::body;
+using test_util::frame;
 
 // RK4's amplification of y' = -y / tau over one step of s = h / tau.
 double rk4Amplification(double s) { return 1 - s + s * s / 2 - s * s * s / 6 + s * s * s * s / 24; }
