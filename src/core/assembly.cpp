@@ -168,18 +168,15 @@ double rowDot(const System& sys, const CoordinateTarget& t, const Row& row, cons
 }
 
 // What a coordinate row's rate is judged against beside its target: the row's columns
-// times the mechanism's motion scale V = max over bodies of max(|v|, |w| L) (or, all at
-// rest, its gravity's velocity scale), for linear and V / L for angular velocities. A
+// times the mechanism's motion scale V (Stepper::motionScale, max over bodies of
+// max(|v|, |w| L); all at rest, the gravity's velocity scale), for linear and V / L for
+// angular velocities. A
 // target of 0 is met when the rate is 0 to the rounding of the motion. (Judged against
 // |rate| alone, a zero target met to 1e-17 was a residual of 1; against the row's own
 // products J_i u_i or its bodies' own speeds, it still failed where the bodies barely turn
 // about the joint's axis or its body rests on the ground beside a moving one.)
-double rateScale(const System& sys, const CoordinateTarget& t, const Row& row, const Eigen::VectorXd& u) {
+double rateScale(const System& sys, const CoordinateTarget& t, const Row& row, double V) {
   const double L = sys.length_scale;
-  double V = 0;
-  for (int b = 0; b < sys.nb; ++b)
-    V = std::max({V, u.segment<3>(6 * b).cwiseAbs().maxCoeff(), u.segment<3>(6 * b + 3).cwiseAbs().maxCoeff() * L});
-  if (V == 0) V = sys.velocity_scale;
   const int bs[2] = {sys.joints[t.joint]->bodyI(), sys.joints[t.joint]->bodyJ()};
   double scale = 0;
   for (int s = 0; s < 2; ++s)
@@ -373,9 +370,10 @@ AssemblyReport assemble(const System& sys, State& s, Stepper& st,
   double vres = 0;
   auto velocityError = [&]() {
     double worst_v = st.velocityResidual(sys, s.u);
+    const double moving = st.motionScale(sys, s.u), V = moving == 0 ? sys.velocity_scale : moving;
     for (size_t k = 0; k < velocities.size(); ++k) {
       const double r = rowDot(sys, velocities[k], rows[k], s.u) - velocities[k].value;
-      const double scale = std::fabs(velocities[k].value) + rateScale(sys, velocities[k], rows[k], s.u);
+      const double scale = std::fabs(velocities[k].value) + rateScale(sys, velocities[k], rows[k], V);
       worst_v = std::max(worst_v, scale > 0 ? std::fabs(r) / scale : std::fabs(r));
     }
     return worst_v;

@@ -558,21 +558,6 @@ void Stepper::buildTree(const System& sys) {
     throw InternalError("the tree KKT factorization has fill");
 }
 
-// Adds weight * rows^T rows for rows over the bodies of a constraint (assembly targets).
-void Stepper::addRowsToH(const System& sys, int constraint, const Eigen::MatrixXd& rows, double weight) {
-  const ConstraintLayout& L = sys.layout[constraint];
-  const int k = static_cast<int>(L.bodies.size());
-  for (int k1 = 0; k1 < k; ++k1)
-    for (int k2 = k1; k2 < k; ++k2) {
-      const int address = L.address[k1 * k + k2];
-      if (address < 0) continue;
-      const Eigen::Matrix<double, 6, 6> B =
-          weight * rows.middleCols<6>(6 * k1).transpose() * rows.middleCols<6>(6 * k2);
-      if (L.transposed[k1 * k + k2]) chol_.block(address) += B.transpose();
-      else chol_.block(address) += B;
-    }
-}
-
 void Stepper::factor(const System& sys, const char* where, double t, bool reweight, bool penalty) {
   ++stats_.factorizations;
   factored_x_ = evaluated_x_;

@@ -37,6 +37,7 @@
 //     Without that a light link would move with its undamped stage velocity (a load tau
 //     spins it up by h tau / I within the step, h^2 tau / 2I of travel, where the damped
 //     link creeps at tau / c); with it the positions advance by h (u_n + u_n+1) / 2.
+#include <algorithm>
 #include <cmath>
 #include <sstream>
 
@@ -162,24 +163,13 @@ bool Stepper::classifyDamping(const System& sys, const State& s, double h) {
 
 // (3.) and (4.) at the positions after the stages (kin_ loaded and J_ evaluated there).
 void Stepper::implicitDamping(const System& sys, State& s, double h) {
-  Row rows[3];
-  // H + h sum_k c_k G_k^T G_k over the bodies of each stiff coordinate's joint
+  // The stiff coordinates' rows G_k at these positions (damp_rows_ held those of the
+  // step's start), then H + h sum_k c_k G_k^T G_k over the bodies of each one's joint.
+  for (const StiffRow& r : stiff_) jointRows(sys, s, r.joint, damp_rows_[r.joint].data());
   rowWeights(sys);
   assembleH(sys, kKappa, 1.0, 0.0);
-  for (const StiffRow& r : stiff_) {
-    jointRows(sys, s, r.joint, rows);
-    const ConstraintLayout& L = sys.layout[sys.joint_constraint[r.joint]];
-    const auto& G = rows[r.k].J;
-    for (int k1 = 0; k1 < 2; ++k1)
-      for (int k2 = k1; k2 < 2; ++k2) {
-        const int address = L.address[k1 * 2 + k2];
-        if (address < 0) continue;
-        const Eigen::Matrix<double, 6, 6> B =
-            (h * r.c) * G.segment<6>(6 * k1).transpose() * G.segment<6>(6 * k2);
-        if (L.transposed[k1 * 2 + k2]) chol_.block(address) += B.transpose();
-        else chol_.block(address) += B;
-      }
-  }
+  for (const StiffRow& r : stiff_)
+    addRowsToH(sys, sys.joint_constraint[r.joint], damp_rows_[r.joint][r.k].J, h * r.c);
   ++stats_.factorizations;
   if (chol_.factorize(0.0, false) != 0) {
     std::ostringstream os;
@@ -194,13 +184,13 @@ void Stepper::implicitDamping(const System& sys, State& s, double h) {
   mulM(sys, damp_u0_.data(), damp_b_.data());
   damp_mu_.setZero();  // -mu
   const double scale = motionScale(sys, damp_u0_);
-  double previous = HUGE_VAL;
+  double previous = HUGE_VAL, step = 0;
   for (int pass = 0; pass < kMaxPasses; ++pass) {
     mulM(sys, s.u.data(), r1_.data());
     r1_ = damp_b_ - r1_;
     addJt(sys, damp_mu_.data(), r1_.data());
     for (const StiffRow& r : stiff_) {
-      jointRows(sys, s, r.joint, rows);
+      const Row* rows = damp_rows_[r.joint].data();
       const Joint& jt = *sys.joints[r.joint];
       const int bs[2] = {jt.bodyI(), jt.bodyJ()};
       double q_dot = 0;
@@ -216,9 +206,17 @@ void Stepper::implicitDamping(const System& sys, State& s, double h) {
     s.u += dn_;
     damp_mu_ -= dl_;
     ++stats_.solve_passes;
-    const double step = motionScale(sys, dn_);
+    step = motionScale(sys, dn_);
     if (!(step > 1e-15 * scale) || step > 0.5 * previous) break;
     previous = step;
+  }
+  // A refinement that stopped (passes out, or gaining less than a factor 2) with its last
+  // correction above the solve tolerance of the velocities' scale is counted, as solveKKT's.
+  ++stats_.solves;
+  const double left = scale > 0 ? step / scale : step;
+  if (left > sys.options.solve_tol) {
+    ++stats_.solve_shortfalls;
+    stats_.worst_solve = std::max(stats_.worst_solve, left);
   }
   // (4.) the positions: h (u' - u) / 2
   dn_ = (0.5 * h) * (s.u - damp_u0_);

@@ -302,10 +302,7 @@ class ModelBuilder {
       const urdf::Link& l = *entry.second;
       const int g = bodies.groupOf(l.name);
       if (!l.inertial || g == 0 || l.inertial->mass == 0.0) continue;
-      Matrix3d I;
-      I << l.inertial->ixx, l.inertial->ixy, l.inertial->ixz, l.inertial->ixy, l.inertial->iyy, l.inertial->iyz,
-          l.inertial->ixz, l.inertial->iyz, l.inertial->izz;
-      const std::string fault = inertiaFault(I);
+      const std::string fault = inertiaFault(inertiaOf(*l.inertial));
       if (!fault.empty()) own_faults[g].push_back({l.name, fault});
     }
     const std::vector<RigidGroup>& groups = bodies.groups();
@@ -650,9 +647,7 @@ std::unique_ptr<MechanismModel> loadModelString(const std::string& xml, const st
     model = ModelBuilder(xml, source, options).build();
   } catch (const LoadError&) {
     throw;
-  } catch (const InternalError& e) {
-    throw LoadError(source + ": " + e.what());
-  } catch (const Error& e) {
+  } catch (const Error& e) {  // ModelError, SimulationError, InternalError (which says it is one)
     throw LoadError(source + ": " + e.what());
   } catch (const std::bad_alloc&) {
     throw LoadError(source + ": out of memory while building the model");

@@ -5,6 +5,12 @@
 namespace mechanism_sim {
 namespace urdf_input {
 
+Matrix3d inertiaOf(const urdf::Inertial& in) {
+  Matrix3d I;
+  I << in.ixx, in.ixy, in.ixz, in.ixy, in.iyy, in.iyz, in.ixz, in.iyz, in.izz;
+  return I;
+}
+
 RigidBodies::RigidBodies(const LinkTree& tree, const urdf::ModelInterface& urdf) {
   // 1. Groups: a fixed joint keeps its child in the parent's group, any other starts a
   //    group. group_T_link: each link in the frame of its group's first link.
@@ -35,9 +41,7 @@ RigidBodies::RigidBodies(const LinkTree& tree, const urdf::ModelInterface& urdf)
     const int g = group_of_.at(l.name);
     if (!l.inertial || g == 0) continue;  // ground's links carry no mass that moves
     const Isometry3d G_I = group_T_link.at(l.name) * toEigen(l.inertial->origin);
-    Matrix3d I;
-    I << l.inertial->ixx, l.inertial->ixy, l.inertial->ixz, l.inertial->ixy, l.inertial->iyy,
-        l.inertial->iyz, l.inertial->ixz, l.inertial->iyz, l.inertial->izz;
+    Matrix3d I = inertiaOf(*l.inertial);
     // A rotational inertia is mass times squared distance: without mass there is none. Real
     // files give frame links mass 0 with inertia 0.1 (a hand's frames): kept, that inertia
     // (of a 0.8 kg hand's order) turned an arm 0.7 rad away from MuJoCo in 1 s, which drops

@@ -23,6 +23,9 @@ struct RigidGroup {
   Isometry3d link_T_body = Isometry3d::Identity();  // body frame in the first link's frame
 };
 
+// A link's <inertia> as a matrix (about its centre of mass, in its <inertial> frame).
+Matrix3d inertiaOf(const urdf::Inertial& in);
+
 class RigidBodies {
  public:
   RigidBodies(const LinkTree& tree, const urdf::ModelInterface& urdf);

@@ -93,11 +93,28 @@ class Stepper {
   // H = diag * M + shift I + sum_e w_e J_e^T J_e over the rows, w_e = kappa * (row weight),
   // plus extra rows (Jx: rows over the bodies of constraint `extra_constraint`).
   void assembleH(const System& sys, double kappa, double mass, double shift);
-  void addRowsToH(const System& sys, int constraint, const Eigen::MatrixXd& rows, double weight);
+  // Adds weight * rows^T rows to H for rows over the bodies of a constraint (6 columns a
+  // body, in its bodies' order): assembly's targets, stiff damping's coordinate rows.
+  template <class Rows>
+  void addRowsToH(const System& sys, int constraint, const Eigen::MatrixBase<Rows>& rows, double weight) {
+    const ConstraintLayout& L = sys.layout[constraint];
+    const int k = static_cast<int>(L.bodies.size());
+    for (int k1 = 0; k1 < k; ++k1)
+      for (int k2 = k1; k2 < k; ++k2) {
+        const int address = L.address[k1 * k + k2];
+        if (address < 0) continue;
+        const Eigen::Matrix<double, 6, 6> B =
+            weight * rows.template middleCols<6>(6 * k1).transpose() * rows.template middleCols<6>(6 * k2);
+        if (L.transposed[k1 * k + k2]) chol_.block(address) += B.transpose();
+        else chol_.block(address) += B;
+      }
+  }
   BlockCholesky& cholesky() { return chol_; }
   // The tree KKT matrix (stepper.cpp): empty (size 0) for a mechanism with loops.
   void assembleKKT(const System& sys);
   BlockCholesky& kkt() { return kkt_; }
+  // max over bodies of max(|v|, |w| L): how fast the mechanism moves (L its length scale).
+  double motionScale(const System& sys, const Eigen::VectorXd& u) const;
   void mulJ(const System& sys, const double* v, double* out) const;   // out = Phi_q v
   void addJt(const System& sys, const double* y, double* out) const;  // out += Phi_q^T y
   // The same over the listed constraints only (mulJ writes their rows only).
@@ -152,7 +169,6 @@ class Stepper {
   bool updateLimits(const System& sys, State& s);
   bool releaseLimits(const System& sys, State& s);
   void jointRows(const System& sys, const State& s, int j, Row* rows) const;
-  double motionScale(const System& sys, const Eigen::VectorXd& u) const;
   // body_scale_[b] = {max(|u_r|, |u_theta| L, floor), max(|u_theta|, |u_r| / L, floor / L)}:
   // what the translational and rotational parts of body b's velocities (or accelerations)
   // u are measured against.
