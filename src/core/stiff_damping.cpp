@@ -16,11 +16,16 @@
 //     like quantities: metres or millimetres give the same s_k. Where it exceeds the
 //     threshold, s_k is taken again with P itself (1b.), one solve per such coordinate: a
 //     light link that carries a heavy one is not stiff, its joint moves the heavy one.
-//  2. Coordinates with s_k <= kStiffDamping stay in the stages exactly as before; any set
-//     of them has h S within kStiffDamping too (the rows of a principal submatrix are
-//     shorter). 0.5: there RK4's amplification 1 - s + s^2/2 - s^3/6 + s^4/24 is exp(-s)
-//     to 4e-4 (RK4's accuracy on a resolved mode), with 5.6 times margin to its stability
-//     limit (4 times for Heun); at s = 1 it is off by 2 %, at s = 2 by a factor 2.5.
+//  2. Coordinates with s_k <= s* stay in the stages exactly as before; any set of them has
+//     h S within s* too (the rows of a principal submatrix are shorter). s* is where
+//     implicit Euler, 1 / (1 + s) a step, becomes as accurate on the damped mode as the
+//     explicit method's amplification R(-s) (against exp(-s)): RK4 (R = 1 - s + s^2/2 -
+//     s^3/6 + s^4/24) at s = 2 (both 1/3), rk3 near 1.6, Heun (1 - s + s^2/2) at 1 (both
+//     1/2). Below s* the stages are the better of the two, and stable (s* is under each
+//     method's limit, 2.785, 2.513, 2); above it implicit Euler is, and stays stable where
+//     the stages would explode. (A first choice of 0.5 for every method sent arm7's wrist
+//     joint, s about 1.7, to implicit Euler each step: 36 % off exp(-1) where RK4 is 2 %
+//     off, at 1.5 times the cost a step.)
 //  3. The others leave the stages (forces() reads stage_damping_) and are integrated by
 //     implicit Euler after them (Lie splitting of the stiff linear part, Hairer & Wanner,
 //     "Solving ODEs II", IV.3 and IV.15; MuJoCo integrates joint damping implicitly the
@@ -40,13 +45,17 @@
 #include <algorithm>
 #include <cmath>
 #include <sstream>
+#include <string>
 
 #include "mechanism_sim/core/stepper.h"
 
 namespace mechanism_sim {
 namespace {
 
-constexpr double kStiffDamping = 0.5;  // s_k above which a damped coordinate is stiff (2.)
+// s_k above which a damped coordinate is stiff for the integrator `method` (2.).
+double stiffBound(const std::string& method) {
+  return method == "rk2" ? 1.0 : method == "rk3" ? 1.6 : 2.0;
+}
 constexpr int kMaxPasses = 12;
 
 using Row6 = Eigen::Matrix<double, 1, 6>;
@@ -91,6 +100,7 @@ bool Stepper::classifyDamping(const System& sys, const State& s, double h) {
     }
   }
   if (!any) return false;
+  const double stiff = stiffBound(sys.options.method);
   for (int j = 0; j < nj; ++j) {
     const Joint& jt = *sys.joints[j];
     for (int k = 0; k < jt.dof(); ++k) {
@@ -114,7 +124,7 @@ bool Stepper::classifyDamping(const System& sys, const State& s, double h) {
         }
       }
       damping_bound_[j][k] = h * sum;
-      if (!(h * sum <= kStiffDamping)) stiff_.push_back({j, k, c});
+      if (!(h * sum <= stiff)) stiff_.push_back({j, k, c});
     }
   }
   if (stiff_.empty()) return false;
@@ -149,7 +159,7 @@ bool Stepper::classifyDamping(const System& sys, const State& s, double h) {
       }
     }
     damping_bound_[r.joint][r.k] = h * sum;
-    if (!(h * sum <= kStiffDamping)) stiff_[kept++] = r;
+    if (!(h * sum <= stiff)) stiff_[kept++] = r;
   }
   stiff_.resize(kept);
   split_ = !stiff_.empty();
