@@ -1,7 +1,14 @@
-// Every joint type: Jacobian, gamma and coordinate rows against finite differences at
-// random poses; rank of its equations in random poses and in assembled poses (the screw
-// at its start angle included); coordinates reading back the motion that made the pose.
+// Every registered joint type (jointTypes()), each against a case written here (its
+// relative motion, equation count and coordinate ranges; a registered type without one
+// fails): Jacobian, gamma and coordinate rows against finite differences at random poses
+// (a spherical joint's rates against the relative angular velocity); rank of its
+// equations in random poses and in assembled poses (the screw at its start angle
+// included); coordinates reading back the motion that made the pose, and the registry's
+// relative pose matching it; the equations allowing exactly the case's relative motion
+// (the fixed joint: none, its relative pose held).
 #include <gtest/gtest.h>
+
+#include <algorithm>
 
 #include "fd_util.h"
 #include "mechanism_sim/core/joint.h"
@@ -46,9 +53,90 @@ void track(const Joint& joint, const std::vector<BodyKin>& kin, Tracked& tr) {
   EXPECT_EQ(rate, expected) << joint.type();
 }
 
+// What each joint type is meant to allow, written here and not asked of the registry: the
+// relative motion of frame j in frame i (rotation R and translation t, frame i components)
+// that its coordinates q describe, how many equations it has, and the range its
+// coordinates are drawn from. A registered type without a case here fails every test.
+struct FreeMotion {
+  Matrix3d R = Matrix3d::Identity();
+  Vector3d t = Vector3d::Zero();
+};
+
+struct JointCase {
+  std::string type;
+  int size;                   // equations: 6 - dof
+  std::vector<double> range;  // q_k drawn from (-range_k, range_k); its size is the dof
+  FreeMotion (*motion)(const std::vector<double>& q);
+};
+
+Matrix3d rotX(double x) { return Eigen::AngleAxisd(x, Vector3d::UnitX()).toRotationMatrix(); }
+Matrix3d rotY(double x) { return Eigen::AngleAxisd(x, Vector3d::UnitY()).toRotationMatrix(); }
+Matrix3d rotZ(double x) { return Eigen::AngleAxisd(x, Vector3d::UnitZ()).toRotationMatrix(); }
+
+const std::vector<JointCase>& jointCases() {
+  static const std::vector<JointCase> cases = {
+      // rotation vector q about the common point: a rotation by |q| about a generic axis
+      // (|q| < pi, where the rotation vector is unique)
+      {"spherical", 3, {1.7, 1.7, 1.7},
+       [](const std::vector<double>& q) {
+         const Vector3d v(q[0], q[1], q[2]);
+         FreeMotion m;
+         if (v.norm() > 0) m.R = Eigen::AngleAxisd(v.norm(), v.normalized()).toRotationMatrix();
+         return m;
+       }},
+      {"revolute", 5, {3.0},
+       [](const std::vector<double>& q) { return FreeMotion{rotZ(q[0]), Vector3d::Zero()}; }},
+      {"cylindrical", 4, {3.0, 3.0},
+       [](const std::vector<double>& q) { return FreeMotion{rotZ(q[0]), Vector3d(0, 0, q[1])}; }},
+      {"prismatic", 5, {3.0},
+       [](const std::vector<double>& q) { return FreeMotion{Matrix3d::Identity(), Vector3d(0, 0, q[0])}; }},
+      {"screw", 5, {3.0},  // lead kAlpha per radian, phi0 = 0
+       [](const std::vector<double>& q) { return FreeMotion{rotZ(q[0]), Vector3d(0, 0, kAlpha * q[0])}; }},
+      {"universal", 4, {3.0, 1.5},  // about x of frame i, then about the turned y
+       [](const std::vector<double>& q) { return FreeMotion{rotX(q[0]) * rotY(q[1]), Vector3d::Zero()}; }},
+      {"fixed", 6, {},  // the relative pose is held: frame j is frame i
+       [](const std::vector<double>&) { return FreeMotion{}; }},
+      {"planar", 3, {3.0, 3.0, 3.0},  // x, y in the plane of frame i, then the rotation about z
+       [](const std::vector<double>& q) { return FreeMotion{rotZ(q[2]), Vector3d(q[0], q[1], 0)}; }},
+  };
+  return cases;
+}
+
+// The case of a registered type; a failure naming it when the test has none.
+const JointCase* jointCase(const std::string& type) {
+  for (const auto& c : jointCases())
+    if (c.type == type) return &c;
+  ADD_FAILURE() << "joint type '" << type << "' is registered (jointTypes()) but test_joints.cpp has no case "
+                << "for it: add its motion, equation count and coordinate ranges to jointCases()";
+  return nullptr;
+}
+
+std::vector<double> randomCoordinates(const JointCase& c, std::mt19937& rng, bool at_start) {
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  std::vector<double> q;
+  for (double r : c.range) q.push_back(at_start ? 0.0 : r * u(rng));
+  return q;
+}
+
+// Body j placed so that frame j sits at the relative pose m from frame i on body i.
+BodyKin placeJ(const Joint& joint, const BodyKin& ki, const FreeMotion& m, BodyKin kj) {
+  const JointFrame &fi = joint.frameI(), &fj = joint.frameJ();
+  kj.A_Oi = ki.A_Oi * fi.Rp * m.R * fj.Rp.transpose();
+  kj.r = ki.r + ki.A_Oi * (fi.sp_B + fi.Rp * m.t) - kj.A_Oi * fj.sp_B;
+  return kj;
+}
+
+Tracked trackedAt(const Joint& joint, const std::vector<double>& q) {
+  Tracked tr = joint.initialTracked();
+  for (int k = 0; k < joint.dof() && k < static_cast<int>(q.size()); ++k)
+    if (joint.trackedSlot(k) >= 0) tr[joint.trackedSlot(k)] = q[k];
+  return tr;
+}
+
 class JointTypes : public ::testing::TestWithParam<std::string> {};
 
 TEST_P(JointTypes, JacobianAndGammaMatchFiniteDifferences) {
+  jointCase(GetParam());  // fails for a type without a case (the checks here still run)
   std::mt19937 rng(11);
   for (int n = 0; n < 100; ++n) {
     auto joint = randomJoint(GetParam(), rng);
@@ -67,10 +155,20 @@ TEST_P(JointTypes, JacobianAndGammaMatchFiniteDifferences) {
 }
 
 TEST_P(JointTypes, CoordinateRowsMatchFiniteDifferences) {
+  const JointCase* c = jointCase(GetParam());
+  if (!c) return;
   std::mt19937 rng(12);
   for (int n = 0; n < 100; ++n) {
     auto joint = randomJoint(GetParam(), rng);
-    if (joint->dof() == 0) return;
+    ASSERT_EQ(joint->dof(), static_cast<int>(c->range.size()));
+    if (joint->dof() == 0) {  // fixed: no coordinates, coordinates() writes no row
+      const std::vector<BodyKin> kin = {test::randomBody(rng), test::randomBody(rng)};
+      Row rows[1];
+      rows[0].Phi = 7.0;
+      joint->coordinates(kin[0], kin[1], joint->initialTracked(), rows);
+      EXPECT_EQ(rows[0].Phi, 7.0);
+      continue;
+    }
     const std::vector<BodyKin> kin = {test::randomBody(rng), test::randomBody(rng)};
     Tracked tr = joint->initialTracked();
     track(*joint, kin, tr);
@@ -91,57 +189,121 @@ TEST_P(JointTypes, CoordinateRowsMatchFiniteDifferences) {
     Eigen::VectorXd rate(joint->dof()), gamma(joint->dof());
     coords(kin, &G, &rate, &gamma);
     EXPECT_LT((G * test::velocityOf(kin) - rate).cwiseAbs().maxCoeff(), 1e-10);
-    if (!joint->holonomicCoordinates()) continue;  // rates, not derivatives of positions
+    if (!joint->holonomicCoordinates()) {
+      // rates, not derivatives of positions: the relative angular velocity in frame i,
+      // omega with dR/dt = tilde(omega) R for R = F_i^T F_j (F = A_Oi Rp), by differences
+      ASSERT_EQ(joint->dof(), 3);
+      auto relative = [&](double t) {
+        const BodyKin bi = test::advance(kin[0], t), bj = test::advance(kin[1], t);
+        return Matrix3d((bi.A_Oi * joint->frameI().Rp).transpose() * bj.A_Oi * joint->frameJ().Rp);
+      };
+      const double h = 1e-6;
+      const Matrix3d W = (relative(h) - relative(-h)) / (2 * h) * relative(0).transpose();
+      EXPECT_LT((Vector3d(W(2, 1), W(0, 2), W(1, 0)) - rate).cwiseAbs().maxCoeff(), 1e-8 * (1 + rate.norm())) << n;
+      continue;
+    }
     auto f = [&](const std::vector<BodyKin>& k) { return coords(k, nullptr, nullptr, nullptr); };
     EXPECT_LT((test::fdJacobian(f, kin) - G).cwiseAbs().maxCoeff(), 1e-7 * (1 + G.cwiseAbs().maxCoeff()));
     EXPECT_LT((test::fdGamma(f, kin) - gamma).cwiseAbs().maxCoeff(), 2e-5 * (1 + gamma.cwiseAbs().maxCoeff()));
   }
 }
 
-// Relative motion along the joint's free directions, frame i to frame j:
-// rotation R and translation t (in frame i), and the coordinates that describe it.
-struct FreeMotion {
-  Matrix3d R = Matrix3d::Identity();
-  Vector3d t = Vector3d::Zero();
-  std::vector<double> q;
-};
-
-FreeMotion freeMotion(const std::string& type, std::mt19937& rng, bool at_start) {
-  std::uniform_real_distribution<double> u(-3.0, 3.0);
-  const double a = at_start ? 0.0 : u(rng), b = at_start ? 0.0 : u(rng) / 2, c = at_start ? 0.0 : u(rng);
-  FreeMotion m;
-  auto Rz = [](double x) { return Eigen::AngleAxisd(x, Vector3d::UnitZ()).toRotationMatrix(); };
-  if (type == "spherical") m.R = test::randomRotation(rng);
-  if (type == "revolute") m.R = Rz(a), m.q = {a};
-  if (type == "cylindrical") m.R = Rz(a), m.t.z() = c, m.q = {a, c};
-  if (type == "prismatic") m.t.z() = c, m.q = {c};
-  if (type == "screw") m.R = Rz(a), m.t.z() = kAlpha * a, m.q = {a};
-  if (type == "universal")
-    m.R = Eigen::AngleAxisd(a, Vector3d::UnitX()).toRotationMatrix() *
-          Eigen::AngleAxisd(b, Vector3d::UnitY()).toRotationMatrix(),
-    m.q = {a, b};
-  if (type == "planar") m.R = Rz(a), m.t << b, c, 0, m.q = {b, c, a};
-  return m;
+TEST(JointRegistry, EveryRegisteredTypeHasATestCaseAndEveryCaseIsRegistered) {
+  const std::vector<std::string> types = jointTypes();
+  for (const auto& type : types) {
+    const JointCase* c = jointCase(type);
+    if (!c) continue;
+    std::mt19937 rng(10);
+    auto joint = randomJoint(type, rng);
+    EXPECT_EQ(joint->dof(), static_cast<int>(c->range.size())) << type;
+    EXPECT_EQ(jointTypeInfo(type).dof(), joint->dof()) << type;
+    EXPECT_EQ(joint->size(), c->size) << type;
+    EXPECT_EQ(joint->size() + joint->dof(), 6) << type;  // equations and freedoms share the 6 of a body
+    EXPECT_EQ(joint->type(), type);
+  }
+  for (const auto& c : jointCases())
+    EXPECT_NE(std::find(types.begin(), types.end(), c.type), types.end())
+        << "test_joints.cpp has a case for joint type '" << c.type << "', which is not registered";
 }
 
 TEST_P(JointTypes, FullRankAndZeroViolationInAssembledPoses) {
+  const JointCase* c = jointCase(GetParam());
+  if (!c) return;
   std::mt19937 rng(13);
   for (int n = 0; n < 100; ++n) {
     auto joint = randomJoint(GetParam(), rng);
-    const FreeMotion m = freeMotion(GetParam(), rng, n == 0);  // n = 0: the start pose
+    const std::vector<double> q = randomCoordinates(*c, rng, n == 0);  // n = 0: the start pose
+    const FreeMotion m = c->motion(q);
     std::vector<BodyKin> kin = {test::randomBody(rng), test::randomBody(rng)};
-    const JointFrame &fi = joint->frameI(), &fj = joint->frameJ();
-    kin[1].A_Oi = kin[0].A_Oi * fi.Rp * m.R * fj.Rp.transpose();
-    kin[1].r = kin[0].r + kin[0].A_Oi * (fi.sp_B + fi.Rp * m.t) - kin[1].A_Oi * fj.sp_B;
-    Tracked tr = joint->initialTracked();
-    for (int k = 0; k < joint->dof() && k < static_cast<int>(m.q.size()); ++k)
-      if (joint->trackedSlot(k) >= 0) tr[joint->trackedSlot(k)] = m.q[k];
+    kin[1] = placeJ(*joint, kin[0], m, kin[1]);
+    const Tracked tr = trackedAt(*joint, q);
     const Evaluation e = evaluate(*joint, kin, tr);
     EXPECT_LT(e.Phi.cwiseAbs().maxCoeff(), 1e-12) << n;
     EXPECT_EQ(test::rankOf(e.J), joint->size()) << "assembled pose " << n;
     Row rows[3];
     joint->coordinates(kin[0], kin[1], tr, rows);
-    for (size_t k = 0; k < m.q.size(); ++k) EXPECT_NEAR(rows[k].Phi, m.q[k], 1e-10) << n;
+    for (size_t k = 0; k < q.size(); ++k) EXPECT_NEAR(rows[k].Phi, q[k], 1e-10) << n << " coordinate " << k;
+    // the registry's map from coordinates to the relative pose is this motion
+    if (joint->dof() == static_cast<int>(q.size())) {
+      JointParams params;
+      params.alpha = kAlpha;
+      const Eigen::Isometry3d T = jointTypeInfo(GetParam()).relativePose(q.data(), params);
+      EXPECT_LT((T.linear() - m.R).cwiseAbs().maxCoeff(), 1e-12) << n;
+      EXPECT_LT((T.translation() - m.t).cwiseAbs().maxCoeff(), 1e-12) << n;
+    }
+  }
+}
+
+// The equations allow exactly the joint's motion: displacing frame j relative to frame i
+// (body i held) along the motion's tangent leaves them satisfied to first order, along
+// any other relative direction violates them. P maps a relative twist xi of frame j
+// (its components: [translation, rotation] in frame j) to the first-order change of Phi,
+// by central differences at assembled poses; its null space must be the span of the
+// tangents d/dq_k of the motion (also by differences), of dimension dof. For the fixed
+// joint that is: every relative displacement violates it, the relative pose is held.
+TEST_P(JointTypes, EquationsAllowExactlyTheJointsRelativeMotion) {
+  const JointCase* c = jointCase(GetParam());
+  if (!c) return;
+  std::mt19937 rng(14);
+  const double eps = 1e-6;
+  auto displaced = [](const FreeMotion& m, const Eigen::Matrix<double, 6, 1>& xi) {
+    FreeMotion d;
+    d.R = m.R * expRotation(xi.tail<3>()).toRotationMatrix();
+    d.t = m.t + m.R * xi.head<3>();
+    return d;
+  };
+  auto twist = [](const FreeMotion& from, const FreeMotion& to) {  // in frame j of 'from'
+    Eigen::Matrix<double, 6, 1> xi;
+    xi << from.R.transpose() * (to.t - from.t), logRotation(Quaterniond(Matrix3d(from.R.transpose() * to.R)));
+    return xi;
+  };
+  for (int n = 0; n < 50; ++n) {
+    auto joint = randomJoint(GetParam(), rng);
+    const std::vector<double> q = randomCoordinates(*c, rng, n == 0);
+    const FreeMotion m = c->motion(q);
+    const BodyKin ki = test::randomBody(rng), kj0 = test::randomBody(rng);
+    const Tracked tr = trackedAt(*joint, q);
+    auto phi = [&](const FreeMotion& rel) {
+      return evaluate(*joint, {ki, placeJ(*joint, ki, rel, kj0)}, tr).Phi;
+    };
+    Eigen::MatrixXd P(joint->size(), 6);
+    for (int k = 0; k < 6; ++k) {
+      Eigen::Matrix<double, 6, 1> xi = Eigen::Matrix<double, 6, 1>::Zero();
+      xi(k) = eps;
+      P.col(k) = (phi(displaced(m, xi)) - phi(displaced(m, -xi))) / (2 * eps);
+    }
+    const double scale = 1.0 + P.cwiseAbs().maxCoeff();
+    for (size_t k = 0; k < q.size(); ++k) {
+      std::vector<double> qp = q, qm = q;
+      qp[k] += eps;
+      qm[k] -= eps;
+      const Eigen::Matrix<double, 6, 1> tangent = (twist(m, c->motion(qp)) - twist(m, c->motion(qm))) / (2 * eps);
+      ASSERT_GT(tangent.norm(), 1e-3) << "coordinate " << k << " does not move the case's motion";
+      EXPECT_LT((P * tangent).norm(), 1e-7 * scale * tangent.norm())
+          << "pose " << n << ": moving coordinate " << k << " violates the equations";
+    }
+    EXPECT_EQ(test::rankOf(P), 6 - static_cast<int>(q.size()))
+        << "pose " << n << ": the equations allow a relative motion the joint does not have (or forbid one it has)";
   }
 }
 
