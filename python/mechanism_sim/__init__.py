@@ -1,0 +1,25 @@
+"""mechanism_sim: URDF mechanisms with closed loops, from Python (doc/python.md).
+
+    import mechanism_sim
+    m = mechanism_sim.load("urdf/four_bar.urdf")
+    m.advance(1.0, 1e-3)
+    m.time(), m.positions(), m.violation()
+
+The compiled part is mechanism_sim._mechanism_sim (src/python/module.cpp); this package
+also holds the node's messages (mechanism_sim.msg, mechanism_sim.srv) and the design
+sweeps of scripts/sweep (mechanism_sim.sweep, doc/sweeps.md).
+"""
+from ._mechanism_sim import (  # noqa: F401
+    Error,
+    LoadError,
+    Model,
+    ModelError,
+    SimulationError,
+    Snapshot,
+    StepFailure,
+    load,
+    load_string,
+)
+
+__all__ = ["Error", "LoadError", "Model", "ModelError", "SimulationError", "Snapshot", "StepFailure",
+           "load", "load_string"]

@@ -1,0 +1,285 @@
+"""The Python module (doc/python.md): physics with known answers, snapshot/restore bit for
+bit, agreement with the simulate CLI on the same run, the library's errors as exceptions.
+
+Run by scripts/test (cmake/python.cmake: pytest under the devel environment, its JUnit XML
+counted with the gtests'). MECHANISM_SIM_SIMULATE names the simulate binary.
+"""
+import csv
+import math
+import os
+import re
+import subprocess
+
+import numpy as np
+import pytest
+
+import mechanism_sim
+
+SOURCE = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+SIMULATE = os.environ.get("MECHANISM_SIM_SIMULATE", "")
+PENDULUM = os.path.join(SOURCE, "test/urdf/pendulum_point_mass.urdf")
+FOUR_BAR = os.path.join(SOURCE, "urdf/four_bar.urdf")
+FOUR_BAR_DRIVEN = os.path.join(SOURCE, "urdf/four_bar_driven.urdf")
+XACRO = os.path.join(SOURCE, "test/xacro/robot.urdf.xacro")
+
+
+def simulate(*args, check=True):
+    assert SIMULATE and os.access(SIMULATE, os.X_OK), "MECHANISM_SIM_SIMULATE must name the simulate binary"
+    run = subprocess.run([SIMULATE, *args], capture_output=True, text=True, timeout=120)
+    if check:
+        assert run.returncode == 0, run.stderr
+    return run
+
+
+def period_of_pendulum(theta0, length, g):
+    """Exact period of a simple pendulum of amplitude theta0: 4 sqrt(L/g) K(sin(theta0/2)),
+    K by the arithmetic-geometric mean."""
+    a, b = 1.0, math.cos(theta0 / 2)
+    for _ in range(12):
+        a, b = (a + b) / 2, math.sqrt(a * b)
+    return 4 * math.sqrt(length / g) * math.pi / (2 * a)
+
+
+# ---- physics with known answers
+
+def test_pendulum_released_horizontally_has_the_elliptic_period_and_keeps_its_energy():
+    # 1 kg point mass on a 1 m massless arm, released at rest 90 degrees from the bottom
+    m = mechanism_sim.load(PENDULUM)
+    g = -m.gravity()[2]
+    assert g == pytest.approx(9.81)
+    period = period_of_pendulum(math.pi / 2, 1.0, g)
+    e0 = m.energies()["total"]
+    assert e0 == pytest.approx(19.62)  # m g z with the bob at z = 2 m
+    h, turns, worst_drift = 1e-3, [], 0.0
+    v_prev, t_prev = m.velocities()[0], m.time()
+    while len(turns) < 4:
+        m.step(h)
+        v, t = m.velocities()[0], m.time()
+        worst_drift = max(worst_drift, abs(m.energies()["total"] - e0))
+        if v_prev != 0 and v * v_prev < 0:  # a turning point, by linear interpolation of the rate
+            turns.append(t_prev + h * v_prev / (v_prev - v))
+        v_prev, t_prev = v, t
+    # turning points every half period (RK4 at 1 ms: 2e-12 s measured)
+    for k, t in enumerate(turns, start=1):
+        assert t == pytest.approx(k * period / 2, abs=1e-8), (k, t, period)
+    assert worst_drift < 1e-9 * e0  # 5e-11 J measured
+    assert m.largest_violation()["position"] < 1e-12
+
+
+def test_energies_are_kinetic_plus_potential():
+    m = mechanism_sim.load(FOUR_BAR)
+    m.advance(0.2, 1e-3)
+    e = m.energies()
+    assert e["total"] == e["kinetic"] + e["potential"]
+    assert e["kinetic"] > 0
+
+
+# ---- snapshot and restore
+
+def test_restore_continues_bit_for_bit():
+    m = mechanism_sim.load(FOUR_BAR_DRIVEN, efforts={"rocker_joint": 0.2})
+    m.advance(0.3, 1e-3)
+    snap = m.snapshot()
+    assert snap.time == m.time() and snap.steps == 300
+
+    def run():
+        m.set_efforts({"coupler_joint": -0.1})
+        m.advance(0.25, 1e-3)
+        r = m.reactions()
+        return (m.time(), m.positions(), m.velocities(), m.efforts(), r["force"], r["torque"],
+                m.largest_violation(), m.drive_peaks(), m.commanded_efforts(), m.steps())
+
+    first = run()
+    m.restore(snap)
+    assert m.time() == snap.time
+    np.testing.assert_array_equal(m.commanded_efforts(), [0, 0, 0.2, 0])  # the effort set after is undone
+    second = run()
+    for a, b in zip(first, second):
+        if isinstance(a, np.ndarray):
+            np.testing.assert_array_equal(a, b)
+        else:
+            assert a == b
+
+
+def test_reset_goes_back_to_the_assembled_start():
+    m = mechanism_sim.load(FOUR_BAR)
+    p0, v0 = m.positions(), m.velocities()
+    m.set_efforts([1.0, 0, 0, 0])
+    m.advance(0.1, 1e-3)
+    m.reset()
+    assert m.time() == 0 and m.steps() == 0
+    np.testing.assert_array_equal(m.positions(), p0)
+    np.testing.assert_array_equal(m.velocities(), v0)
+    np.testing.assert_array_equal(m.commanded_efforts(), np.zeros(4))
+
+
+def test_restore_of_another_models_snapshot_is_an_error():
+    a, b = mechanism_sim.load(FOUR_BAR), mechanism_sim.load(PENDULUM)
+    with pytest.raises(ValueError, match="another"):
+        b.restore(a.snapshot())
+
+
+# ---- the same run as simulate
+
+def csv_values(path):
+    with open(path) as f:
+        rows = list(csv.reader(f))
+    return rows[0], rows[-1]
+
+
+RUNS = [
+    # (file, simulate options, load() keyword arguments)
+    (FOUR_BAR, ["--set", "crank_joint=0.3", "--velocity", "crank_joint=2", "--effort", "rocker_joint=0.4"],
+     dict(positions={"crank_joint": 0.3}, velocities={"crank_joint": 2}, efforts={"rocker_joint": 0.4})),
+    (FOUR_BAR_DRIVEN, ["--drive", "crank_joint=5", "--integrator", "rk3"],
+     dict(drives={"crank_joint": 5}, integrator="rk3")),
+    (XACRO, ["length:=0.45", "tip_mass:=0.8"], dict(args={"length": 0.45, "tip_mass": "0.8"})),
+]
+
+
+@pytest.mark.parametrize("path,options,kwargs", RUNS, ids=["set-velocity-effort", "drive-rk3", "xacro-args"])
+def test_a_run_prints_what_simulate_prints(tmp_path, path, options, kwargs):
+    out = tmp_path / "run.csv"
+    simulate(path, *options, "--duration", "0.4", "--dt", "1e-3", "--reactions", "--csv", str(out))
+    header, last = csv_values(out)
+
+    m = mechanism_sim.load(path, **kwargs)
+    m.advance(0.4, 1e-3)
+    mine = {"time": m.time()}
+    for name, p, v, e in zip(m.dof_names(), m.positions(), m.velocities(), m.efforts()):
+        mine[name + ".position"], mine[name + ".velocity"], mine[name + ".effort"] = p, v, e
+    mine["constraint.position"] = m.violation()["position"]
+    mine["constraint.velocity"] = m.violation()["velocity"]
+    r = m.reactions()
+    for j, joint in enumerate(r["joints"]):
+        for c, comp in enumerate("xyz"):
+            mine[f"{joint}.f{comp}"], mine[f"{joint}.t{comp}"] = r["force"][j, c], r["torque"][j, c]
+    assert sorted(mine) == sorted(header)
+    # the CSV's 12 significant digits, character for character: the same steps, the same bits
+    for name, text in zip(header, last):
+        assert "%.12g" % mine[name] == text, name
+
+    # the summary and notes, but for the wall time, of a run without reactions (their
+    # least-norm solves count in the solver's statistics)
+    run = simulate(path, *options, "--duration", "0.4", "--dt", "1e-3", "--csv", str(out))
+    m = mechanism_sim.load(path, **kwargs)
+    m.advance(0.4, 1e-3)
+
+    def steady(text):
+        return re.sub(r"in [0-9.]+ s wall \(real-time factor [0-9.inf]+\)", "in W s wall", text)
+    assert steady(m.summary()) == steady(run.stderr)
+
+
+def test_set_state_holds_what_load_holds():
+    # the file starts the crank at 4 rad/s: set_state with the same targets as load() lands
+    # on the same state (within the assembly's tolerance: it starts from another pose)
+    loaded = mechanism_sim.load(FOUR_BAR, positions={"crank_joint": 0.5})
+    m = mechanism_sim.load(FOUR_BAR)
+    m.set_state(positions={"crank_joint": 0.5}, velocities={"crank_joint": 4.0})
+    np.testing.assert_allclose(m.positions(), loaded.positions(), rtol=0, atol=1e-9)
+    np.testing.assert_allclose(m.velocities(), loaded.velocities(), rtol=0, atol=1e-8)
+    assert m.violation()["relative_position"] < 1e-12
+    m.set_velocities({"crank_joint": -1.0})
+    assert m.velocities()[0] == pytest.approx(-1.0, abs=1e-9)
+    np.testing.assert_allclose(m.positions(), loaded.positions(), rtol=0, atol=1e-9)
+
+
+# ---- errors
+
+def test_a_file_that_cannot_be_loaded_raises_load_error_with_the_library_message():
+    bad = os.path.join(SOURCE, "test/invalid/negative_mass.urdf")
+    run = simulate(bad, "--duration", "0", check=False)
+    assert run.returncode == 1
+    with pytest.raises(mechanism_sim.LoadError) as e:
+        mechanism_sim.load(bad)
+    assert isinstance(e.value, ValueError) and isinstance(e.value, mechanism_sim.Error)
+    assert "simulate: " + str(e.value) + "\n" == run.stderr
+    with pytest.raises(mechanism_sim.LoadError, match="cannot open the file"):
+        mechanism_sim.load("/nonexistent/model.urdf")
+    with pytest.raises(mechanism_sim.LoadError, match="not a .xacro file"):
+        mechanism_sim.load(FOUR_BAR, args={"length": 1})
+    with pytest.raises(mechanism_sim.LoadError, match="names no joint degree of freedom 'nope'"):
+        mechanism_sim.load(FOUR_BAR, efforts={"nope": 1})
+    with pytest.raises(mechanism_sim.LoadError, match="<string>"):
+        mechanism_sim.load_string("<robot name='x'>")
+
+
+def locked_four_bar(tmp_path):
+    # the four-bar's rocker driven at 3 rad/s: it cannot turn past its dead point
+    text = open(FOUR_BAR_DRIVEN).read().replace('drive joint="crank_joint"', 'drive joint="rocker_joint"')
+    path = tmp_path / "locked_four_bar.urdf"
+    path.write_text(text)
+    return str(path)
+
+
+def test_a_step_that_fails_raises_step_failure_and_leaves_the_last_state(tmp_path):
+    path = locked_four_bar(tmp_path)
+    run = simulate(path, "--duration", "1", "--quiet", check=False)
+    assert run.returncode == 1
+    m = mechanism_sim.load(path)
+    with pytest.raises(mechanism_sim.StepFailure) as e:
+        m.advance(1.0, 1e-3)
+    assert isinstance(e.value, RuntimeError) and isinstance(e.value, mechanism_sim.SimulationError)
+    assert "simulate: " + str(e.value) in run.stderr
+    assert "cannot be brought onto the constraints" in str(e.value)
+    t = m.time()
+    assert 0 < t < 1 and m.steps() == round(t / 1e-3)
+    assert np.isfinite(m.positions()).all()
+    assert m.violation()["relative_position"] < 1e-6  # the last accepted step
+
+
+def test_bad_arguments_raise_value_errors():
+    m = mechanism_sim.load(FOUR_BAR)
+    for bad in (0.0, -1e-3, math.nan, math.inf):
+        with pytest.raises(ValueError):
+            m.step(bad)
+    with pytest.raises(ValueError):
+        m.advance(-1, 1e-3)
+    with pytest.raises(ValueError, match="names no joint degree of freedom 'nope'"):
+        m.set_efforts({"nope": 1.0})
+    with pytest.raises(ValueError, match="not finite"):
+        m.set_efforts({"crank_joint": math.nan})
+    with pytest.raises(ValueError, match="one per dof"):
+        m.set_efforts([1.0, 2.0])
+    with pytest.raises(ValueError, match="is not driven"):
+        m.command_drive("crank_joint", 1.0)
+    with pytest.raises(ValueError, match="no link"):
+        m.link_pose("nope")
+    with pytest.raises(TypeError):
+        m.set_positions(3.0)
+    assert m.time() == 0
+
+
+def test_a_pose_that_does_not_close_raises_model_error_and_changes_nothing():
+    m = mechanism_sim.load(FOUR_BAR)
+    m.advance(0.05, 1e-3)
+    p, v = m.positions(), m.velocities()
+    with pytest.raises(mechanism_sim.ModelError, match="four_bar.urdf: the mechanism does not close"):
+        m.set_positions({"crank_joint": 0.5, "rocker_joint": 2.0})
+    np.testing.assert_array_equal(m.positions(), p)
+    np.testing.assert_array_equal(m.velocities(), v)
+    driven = mechanism_sim.load(FOUR_BAR_DRIVEN)
+    with pytest.raises(ValueError, match="driven"):
+        driven.set_velocities({"crank_joint": 1.0})
+
+
+def test_the_model_answers_its_description():
+    m = mechanism_sim.load(FOUR_BAR_DRIVEN)
+    assert m.name == "four_bar_driven" and m.source == FOUR_BAR_DRIVEN
+    assert m.dof_names() == ["crank_joint", "coupler_joint", "rocker_joint", "loop"]
+    assert m.driven_dofs() == ["crank_joint"]
+    assert m.reaction_joints() == m.reactions()["joints"]
+    assert m.num_equations() == 21  # 20 and the drive's
+    assert "'loop' 3" in m.dependencies()
+    assert m.notes() == []
+    stats = m.solver_stats()
+    assert stats["shortfalls"] == 0 and "met its tolerance" in stats["describe"]
+    m.advance(0.1, 1e-3)
+    assert m.velocities()[0] == pytest.approx(3.0)  # the file's drive
+    assert set(m.drive_peaks()) == {"crank_joint"}
+    T = m.link_pose("crank")
+    assert T.shape == (4, 4)
+    np.testing.assert_allclose(T[:3, :3] @ T[:3, :3].T, np.eye(3), atol=1e-12)
+    m.command_drive("crank_joint", 0.0)
+    m.advance(0.01, 1e-3)
+    assert m.velocities()[0] == pytest.approx(0.0, abs=1e-12)
