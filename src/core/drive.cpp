@@ -7,6 +7,7 @@
 namespace mechanism_sim {
 
 void DriveRamp::eval(double t, double* f, double* f_dot, double* f_ddot) const {
+  if (path) return path->eval(t, f, f_dot, f_ddot);
   const double tau = t - t0;
   const double dv = v1 - v0;
   const double T = (acc > 0 && dv != 0) ? std::fabs(dv) / acc : 0.0;  // ramp duration
@@ -20,6 +21,109 @@ void DriveRamp::eval(double t, double* f, double* f_dot, double* f_ddot) const {
     *f_dot = v1;
     *f_ddot = 0.0;
   }
+}
+
+// Quintic Hermite segment on [0, h] (tau = t - t_i, dq = q1 - q0): with c0 = q0, c1 = v0,
+// c2 = a0 / 2 the three end conditions q(h) = q1, q'(h) = v1, q''(h) = a1 give
+//   c3 = (20 dq - (8 v1 + 12 v0) h - (3 a0 - a1) h^2) / (2 h^3)
+//   c4 = (-30 dq + (14 v1 + 16 v0) h + (3 a0 - 2 a1) h^2) / (2 h^4)
+//   c5 = (12 dq - 6 (v1 + v0) h + (a1 - a0) h^2) / (2 h^5)
+DrivePath::DrivePath(std::vector<PathKnot> knots) : knots_(std::move(knots)) {
+  if (knots_.empty()) throw std::invalid_argument("path: no knot");
+  for (size_t i = 0; i < knots_.size(); ++i) {
+    const PathKnot& k = knots_[i];
+    if (!std::isfinite(k.t) || !std::isfinite(k.q) || !std::isfinite(k.v) || !std::isfinite(k.a))
+      throw std::invalid_argument("path: knot " + std::to_string(i + 1) + " is not finite");
+    if (i > 0 && !(k.t > knots_[i - 1].t))
+      throw std::invalid_argument("path: times must increase (knot " + std::to_string(i + 1) + ")");
+  }
+  for (size_t i = 0; i + 1 < knots_.size(); ++i) {
+    const PathKnot &k0 = knots_[i], &k1 = knots_[i + 1];
+    const double h = k1.t - k0.t, dq = k1.q - k0.q, h2 = h * h;
+    c_.push_back({k0.q, k0.v, 0.5 * k0.a,
+                  (20 * dq - (8 * k1.v + 12 * k0.v) * h - (3 * k0.a - k1.a) * h2) / (2 * h2 * h),
+                  (-30 * dq + (14 * k1.v + 16 * k0.v) * h + (3 * k0.a - 2 * k1.a) * h2) / (2 * h2 * h2),
+                  (12 * dq - 6 * (k1.v + k0.v) * h + (k1.a - k0.a) * h2) / (2 * h2 * h2 * h)});
+  }
+}
+
+// Cubic Hermite segment (q0, v0) -> (q1, v1) over h, s = (q1 - q0) / h: its accelerations
+// at the start and at the end.
+static double hermiteStartAcceleration(double h, double s, double v0, double v1) { return (6 * s - 4 * v0 - 2 * v1) / h; }
+static double hermiteEndAcceleration(double h, double s, double v0, double v1) { return (-6 * s + 2 * v0 + 4 * v1) / h; }
+
+DrivePath DrivePath::through(const PathKnot& start, const std::vector<double>& t, const std::vector<double>& q,
+                             const std::vector<double>& v, const std::vector<double>& a) {
+  const size_t n = t.size();  // segments; knots 0 (start) .. n
+  if (n == 0 || q.size() != n || (!v.empty() && v.size() != n) || (!a.empty() && a.size() != n))
+    throw std::invalid_argument("path: needs at least one point, and as many values as times");
+  std::vector<PathKnot> k(n + 1);
+  k[0] = start;
+  for (size_t i = 0; i < n; ++i) {
+    k[i + 1].t = t[i], k[i + 1].q = q[i];
+    if (!std::isfinite(t[i]) || !std::isfinite(q[i]) || (!v.empty() && !std::isfinite(v[i])) ||
+        (!a.empty() && !std::isfinite(a[i])))
+      throw std::invalid_argument("path: point " + std::to_string(i + 1) + " is not finite");
+    if (!(t[i] > k[i].t)) throw std::invalid_argument("path: times must increase (point " + std::to_string(i + 1) + ")");
+  }
+  std::vector<double> h(n), s(n);
+  for (size_t i = 0; i < n; ++i) h[i] = k[i + 1].t - k[i].t, s[i] = (k[i + 1].q - k[i].q) / h[i];
+  if (!v.empty()) {
+    for (size_t i = 0; i < n; ++i) k[i + 1].v = v[i];
+  } else if (n > 1) {
+    // Clamped cubic spline (v_0 = start.v, v_n = 0): continuity of the acceleration at
+    // interior knot i, multiplied by h_{i-1} h_i / 2, is
+    //   h_i v_{i-1} + 2 (h_{i-1} + h_i) v_i + h_{i-1} v_{i+1} = 3 (h_i s_{i-1} + h_{i-1} s_i)
+    // (de Boor, A Practical Guide to Splines, ch. IV); Thomas algorithm on v_1 .. v_{n-1}.
+    const size_t m = n - 1;
+    std::vector<double> lower(m), diag(m), upper(m), rhs(m);
+    for (size_t r = 0; r < m; ++r) {
+      const size_t i = r + 1;
+      lower[r] = h[i], diag[r] = 2 * (h[i - 1] + h[i]), upper[r] = h[i - 1];
+      rhs[r] = 3 * (h[i] * s[i - 1] + h[i - 1] * s[i]);
+    }
+    rhs[0] -= lower[0] * k[0].v;  // v_n = 0 adds nothing to the last row
+    for (size_t r = 1; r < m; ++r) {
+      const double w = lower[r] / diag[r - 1];
+      diag[r] -= w * upper[r - 1];
+      rhs[r] -= w * rhs[r - 1];
+    }
+    k[m].v = rhs[m - 1] / diag[m - 1];
+    for (size_t r = m - 1; r-- > 0;) k[r + 1].v = (rhs[r] - upper[r] * k[r + 2].v) / diag[r];
+    k[n].v = 0.0;
+  } else {
+    k[n].v = 0.0;
+  }
+  if (!a.empty()) {
+    for (size_t i = 0; i < n; ++i) k[i + 1].a = a[i];
+  } else {
+    for (size_t i = 1; i < n; ++i)
+      k[i].a = 0.5 * (hermiteEndAcceleration(h[i - 1], s[i - 1], k[i - 1].v, k[i].v) +
+                      hermiteStartAcceleration(h[i], s[i], k[i].v, k[i + 1].v));
+    k[n].a = 0.0;
+  }
+  return DrivePath(std::move(k));
+}
+
+void DrivePath::eval(double t, double* q, double* q_dot, double* q_ddot) const {
+  const size_t n = knots_.size();
+  if (n == 1 || t >= knots_[n - 1].t) {  // past the end: on at the last velocity
+    const PathKnot& e = knots_[n - 1];
+    *q = e.q + e.v * (t - e.t);
+    *q_dot = e.v;
+    *q_ddot = 0.0;
+    return;
+  }
+  size_t i = 0, hi = n - 1;  // binary search: knots_[i].t <= t < knots_[i+1].t (i = 0 before)
+  while (hi - i > 1) {
+    const size_t mid = (i + hi) / 2;
+    (knots_[mid].t <= t ? i : hi) = mid;
+  }
+  const std::array<double, 6>& c = c_[i];
+  const double x = t - knots_[i].t;
+  *q = c[0] + x * (c[1] + x * (c[2] + x * (c[3] + x * (c[4] + x * c[5]))));
+  *q_dot = c[1] + x * (2 * c[2] + x * (3 * c[3] + x * (4 * c[4] + x * 5 * c[5])));
+  *q_ddot = 2 * c[2] + x * (6 * c[3] + x * (12 * c[4] + x * 20 * c[5]));
 }
 
 DriveProfile DriveProfile::velocity(double v) {

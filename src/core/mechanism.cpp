@@ -97,7 +97,7 @@ void Mechanism::setJointLimits(int joint, int k, double lower, double upper) {
 }
 
 int Mechanism::addDrive(int joint, int k, const DriveProfile& profile, double q0) {
-  requireUnbuilt("addDrive");
+  if (built_) return addDriveAfterBuild(joint, k, profile);
   checkCoordinate(joint, k);
   const Joint& j = *sys_->joints[joint];
   if (!j.holonomicCoordinates())

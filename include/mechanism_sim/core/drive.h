@@ -5,6 +5,8 @@
 //                                                  nu = -Phi_t = f_dot)
 //   accel.:    Phi_q a = gamma_k + f_ddot(t)     (q_ddot = G_k a - gamma_k, joint.h)
 #pragma once
+#include <array>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -12,20 +14,60 @@
 
 namespace mechanism_sim {
 
-// A velocity drive's reference, part of the State (it changes when a new velocity is
-// commanded): from t0 the coordinate leaves q0 at v0 and its velocity moves to v1 at
-// constant acceleration acc (acc <= 0: at once), then stays at v1. Position and velocity
-// are continuous across a command; the acceleration steps by at most acc.
+// One knot of a path: time, position, velocity, acceleration.
+struct PathKnot {
+  double t = 0.0, q = 0.0, v = 0.0, a = 0.0;
+};
+
+// A path for a drive to follow (a joint trajectory, doc/trajectories.md): between knots a
+// quintic Hermite polynomial matching position, velocity and acceleration at both ends, so
+// the path is C2 whatever the knots. Before the first knot it continues the first
+// segment's polynomial; past the last knot it goes on at the last velocity (acceleration
+// 0: C2 when the last knot's acceleration is 0, as through() makes it unless given).
+// Immutable; a State shares it (DriveRamp::path).
+class DrivePath {
+ public:
+  // Throws std::invalid_argument: no knot, times not increasing, a value not finite.
+  explicit DrivePath(std::vector<PathKnot> knots);
+  // The path from a drive's motion `start` through points (t_i > start.t, q_i), with their
+  // velocities v_i and accelerations a_i where given (an empty vector: not given):
+  //   - velocities not given: a C2 cubic spline through the positions, clamped at both
+  //     ends (start.v; at rest, v = 0, at the last point);
+  //   - accelerations not given: at an interior point the mean of the accelerations the two
+  //     cubic Hermite segments beside it have there (equal for a cubic spline, so a cubic
+  //     spline is kept as it is), 0 at the last point;
+  //   - the first knot is `start`, its acceleration included.
+  // Every segment is then the quintic Hermite through its two knots. Throws
+  // std::invalid_argument as the constructor, or for arrays of different lengths.
+  static DrivePath through(const PathKnot& start, const std::vector<double>& t, const std::vector<double>& q,
+                           const std::vector<double>& v = {}, const std::vector<double>& a = {});
+  void eval(double t, double* q, double* q_dot, double* q_ddot) const;
+  const std::vector<PathKnot>& knots() const { return knots_; }
+
+ private:
+  std::vector<PathKnot> knots_;
+  std::vector<std::array<double, 6>> c_;  // per segment: q = sum c_k (t - t_i)^k
+};
+
+// A velocity drive's reference, part of the State (it changes when a new velocity or a
+// path is commanded): from t0 the coordinate leaves q0 at v0 and its velocity moves to v1
+// at constant acceleration acc (acc <= 0: at once), then stays at v1. Position and
+// velocity are continuous across a command; the acceleration steps by at most acc. With a
+// path (Mechanism::commandDrivePath) the path is the reference instead.
 struct DriveRamp {
+  DriveRamp() = default;
+  DriveRamp(double t0_, double q0_, double v0_, double v1_, double acc_, std::shared_ptr<const DrivePath> path_ = nullptr)
+      : t0(t0_), q0(q0_), v0(v0_), v1(v1_), acc(acc_), path(std::move(path_)) {}
   double t0 = 0.0, q0 = 0.0, v0 = 0.0, v1 = 0.0, acc = 0.0;
+  std::shared_ptr<const DrivePath> path;  // immutable, so a copied State may share it
   bool operator==(const DriveRamp& o) const {
-    return t0 == o.t0 && q0 == o.q0 && v0 == o.v0 && v1 == o.v1 && acc == o.acc;
+    return t0 == o.t0 && q0 == o.q0 && v0 == o.v0 && v1 == o.v1 && acc == o.acc && path == o.path;
   }
   // f(t), f_dot(t), f_ddot(t)
   void eval(double t, double* f, double* f_dot, double* f_ddot) const;
 };
 
-// What a drive prescribes: a velocity (from the State's DriveRamp), a harmonic
+// What a drive prescribes: a velocity or a path (from the State's DriveRamp), a harmonic
 // q = offset + amplitude sin(2 pi frequency t + phase), or a natural cubic spline through
 // points (t_i, q_i) (C2; continued linearly past its ends, where its second derivative
 // is zero, so it stays C2).

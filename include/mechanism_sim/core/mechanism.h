@@ -68,7 +68,15 @@ class Mechanism {
   // Prescribed motion of coordinate k (drive.h): q_k = f(t), an exact rheonomic
   // constraint whose multiplier is the driving effort. q0: a velocity drive's position at
   // t = 0 (f = q0 + v t). Returns the drive's index.
+  // After build() (mechanism_drives.cpp): only a velocity drive, which takes the
+  // coordinate's current position and velocity as its reference (q0 is ignored); the
+  // System is rebuilt with one more equation, the State kept, the dependent equations
+  // found again. Throws ModelError, the mechanism unchanged, when the new equation depends
+  // on the others (the coordinate's motion follows from the joints, couplers and drives).
   int addDrive(int joint, int k, const DriveProfile& profile, double q0 = 0.0);
+  // After build(): the drive is gone (the coordinate is free; the drives after it move
+  // down by one), the State kept.
+  void removeDrive(int drive);
   // These may also change after build() (the System is rebuilt, the State kept).
   void setGravity(const Vector3d& g);
   void setJointDamping(int joint, int k, double c);
@@ -90,6 +98,9 @@ class Mechanism {
   // A velocity drive moves to velocity v from now, at acceleration at most acc (> 0; inf:
   // at once), position and velocity continuous. Throws for a profile drive.
   void commandDriveVelocity(int drive, double v, double acc);
+  // A velocity drive follows the path from now (drive.h; it should start at the drive's
+  // current target, driveTarget(), for no jump). Throws for a profile drive.
+  void commandDrivePath(int drive, std::shared_ptr<const DrivePath> path);
   int numDrives() const { return static_cast<int>(sys_->drives.size()); }
   // The drive of a joint coordinate, or -1.
   int driveOf(int joint, int k) const;
@@ -127,6 +138,8 @@ class Mechanism {
   double jointPosition(int joint, int k) const;
   double jointVelocity(int joint, int k) const;
   double jointEffort(int joint, int k) const;
+  // Its acceleration in the current state: G_k a - gamma_k (joint.h).
+  double jointAcceleration(int joint, int k) const;
   Reaction reaction(int constraint) const;
   // Per joint: the force and torque (global, torque about the joint point B_j) that the
   // joint exerts on its body j: its constraint, its limits, its drives, its share of the
@@ -149,6 +162,12 @@ class Mechanism {
   System& editable();  // the System being described, or a copy of the built one
   void requireUnbuilt(const char* what) const;
   void checkCoordinate(int joint, int k) const;
+  // Rebuilds the System with these drives (drive d was old drive from[d], or new when -1)
+  // and references, keeping the State; the dependent equations found again. Returns the
+  // rows of the new drives that depend on the others (nothing changed then).
+  int addDriveAfterBuild(int joint, int k, const DriveProfile& profile);
+  std::vector<int> replaceDrives(std::vector<DriveSpec> drives, const std::vector<int>& from,
+                                 std::vector<DriveRamp> references);
   const BodyKin& kin(int b) const { return stepper_->kin().at(b); }
 
   std::shared_ptr<System> sys_;
