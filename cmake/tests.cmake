@@ -18,6 +18,13 @@ target_compile_definitions(test_simulate_cli PRIVATE MECHANISM_SIM_SOURCE_DIR="$
   SIMULATE_BIN="$<TARGET_FILE:simulate>")
 add_dependencies(test_simulate_cli simulate)
 
+# simulate --trajectory (doc/trajectories.md): a recorded run fed back, and bad files.
+catkin_add_gtest(test_trajectory_cli test/urdf/test_trajectory_cli.cpp)
+target_link_libraries(test_trajectory_cli gtest_main)
+target_compile_definitions(test_trajectory_cli PRIVATE MECHANISM_SIM_SOURCE_DIR="${PROJECT_SOURCE_DIR}"
+  SIMULATE_BIN="$<TARGET_FILE:simulate>")
+add_dependencies(test_trajectory_cli simulate)
+
 catkin_add_gtest(test_bag test/urdf/test_bag.cpp)
 target_include_directories(test_bag PRIVATE ${catkin_INCLUDE_DIRS})
 target_link_libraries(test_bag gtest_main ${rosbag_storage_LIBRARIES} ${roscpp_serialization_LIBRARIES} ${rostime_LIBRARIES})

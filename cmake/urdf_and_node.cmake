@@ -7,6 +7,7 @@ add_library(mechanism_sim_urdf
   src/urdf/loop_dialects.cpp
   src/urdf/model.cpp
   src/urdf/run_loop.cpp
+  src/urdf/trajectory.cpp
   src/urdf/xacro.cpp
 )
 target_include_directories(mechanism_sim_urdf PUBLIC include ${urdfdom_INCLUDE_DIRS})

@@ -19,6 +19,7 @@
 #include "csv_writer.h"
 #include "mechanism_sim/urdf/model.h"
 #include "mechanism_sim/urdf/run_loop.h"
+#include "mechanism_sim/urdf/trajectory.h"
 
 using namespace mechanism_sim;
 
@@ -31,7 +32,8 @@ const char* kUsage =
     "                [--set JOINT=POSITION]... [--velocity JOINT=VALUE]...\n"
     "                [--effort JOINT=VALUE]... [--drive JOINT=VELOCITY]...\n"
     "                [--reactions] [--bag FILE.bag] [--plot FILE.png] [--plot-columns LIST]\n"
-    "                [--closures FILE.yaml] [--quiet]\n";
+    "                [--closures FILE.yaml] [--quiet]\n"
+    "                [--trajectory FILE.csv] [--trajectory-start-tolerance X]\n";
 
 struct UsageError : std::runtime_error {
   using std::runtime_error::runtime_error;
@@ -64,7 +66,8 @@ bool isXacroArgument(const std::string& arg) {
 }
 
 struct Args {
-  std::string model, csv, bag, integrator, plot, plot_columns;
+  std::string model, csv, bag, integrator, plot, plot_columns, trajectory;
+  double trajectory_tolerance = kTrajectoryStartTolerance;
   double duration = 10.0, dt = 1e-3;
   long every = 10;
   bool poses = false, quiet = false, reactions = false;
@@ -96,6 +99,8 @@ Args parse(int argc, char** argv) {
     else if (arg == "--plot-columns") a.plot_columns = value();
     else if (arg == "--closures") a.load.closures_file = value();  // doc/loop_dialects.md
     else if (arg == "--quiet") a.quiet = true;
+    else if (arg == "--trajectory") a.trajectory = value();  // doc/trajectories.md
+    else if (arg == "--trajectory-start-tolerance") a.trajectory_tolerance = parseNumber(value(), arg);
     else if (arg == "-h" || arg == "--help") { std::cout << kUsage; std::exit(0); }
     else if (!arg.empty() && arg[0] == '-') throw UsageError("unknown option '" + arg + "'");
     else if (isXacroArgument(arg)) a.load.xacro_args.emplace_back(arg.substr(0, arg.find(":=")), arg.substr(arg.find(":=") + 2));
@@ -109,6 +114,7 @@ Args parse(int argc, char** argv) {
   if (!(a.duration >= 0) || a.duration > 1e7) throw UsageError("--duration must be between 0 and 1e7 s");
   if (!(a.dt > 0) || a.dt > 1.0) throw UsageError("--dt must be in (0, 1] s");
   if (a.every < 1) throw UsageError("--output-every must be at least 1");
+  if (!(a.trajectory_tolerance >= 0)) throw UsageError("--trajectory-start-tolerance must be >= 0");
   if (a.duration / a.dt > 1e10) throw UsageError("--duration / --dt is more than 1e10 steps");
   return a;
 }
@@ -162,6 +168,18 @@ int main(int argc, char** argv) {
   } catch (const std::exception& e) {
     std::cerr << "simulate: " << e.what() << "\n";
     return 1;
+  }
+  // --trajectory: the dofs it names follow it from t = 0; a file that cannot be followed
+  // is bad input like a bad argument (exit code 2).
+  if (!args.trajectory.empty()) {
+    try {
+      followTrajectory(*model, readTrajectoryCsv(args.trajectory), 0.0, args.trajectory_tolerance);
+    } catch (const TrajectoryError& e) {
+      const std::string what = e.what();
+      const bool located = what.compare(0, args.trajectory.size(), args.trajectory) == 0;
+      std::cerr << "simulate: trajectory rejected: " << (located ? "" : args.trajectory + ": ") << what << "\n";
+      return 2;
+    }
   }
   // --plot without --csv: the CSV goes to a file beside the picture (FILE.png.csv), kept
   // so that scripts/plot can redraw it.

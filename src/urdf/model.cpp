@@ -1,5 +1,6 @@
 #include "mechanism_sim/urdf/model.h"
 
+#include <algorithm>
 #include <cmath>
 #include <sstream>
 
@@ -128,7 +129,32 @@ void MechanismModel::step(double h) {
   }
 }
 
+void MechanismModel::driveDof(int dof) {
+  if (dof < 0 || dof >= static_cast<int>(dofs_.size())) throw std::out_of_range("no such degree of freedom");
+  Dof& d = dofs_[dof];
+  if (d.drive >= 0) throw std::invalid_argument("dof '" + d.name + "' is driven already");
+  try {
+    d.drive = mechanism_->addDrive(d.joint_index, d.k, DriveProfile::velocity(0.0));
+  } catch (const ModelError& e) {
+    throw std::invalid_argument("dof '" + d.name + "': " + e.what());
+  }
+  driven_after_load_.push_back(dof);
+}
+
+void MechanismModel::undriveDof(int dof) {
+  const auto it = std::find(driven_after_load_.begin(), driven_after_load_.end(), dof);
+  if (it == driven_after_load_.end()) throw std::invalid_argument("dof was not driven by driveDof()");
+  const int drive = dofs_[dof].drive;
+  mechanism_->removeDrive(drive);
+  for (Dof& d : dofs_)
+    if (d.drive > drive) --d.drive;
+  dofs_[dof].drive = -1;
+  driven_after_load_.erase(it);
+}
+
 void MechanismModel::reset() {
+  // the drives driveDof() added go (the last first); the System is the loaded one again
+  while (!driven_after_load_.empty()) undriveDof(driven_after_load_.back());
   mechanism_->restore(initial_);
   std::fill(command_.begin(), command_.end(), 0.0);
   for (const Dof& d : dofs_) mechanism_->setJointEffort(d.joint_index, d.k, 0.0);

@@ -144,10 +144,17 @@ class MechanismModel {
   void commandDriveVelocity(int dof, double v, double acc);
   // What the drive of a dof prescribes now (throws if the dof is not driven).
   double driveVelocity(int dof) const;
+  // A free dof becomes velocity-driven from now on, going on at its current velocity until
+  // commanded (Mechanism::addDrive after build; trajectory.h gives it a path); reset()
+  // frees it again. Throws std::invalid_argument naming the dof (driven already, or its
+  // motion follows from the other joints and drives), the model unchanged.
+  void driveDof(int dof);
+  // Frees a dof that driveDof() drove (the drives after it move down by one).
+  void undriveDof(int dof);
   // One step of h seconds. Throws SimulationError "FILE: at t = T s: what" when the step
   // fails (the state stays at the last accepted step).
   void step(double h);
-  // Back to the assembled initial state, commands zeroed.
+  // Back to the assembled initial state, commands zeroed, dofs driven by driveDof() free.
   void reset();
 
   // The core underneath (bodies, joints, reactions, body wrenches, integrator options).
@@ -167,6 +174,7 @@ class MechanismModel {
   AssemblyReport assembly_;
   std::vector<std::string> notes_;
   Mechanism::Snapshot initial_;
+  std::vector<int> driven_after_load_;  // dofs driveDof() drove, in order
 };
 
 // Loads, builds and assembles. Throws LoadError naming the file, element and problem. A
