@@ -9,6 +9,10 @@ The compiled part is mechanism_sim._mechanism_sim (src/python/module.cpp); this 
 also holds the node's messages (mechanism_sim.msg, mechanism_sim.srv) and the design
 sweeps of scripts/sweep (mechanism_sim.sweep, doc/sweeps.md).
 """
+# The package spans the source tree (this file) and the devel space (the compiled module,
+# the messages): whichever of them a process finds first on sys.path, it sees both.
+__path__ = __import__("pkgutil").extend_path(__path__, __name__)
+
 from ._mechanism_sim import (  # noqa: F401
     Error,
     LoadError,
