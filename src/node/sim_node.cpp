@@ -21,6 +21,11 @@ bool NodeParams::read(const ros::NodeHandle& pnh) {
   pnh.param("start_paused", start_paused, false);
   pnh.param("drive_acceleration", drive_acceleration, 10.0);
   pnh.param("reaction_arrow_scale", reaction_arrow_scale, 0.01);
+  pnh.param("trajectory_start_tolerance", trajectory_start_tolerance, kTrajectoryStartTolerance);
+  if (!(trajectory_start_tolerance >= 0) || !std::isfinite(trajectory_start_tolerance)) {
+    ROS_FATAL("mechanism_sim: ~trajectory_start_tolerance must be finite and >= 0");
+    return false;
+  }
   if (!(step > 0) || step > 0.1 || !(publish_rate > 0) || !(real_time_factor >= 0)) {
     ROS_FATAL("mechanism_sim: ~step must be in (0, 0.1] s, ~publish_rate > 0 and ~real_time_factor >= 0");
     return false;
@@ -79,6 +84,7 @@ bool SimNode::init() {
   if (params_.publish_clock) clock_ = nh_.advertise<rosgraph_msgs::Clock>("/clock", 10);
   effort_ = pnh_.subscribe("effort_command", 10, &SimNode::onEffort, this);
   drive_ = pnh_.subscribe("drive_command", 10, &SimNode::onDriveCommand, this);
+  trajectory_ = pnh_.subscribe("joint_trajectory", 10, &SimNode::onTrajectory, this);
   reset_ = pnh_.advertiseService("reset", &SimNode::onReset, this);
   pause_ = pnh_.advertiseService("pause", &SimNode::onPause, this);
   unpause_ = pnh_.advertiseService("unpause", &SimNode::onUnpause, this);
@@ -224,7 +230,7 @@ void SimNode::run() {
     {
       std::lock_guard<std::mutex> lock(mutex_);
       try {
-        loop_->advance();
+        advance(loop_->stepsPerSample());
       } catch (const std::exception& e) {
         ROS_FATAL("mechanism_sim: %s", e.what());
         ros::shutdown();
@@ -268,15 +274,15 @@ void SimNode::onDriveCommand(const sensor_msgs::JointState::ConstPtr& msg) {
   std::string problem;
   if (msg->velocity.size() != n) problem = "name and velocity arrays differ in length";
   std::vector<int> dofs;
+  std::lock_guard<std::mutex> lock(mutex_);  // a trajectory may drive a dof that was free
   for (size_t i = 0; problem.empty() && i < n; ++i) {
-    const int d = model_->dofIndex(msg->name[i]);  // dofs and drives are fixed after init
+    const int d = model_->dofIndex(msg->name[i]);
     if (d < 0) problem = "unknown joint '" + msg->name[i] + "'";
     else if (model_->dofs()[d].drive < 0) problem = "'" + msg->name[i] + "' is not driven";
     else if (!std::isfinite(msg->velocity[i])) problem = "velocity for '" + msg->name[i] + "' is not finite";
     dofs.push_back(d);
   }
   if (problem.empty()) {
-    std::lock_guard<std::mutex> lock(mutex_);
     // all or nothing: a profile drive refuses before any drive has changed
     for (size_t i = 0; problem.empty() && i < n; ++i) {
       const int k = model_->mechanism().driveOf(model_->dofs()[dofs[i]].joint_index, model_->dofs()[dofs[i]].k);
@@ -289,9 +295,67 @@ void SimNode::onDriveCommand(const sensor_msgs::JointState::ConstPtr& msg) {
   if (!problem.empty()) ROS_WARN_THROTTLE(1.0, "mechanism_sim: drive command rejected: %s", problem.c_str());
 }
 
+// ~joint_trajectory (doc/trajectories.md): the named dofs follow a C2 path through the
+// points from header.stamp (zero: on receipt), replacing the rest of what they followed;
+// a message that cannot be followed is rejected whole with ROS_ERROR. One stamped in the
+// future waits (a newer message replaces a waiting one).
+void SimNode::onTrajectory(const trajectory_msgs::JointTrajectory::ConstPtr& msg) {
+  Trajectory traj;
+  traj.dofs = msg->joint_names;
+  bool velocities = false, accelerations = false;
+  for (const auto& p : msg->points) velocities |= !p.velocities.empty(), accelerations |= !p.accelerations.empty();
+  for (const auto& p : msg->points) {
+    traj.times.push_back(p.time_from_start.toSec());
+    traj.positions.push_back(p.positions);
+    if (velocities) traj.velocities.push_back(p.velocities);
+    if (accelerations) traj.accelerations.push_back(p.accelerations);
+  }
+  std::lock_guard<std::mutex> lock(mutex_);
+  const double start = msg->header.stamp.isZero() ? model_->time() : (msg->header.stamp - time_origin_).toSec();
+  if (start <= model_->time() + 1e-9) {
+    pending_.reset();
+    followOrReject(traj, start);
+    return;
+  }
+  try {
+    checkTrajectory(*model_, traj);  // what can be judged now is judged now
+  } catch (const TrajectoryError& e) {
+    ROS_ERROR("mechanism_sim: trajectory rejected: %s", e.what());
+    return;
+  }
+  pending_ = std::make_unique<Trajectory>(std::move(traj));
+  pending_start_ = start;
+}
+
+void SimNode::followOrReject(const Trajectory& traj, double start) {
+  try {
+    followTrajectory(*model_, traj, start, params_.trajectory_start_tolerance);
+    ROS_INFO("mechanism_sim: following a trajectory of %zu points from t = %.6f s", traj.times.size(), start);
+  } catch (const TrajectoryError& e) {
+    ROS_ERROR("mechanism_sim: trajectory rejected: %s", e.what());
+  }
+}
+
+void SimNode::advance(long steps) {
+  if (pending_) {
+    // the steps before the start (to round-off: a start on the step grid is met exactly)
+    const double ahead = (pending_start_ - model_->time()) / loop_->h();
+    const long before = std::max(0L, static_cast<long>(std::ceil(ahead - 1e-6)));
+    if (before < steps) {
+      loop_->advance(before);
+      const std::unique_ptr<Trajectory> traj = std::move(pending_);
+      followOrReject(*traj, pending_start_);
+      loop_->advance(steps - before);
+      return;
+    }
+  }
+  loop_->advance(steps);
+}
+
 bool SimNode::onReset(std_srvs::Empty::Request&, std_srvs::Empty::Response&) {
   std::lock_guard<std::mutex> lock(mutex_);
-  loop_->reset();
+  pending_.reset();
+  loop_->reset();  // dofs that trajectories drove are free again
   pacer_->restart(model_->time());
   if (!params_.publish_clock) anchorStampsToWall();  // stamps go on, not back
   publish();
@@ -317,7 +381,7 @@ bool SimNode::onStep(StepSimulation::Request& req, StepSimulation::Response& res
   }
   std::lock_guard<std::mutex> lock(mutex_);
   try {
-    loop_->advance(req.steps);
+    advance(req.steps);
   } catch (const std::exception& e) {
     ROS_ERROR("mechanism_sim: %s", e.what());
     return false;

@@ -17,11 +17,13 @@
 #include <std_srvs/Empty.h>
 #include <tf2_ros/static_transform_broadcaster.h>
 #include <tf2_ros/transform_broadcaster.h>
+#include <trajectory_msgs/JointTrajectory.h>
 
 #include "constraint_markers.h"
 #include "mechanism_sim/StepSimulation.h"
 #include "mechanism_sim/urdf/model.h"
 #include "mechanism_sim/urdf/run_loop.h"
+#include "mechanism_sim/urdf/trajectory.h"
 #include "pacer.h"
 
 namespace mechanism_sim {
@@ -33,6 +35,8 @@ struct NodeParams {
   std::string frame_prefix;
   double drive_acceleration = 10.0;  // [rad/s^2 or m/s^2] ramp of ~drive_command
   double reaction_arrow_scale = 0.01;  // [m/N] reaction arrows in ~constraint_markers
+  // [rad or m] how far a ~joint_trajectory's first point may lie from the current position
+  double trajectory_start_tolerance = kTrajectoryStartTolerance;
   LoadOptions load;  // ~integrator, ~initial_positions, ~initial_velocities
   // Reads them; false (after logging why) when they are out of range.
   bool read(const ros::NodeHandle& pnh);
@@ -53,6 +57,12 @@ class SimNode {
   geometry_msgs::TransformStamped treeTransform(size_t tree_joint, const ros::Time& time) const;
   void onEffort(const sensor_msgs::JointState::ConstPtr& msg);
   void onDriveCommand(const sensor_msgs::JointState::ConstPtr& msg);
+  void onTrajectory(const trajectory_msgs::JointTrajectory::ConstPtr& msg);
+  // Follows a trajectory from `start` (simulation time), or logs why not (under mutex_).
+  void followOrReject(const Trajectory& traj, double start);
+  // Advances `steps` steps, switching to a pending trajectory at the step nearest after
+  // its start (under mutex_).
+  void advance(long steps);
   bool onReset(std_srvs::Empty::Request&, std_srvs::Empty::Response&);
   bool onPause(std_srvs::Empty::Request&, std_srvs::Empty::Response&);
   bool onUnpause(std_srvs::Empty::Request&, std_srvs::Empty::Response&);
@@ -74,7 +84,10 @@ class SimNode {
   ros::Time last_tf_stamp_{ros::TIME_MAX};  // of the last tf sent (TIME_MAX: none yet)
   std::vector<std::pair<int, int>> tree_links_;  // (parent, child) link of each tree joint
   ros::Publisher joint_states_, clock_, violation_, reactions_;
-  ros::Subscriber effort_, drive_;
+  ros::Subscriber effort_, drive_, trajectory_;
+  // A ~joint_trajectory stamped in the future waits here until its start (under mutex_).
+  std::unique_ptr<Trajectory> pending_;
+  double pending_start_ = 0.0;
   ros::ServiceServer reset_, pause_, unpause_, step_;
   tf2_ros::TransformBroadcaster tf_;
   tf2_ros::StaticTransformBroadcaster tf_static_;
