@@ -1,5 +1,5 @@
 // Cost of one integration step (RK4 + projections, the default) for an N-link pendulum
-// chain and a chain of N four-bar loops, N = 1 .. 400. Results: README "Speed".
+// chain and a chain of N four-bar loops, N = 1 .. 400. Results: bench/RESULTS.md.
 #include <benchmark/benchmark.h>
 
 #include "mechanism_sim/core/models.h"

@@ -13,7 +13,8 @@
 //                 [--repeats N] [--budget S] [--chain-n 10,50,200] [--fourbar-n 1,10,50] [--quick]
 //   bench_harness --steps CASE N K   loads one case and takes K steps of 1 ms, untimed, then
 //                 prints the solver's work per step: for an instruction count, run it under
-//                 valgrind --tool=callgrind at two K and divide the difference (README "Speed").
+//                 valgrind --tool=callgrind at two K and divide the difference
+//                 (doc/testing.md "Benchmarks"; figures in bench/RESULTS.md).
 #include <algorithm>
 #include <chrono>
 #include <cmath>

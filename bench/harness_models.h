@@ -1,8 +1,8 @@
 // The mechanisms of the peer-engine harness (../shared/peers, README there), written as
 // URDF strings for mechanism_sim::loadModelString, and their reference solutions. The
 // parameters, initial conditions and references are the harness's; bench/harness_cases.cpp
-// and bench/bench_factor.cpp share them, so the README's speed table can be reproduced from
-// this repository alone.
+// and bench/bench_factor.cpp share them, so the speed table in bench/RESULTS.md ("Peer run
+// at `bf3526c`") can be reproduced from this repository alone.
 //
 // All mechanisms: gravity (0, -9.81, 0); planar ones in the x-y plane, revolute axes +z.
 //   pendulum  1 kg, centre of mass 1 m from a revolute at the origin, central inertia 1e-6

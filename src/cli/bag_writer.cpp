@@ -92,8 +92,8 @@ void BagWriter::write(const Sample& s) {
   v.vector.y = s.velocity_violation;
   put(kBagViolation, now, v);
 
-  // Each wrench in its own joint frame on the child link (README "Joint reactions"); the
-  // header is the violation's (the root link), as the node's.
+  // Each wrench in its own joint frame on the child link (doc/simulate.md "Joint
+  // reactions"); the header is the violation's (the root link), as the node's.
   JointReactions r;
   r.header = v.header;
   for (const JointReaction& jr : s.reactions) {

@@ -1,5 +1,5 @@
-// simulate --bag: the run's samples as a ROS bag of what the node publishes (README "Batch
-// simulator"), so that `rosbag play --clock FILE.bag` replays the run as if the node had
+// simulate --bag: the run's samples as a ROS bag of what the node publishes (doc/simulate.md
+// "Bags"), so that `rosbag play --clock FILE.bag` replays the run as if the node had
 // run with ~publish_clock: /joint_states, /tf, /tf_static (once, latched),
 // /clock, /mechanism_sim/constraint_violation and /mechanism_sim/joint_reactions.
 // Needs librosbag_storage and the message headers, not roscpp.

@@ -1,5 +1,5 @@
 // simulate: runs a URDF mechanism without a ROS graph and writes CSV, and with --bag a ROS
-// bag of what the node would publish (README "Batch simulator").
+// bag of what the node would publish (doc/simulate.md).
 #include <sys/wait.h>
 #include <unistd.h>
 

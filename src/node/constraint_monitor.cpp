@@ -1,7 +1,8 @@
-// constraint_monitor: a rostest test node for users' own mechanisms (README "Verifying a
-// mechanism with rostest"). Fails when the simulator's largest constraint violation exceeds
-// ~bound over ~duration, when no violation messages arrive, or when pairs of points that a
-// loop ties together (each a point in a tf frame) drift apart by more than ~frame_tolerance.
+// constraint_monitor: a rostest test node for users' own mechanisms (doc/node.md "Verifying
+// a mechanism with rostest"). Fails when the simulator's largest constraint violation
+// exceeds ~bound over ~duration, when no violation messages arrive, or when pairs of points
+// that a loop ties together (each a point in a tf frame) drift apart by more than
+// ~frame_tolerance.
 #include <gtest/gtest.h>
 #include <ros/ros.h>
 #include <tf2_ros/transform_listener.h>

@@ -1,7 +1,8 @@
 // Wall-clock pacing of the node: keeps simulation time moving at a target factor of wall
-// time (README "The node", ~real_time_factor). After each output sample it sleeps while
-// the simulation is ahead; when it falls behind by more than 0.1 s it warns (every 5 s at
-// most), reports it, and goes on from there instead of catching up in a burst.
+// time (doc/node.md "Time, pausing and pacing", ~real_time_factor). After each output
+// sample it sleeps while the simulation is ahead; when it falls behind by more than 0.1 s
+// it warns (every 5 s at most), reports it, and goes on from there instead of catching up
+// in a burst.
 #pragma once
 #include <atomic>
 #include <mutex>

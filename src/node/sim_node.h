@@ -1,4 +1,4 @@
-// mechanism_sim_node: runs a URDF mechanism in a ROS graph (README "The node"). The node
+// mechanism_sim_node: runs a URDF mechanism in a ROS graph (doc/node.md). The node
 // reads its parameters, loads the model, and then drives the shared run loop
 // (mechanism_sim/urdf/run_loop.h) paced to wall-clock time (pacer.h), publishing each
 // sample (joint_states, tf, violation, markers in constraint_markers.h, /clock) and

@@ -35,7 +35,8 @@ class RigidBodies {
   // A link's pose in its group's body frame.
   const Isometry3d& bodyTLink(const std::string& link) const { return body_T_link_.at(link); }
   // Moving links whose <inertial> has mass 0 and a non-zero inertia: the inertia is dropped
-  // (README "Robots": a body without mass has no rotational inertia; MuJoCo drops it too).
+  // (doc/robots.md "Conventions, and what other tools do": a body without mass has no
+  // rotational inertia; MuJoCo drops it too).
   const std::vector<std::string>& massless() const { return massless_; }
 
  private:

@@ -1,9 +1,10 @@
-// libFuzzer target for the loader (README "Fuzzing and sanitizers"): bytes -> loadModelString;
-// what loads is stepped 100 times. A clean refusal is a LoadError whose message is one line
-// starting with the file name; a step may refuse with ModelError (a std::runtime_error).
-// Anything else is a finding: another exception escaping, a bad message, a non-finite state
-// after a step that did not refuse, or what the sanitizers and libFuzzer catch (crash, hang,
-// leak). A finding prints "FINDING: ..." and aborts, so libFuzzer keeps the input.
+// libFuzzer target for the loader (doc/testing.md "Fuzzing and sanitizers"): bytes ->
+// loadModelString; what loads is stepped 100 times. A clean refusal is a LoadError whose
+// message is one line starting with the file name; a step may refuse with ModelError (a
+// std::runtime_error). Anything else is a finding: another exception escaping, a bad
+// message, a non-finite state after a step that did not refuse, or what the sanitizers and
+// libFuzzer catch (crash, hang, leak). A finding prints "FINDING: ..." and aborts, so
+// libFuzzer keeps the input.
 // MECHANISM_SIM_FUZZ_IGNORE (an ECMAScript regex; scripts/fuzz --ignore) lets findings
 // already written down pass, so a campaign looks past them for new ones.
 // MECHANISM_SIM_FUZZ_VERBOSE=1 says what became of each input (to read a reproduction).
@@ -59,7 +60,8 @@ std::string typeName(const std::exception& e) {
   return out;
 }
 
-// The README's promise: one line, "FILE:LINE: element 'name': what" or "FILE: what".
+// The promise of doc/model_format.md "Bad input": one line,
+// "FILE:LINE: element 'name': what" or "FILE: what".
 void checkMessage(const std::string& msg) {
   const std::string prefix = std::string(kSource) + ":";
   if (msg.rfind(prefix, 0) != 0) finding("LoadError does not start with the file: " + msg);

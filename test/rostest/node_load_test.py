@@ -3,12 +3,12 @@
 and two clients calling reset, pause, unpause and advance at random, all at once, for
 ~load_seconds. Then: the node is the same live process and still publishes; joint_states
 and tf stamps never repeat or run backwards (the node stamps with wall time here, and
-README "The node" promises that a pause, an advance or a reset moves the origin so that
-they never do); every joint_states message shows one whole command, never an older one
-than it showed before, and the last command sent is the one applied; every tf listener
-has every frame and is current; every service call returned within call_timeout. A call
-whose connection closed before the response ("transport error", rare: rospy and roscpp under
-this load) is made once more and counted; at most one in 1,000 calls may need it.
+doc/node.md "Time, pausing and pacing" promises that a pause, an advance or a reset moves
+the origin so that they never do); every joint_states message shows one whole command, never
+an older one than it showed before, and the last command sent is the one applied; every tf
+listener has every frame and is current; every service call returned within call_timeout. A
+call whose connection closed before the response ("transport error", rare: rospy and roscpp
+under this load) is made once more and counted; at most one in 1,000 calls may need it.
 
 A second instance, /clock/mechanism_sim, owns /clock (its tf remapped to /clock/tf), and a
 third client calls its services likewise. There a reset takes time back to 0 by design,

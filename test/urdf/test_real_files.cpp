@@ -1,4 +1,4 @@
-// What real robot files contain and how the loader takes it (README "Robots"): a zero pose
+// What real robot files contain and how the loader takes it (doc/robots.md): a zero pose
 // outside the limits, inertias judged on the merged rigid body, mass-0 links with inertia,
 // urdfdom's refusals explained, and a step failure named by file and time. Models written
 // here, shaped like ../shared/robots' files.

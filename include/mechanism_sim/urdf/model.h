@@ -1,7 +1,7 @@
 // A URDF mechanism for the core: loaded with urdfdom, plus the mechanism_sim extension
-// and Gazebo <gazebo><joint> loop closures (README "Model format"). ROS-free.
+// and Gazebo <gazebo><joint> loop closures (doc/model_format.md). ROS-free.
 // MechanismModel is the library's entry point for programs that embed the simulator
-// (README "Embedding API"): load, step, reset and ask it; mechanism() is the core
+// (doc/embedding.md): load, step, reset and ask it; mechanism() is the core
 // underneath, for what the model does not answer itself.
 #pragma once
 #include <map>
