@@ -26,106 +26,6 @@ constexpr const char* kSingularAtAssembly =
     "model's lengths differ too much for double precision (a centre of mass far from the "
     "joints of its link?)";
 
-// Rank of Phi_q by LDL^T of the Gram matrix of its normalized rows, in constraint order,
-// skipping zero pivots: row e is dependent when less than 1e-9 of its squared norm lies
-// outside the span of the rows before it.
-//
-// The test is made on Phi_q in coordinates of the joints' own geometry, which leaves its
-// rank as it is: a body's position is taken at the centroid c of its joints' points (body
-// frame) rather than at its centre of mass, delta r = delta r_c + A tilde(c) delta theta'
-// (so J_theta gains J_r A tilde(c)), and rotations are measured by the displacement they
-// make at l, the largest distance of a joint point from its body's centroid
-// (delta theta' = delta phi / l, one l for all bodies, so that rows between two bodies'
-// rotations keep their balance). Rows taken at the centre of mass carry the lever arm from
-// it: a rod whose centre of mass lay 425 km from its joints 0.35 m apart made a
-// slider-crank's loop look dependent at 1e-9 and lose all five equations of its wrist pin
-// (the fuzzer's find), and a double pendulum whose second link's centre of mass lay 100 km
-// off lost two of its joint's five. In the joints' geometry the loop keeps the three
-// dependent equations of a planar loop and the pendulum none, in metres or in millimetres
-// alike.
-DependencyReport analyzeDependencies(const System& sys, const Stepper& st, std::vector<char>* dropped) {
-  const int m = sys.m_eq;
-  std::vector<std::vector<std::pair<int, int>>> at_body(sys.bodies.size());  // (constraint, slot)
-  int nc = 0;
-  for (int ci = 0; ci < sys.numConstraints(); ++ci) {
-    if (sys.layout[ci].row >= m) break;
-    nc = ci + 1;
-    const auto& bs = sys.constraints[ci]->bodies();
-    for (size_t k = 0; k < bs.size(); ++k)
-      if (bs[k] != System::kGround) at_body[bs[k]].push_back({ci, static_cast<int>(k)});
-  }
-  // each body's joint points: their centroid c; l: the largest distance of a joint point
-  // from the centroid of its body's (the mechanism's size without its centres of mass)
-  std::vector<Vector3d> centroid(sys.bodies.size(), Vector3d::Zero());
-  double size = 0;
-  {
-    std::vector<std::vector<Vector3d>> points(sys.bodies.size());
-    for (const Joint* j : sys.joints) {
-      if (j->bodyI() != System::kGround) points[j->bodyI()].push_back(j->frameI().sp_B);
-      if (j->bodyJ() != System::kGround) points[j->bodyJ()].push_back(j->frameJ().sp_B);
-    }
-    for (size_t b = 1; b < points.size(); ++b) {
-      for (const Vector3d& p : points[b]) centroid[b] += p / static_cast<double>(points[b].size());
-      for (const Vector3d& p : points[b]) size = std::max(size, (p - centroid[b]).norm());
-    }
-    if (!(size > 0)) size = sys.length_scale;  // every body has one joint
-  }
-  std::vector<Eigen::MatrixXd> Jn(nc);
-  for (int ci = 0; ci < nc; ++ci) {
-    Jn[ci] = st.jacobian(ci);
-    const auto& bs = sys.constraints[ci]->bodies();
-    for (size_t k = 0; k < bs.size(); ++k) {
-      if (bs[k] == System::kGround) continue;
-      auto Jb = Jn[ci].middleCols<6>(6 * k);
-      const Matrix3d shift = st.kin()[bs[k]].A_Oi * tilde(centroid[bs[k]]);
-      Jb.rightCols<3>() = (Jb.rightCols<3>() + Jb.leftCols<3>() * shift) / size;
-    }
-    for (int e = 0; e < Jn[ci].rows(); ++e) {
-      const double norm = Jn[ci].row(e).norm();
-      if (norm > 0) Jn[ci].row(e) /= norm;
-    }
-  }
-  std::map<std::pair<int, int>, Eigen::MatrixXd> blocks;  // (c1, c2) -> Jn1 Jn2^T
-  for (size_t b = 1; b < at_body.size(); ++b)
-    for (const auto& a : at_body[b])
-      for (const auto& c : at_body[b]) {
-        const Eigen::MatrixXd prod = Jn[a.first].middleCols<6>(6 * a.second) *
-                                     Jn[c.first].middleCols<6>(6 * c.second).transpose();
-        auto it = blocks.find({a.first, c.first});
-        if (it == blocks.end()) blocks.emplace(std::make_pair(a.first, c.first), prod);
-        else it->second += prod;
-      }
-  std::vector<std::vector<std::pair<int, double>>> cols(m);
-  for (const auto& entry : blocks) {
-    const int r0 = sys.layout[entry.first.first].row, c0 = sys.layout[entry.first.second].row;
-    for (int i = 0; i < entry.second.rows(); ++i)
-      for (int j = 0; j < entry.second.cols(); ++j) cols[c0 + j].push_back({r0 + i, entry.second(i, j)});
-  }
-  std::vector<int> Gp(m + 1, 0), Gi;
-  std::vector<double> Gx;
-  for (int j = 0; j < m; ++j) {
-    std::sort(cols[j].begin(), cols[j].end());
-    for (const auto& e : cols[j]) Gi.push_back(e.first), Gx.push_back(e.second);
-    Gp[j + 1] = static_cast<int>(Gi.size());
-  }
-  SparseLDLT gram;
-  gram.analyze(m, Gp, Gi, {});
-  gram.factorize(Gx.data(), 1e-9, true);
-  DependencyReport report;
-  report.equations = m;
-  for (int ci = 0; ci < nc; ++ci) {
-    int count = 0;
-    for (int e = 0; e < sys.layout[ci].size; ++e) {
-      const int row = sys.layout[ci].row + e;
-      count += gram.zeroPivot(row);
-      (*dropped)[row] = gram.zeroPivot(row) ? 1 : 0;
-    }
-    if (count) report.by_constraint.push_back({sys.constraints[ci]->name(), count});
-    report.dependent += count;
-  }
-  return report;
-}
-
 // M + Phi_q^T W Phi_q (W: row weights, so the matrix is well conditioned) must be positive
 // definite: every motion the joints allow moves some mass. A zero pivot names a body that
 // can move without moving mass.
@@ -333,11 +233,8 @@ AssemblyReport assemble(const System& sys, State& s, Stepper& st,
     }
   }
   checkMassRank(sys, st);
-  std::fill(s.dropped.begin(), s.dropped.end(), 0);
-  st.evaluate(sys, s);
-  const DependencyReport dependencies = analyzeDependencies(sys, st, &s.dropped);
+  const DependencyReport dependencies = st.analyzeDependencies(sys, s);
   if (deps) *deps = dependencies;
-  st.evaluate(sys, s);
 
   // ---- velocities: mass-orthogonal projection onto Phi_q v = 0 and G_k v = target by the
   // augmented Lagrangian, starting from the bodies' own velocities.

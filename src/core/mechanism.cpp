@@ -377,20 +377,4 @@ double Mechanism::potentialEnergy() const {
   return V;
 }
 
-std::string DependencyReport::describe() const {
-  std::ostringstream os;
-  if (dependent == 0) {
-    os << "all " << equations << " constraint equations are independent";
-    return os.str();
-  }
-  os << dependent << " of " << equations << " constraint equations are dependent (";
-  bool first = true;
-  for (const auto& e : by_constraint) {
-    os << (first ? "" : ", ") << "'" << e.first << "' " << e.second;
-    first = false;
-  }
-  os << ")";
-  return os.str();
-}
-
 }  // namespace mechanism_sim

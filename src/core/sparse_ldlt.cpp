@@ -1,5 +1,6 @@
 #include "mechanism_sim/core/sparse_ldlt.h"
 
+#include <algorithm>
 #include <cmath>
 
 namespace mechanism_sim {
@@ -86,6 +87,22 @@ int SparseLDLT::factorize(const double* Ax, double pivot_tol, bool skip_zero_piv
     }
   }
   return zeros;
+}
+
+void SparseLDLT::schurBlock(int first, int size, double* S, int ld) const {
+  // L restricted to the block: unit diagonal, column i's entries at rows inside it
+  double L[36] = {0.0};
+  for (int i = 0; i < size; ++i) {
+    L[i * 6 + i] = 1.0;
+    for (int p = Lp_[first + i]; p < Lp_[first + i] + Lnz_[first + i]; ++p)
+      if (Li_[p] >= first && Li_[p] < first + size) L[(Li_[p] - first) * 6 + i] = Lx_[p];
+  }
+  for (int a = 0; a < size; ++a)
+    for (int b = 0; b < size; ++b) {
+      double s = 0.0;
+      for (int i = 0; i <= std::min(a, b); ++i) s += L[a * 6 + i] * D_[first + i] * L[b * 6 + i];
+      S[b * ld + a] = s;
+    }
 }
 
 void SparseLDLT::solve(double* x) const {

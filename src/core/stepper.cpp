@@ -17,12 +17,15 @@ namespace {
 // smallest eigenvalue of the row-scaled W^1/2 Phi_q M^-1 Phi_q^T W^1/2 (1 for one joint,
 // about 1/N^2 along a chain of N bodies), while H's condition number, and with it the
 // round-off a single solve leaves, grows like kappa. Measured on the 10-link chain
-// (README "Integration method"): 1e6 and 1e7 agree to 3e-10 m, 1e8 drifts by 1e-8 m.
+// (doc/method.md "Integration method"): 1e6 and 1e7 agree to 3e-10 m, 1e8 drifts by 1e-8 m.
 constexpr double kKappa = Stepper::kKappa;
 constexpr int kMaxSolvePasses = 12;
 // Residual scales have a floor of kFloor times the largest motion (force) in the system,
 // so that a body at rest beside moving ones is not judged on round-off alone.
 constexpr double kFloor = 1e-6;
+// Dropped rows whose relative residual passes this many times the position tolerance are
+// no longer implied by the rows kept (finishStep analyzes the dependencies again).
+constexpr double kDependentDrift = 10.0;
 constexpr int kMaxNewton = 20;
 constexpr int kMaxVelocityPasses = 8;
 constexpr int kMaxHalvings = 6;
@@ -162,6 +165,35 @@ Stepper::Stepper(const System& sys) {
   }
   buildTree(sys);
   initDamping(sys);
+  // Rows can depend on others where equations close loops or couple joints: those outside
+  // the tree (a tree's joint equations and the limits on its coordinates never do).
+  for (int ci = 0; ci < sys.numConstraints(); ++ci)
+    if (sys.layout[ci].row < sys.m_eq && sys.layout[ci].size > 0 && tree_node_[ci] < 0) watch_dependencies_ = true;
+  if (watch_dependencies_) {
+    dependencies_.init(sys);
+    dropped_before_.assign(sys.m, 0);
+  }
+  dropped_scale_.assign(sys.m, 0.0);
+}
+
+DependencyReport Stepper::analyzeDependencies(const System& sys, State& s) {
+  if (!dependencies_.ready()) dependencies_.init(sys);
+  DependencyReport report;
+  std::fill(s.dropped.begin(), s.dropped.end(), 0);
+  load(sys, s.x.data(), s.u.data());
+  evaluate(sys, s);
+  dependencies_.analyze(sys, kin_, J_, s.limit_side.data(), s.dropped, &report);
+  evaluate(sys, s);
+  return report;
+}
+
+bool Stepper::refreshDependencies(const System& sys, State& s) {
+  dropped_before_ = s.dropped;
+  std::fill(s.dropped.begin(), s.dropped.end(), 0);
+  evaluate(sys, s);
+  dependencies_.analyze(sys, kin_, J_, s.limit_side.data(), s.dropped, nullptr);
+  evaluate(sys, s);
+  return s.dropped != dropped_before_;
 }
 
 void Stepper::load(const System& sys, const double* x, const double* u) {
@@ -196,12 +228,19 @@ void Stepper::evaluate(const System& sys, const State& st) {
   // Dependent equations (assembly found them) are implied by the others near the
   // constraint manifold; off it they are nearly dependent and make the KKT system
   // ill-posed, so they leave the solve (their Phi is still reported).
+  // The size of a dropped row's terms is kept (droppedResidual).
   dropped_ = st.dropped;
   if (!dropped_.empty())
     for (int ci = 0; ci < sys.numConstraints(); ++ci) {
       const ConstraintLayout& L = sys.layout[ci];
       for (int e = 0; e < L.size; ++e)
-        if (dropped_[L.row + e]) J_[ci].row(e).setZero(), gamma_[L.row + e] = 0.0, nu_[L.row + e] = 0.0;
+        if (dropped_[L.row + e]) {
+          double scale = 0;
+          for (size_t k = 0; k < L.bodies.size(); ++k)
+            scale += termScale(J_[ci].block<1, 6>(e, 6 * k), kin_[L.bodies[k] + 1].r, length_scale_)(0);
+          dropped_scale_[L.row + e] = scale;
+          J_[ci].row(e).setZero(), gamma_[L.row + e] = 0.0, nu_[L.row + e] = 0.0;
+        }
     }
   evaluated_x_ = loaded_x_;
   evaluated_side_ = st.limit_side;
@@ -1117,7 +1156,11 @@ void Stepper::finishStep(const System& sys, State& s, const Inputs& in, bool aft
   // is not in them: then full Newton, H refactored each iteration.
   // (H consistent with the evaluation: factored at the same positions)
   const bool consistent = factored_x_ == evaluated_x_ && factored_side_ == evaluated_side_;
-  bool frozen = !updateLimits(sys, s) && after_stages && consistent;
+  // Where rows can depend on others, a change of the active limits is analyzed
+  // (dependencies.h): a limit reached together with another through a loop is dependent.
+  const bool limits_changed = updateLimits(sys, s);
+  bool frozen = !limits_changed && after_stages && consistent;
+  if (limits_changed && watch_dependencies_) refreshDependencies(sys, s);
   if (frozen) std::swap(J_, J_frozen_);
   evaluate(sys, s);
   bool moved = projectPositions(sys, s, frozen);
@@ -1127,7 +1170,16 @@ void Stepper::finishStep(const System& sys, State& s, const Inputs& in, bool aft
   // positions are projected again, at most once per limit.
   for (size_t pass = 0; pass < sys.limits.size() && updateLimits(sys, s); ++pass) {
     frozen = false;
+    if (watch_dependencies_) refreshDependencies(sys, s);
     evaluate(sys, s);
+    moved = projectPositions(sys, s, false) || moved;
+  }
+  // The rows kept stopped implying the rows dropped: the loop turned in space so that
+  // another of its cut joint's rows is the dependent one (a parallelogram gripper on an
+  // arm turning it by 90 degrees). Analyzed again here and projected again.
+  if (watch_dependencies_ && droppedResidual(sys) > kDependentDrift * sys.options.position_tol &&
+      refreshDependencies(sys, s)) {
+    frozen = false;
     moved = projectPositions(sys, s, false) || moved;
   }
   if (moved || !frozen) factor(sys, "projection", s.t, !frozen);  // velocities need H at this Phi_q
@@ -1142,6 +1194,7 @@ void Stepper::finishStep(const System& sys, State& s, const Inputs& in, bool aft
     forces(sys, s, in, s.friction);
     solveKKT(sys, HState::kNearby, s.t);
     if (pass > static_cast<int>(sys.limits.size()) || !releaseLimits(sys, s)) break;
+    if (watch_dependencies_) refreshDependencies(sys, s);
     evaluate(sys, s);
     factor(sys, "limit release", s.t);
   }
@@ -1219,6 +1272,13 @@ double Stepper::positionResidual(const System& sys) const {
     for (int e = 0; e < L.size; ++e)
       if (dropped_.empty() || !dropped_[L.row + e]) worst = std::max(worst, relative(Phi_[L.row + e], scale[e]));
   }
+  return worst;
+}
+
+double Stepper::droppedResidual(const System& sys) const {
+  double worst = 0;
+  for (int e = 0; e < sys.m_eq; ++e)
+    if (dropped_[e]) worst = std::max(worst, relative(Phi_[e], dropped_scale_[e]));
   return worst;
 }
 

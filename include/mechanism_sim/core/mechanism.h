@@ -25,14 +25,6 @@ struct AssemblyReport {
   int iterations = 0;
 };
 
-// Which equations depend on others, found at assembly by a pivoted elimination in
-// joint order: a dependent equation belongs to the later joint.
-struct DependencyReport {
-  int equations = 0, dependent = 0;
-  std::vector<std::pair<std::string, int>> by_constraint;  // (name, dependent count)
-  std::string describe() const;
-};
-
 // Force (global) and torque (global, about B_j) that a constraint applies to its body j
 // (the last of its bodies; for a limit, drive or coupler, the joint point of the joint
 // whose body j that is).

@@ -23,6 +23,10 @@ class SparseLDLT {
   void solve(double* x) const;
   // Whether original index i had a zero pivot in the last factorize().
   bool zeroPivot(int i) const { return zero_[pinv_[i]] != 0; }
+  // The Schur complement of pivots first..first+size-1 given the pivots before them,
+  // L_bb D_b L_bb^T, into S (column-major, leading dimension ld): what is left of that
+  // diagonal block once the earlier pivots are eliminated. Pivot indices (as factored).
+  void schurBlock(int first, int size, double* S, int ld) const;
   int size() const { return n_; }
 
  private:

@@ -1,5 +1,5 @@
 // The stepper: maps (System, State, Inputs, h) to the next State, with its own scratch
-// space. Method (README "Integration method"):
+// space. Method (doc/method.md "Integration method"):
 //   * accelerations and multipliers of  M a + Phi_q^T lambda = Q,  Phi_q a = gamma  from
 //     the quasi-definite KKT system. A tree's joints (with their drives and limits) are
 //     block rows of the factored KKT matrix (eliminated leaves first); a
@@ -20,6 +20,7 @@
 #include <Eigen/Core>
 
 #include "mechanism_sim/core/block_cholesky.h"
+#include "mechanism_sim/core/dependencies.h"
 #include "mechanism_sim/core/system.h"
 
 namespace mechanism_sim {
@@ -83,6 +84,10 @@ class Stepper {
   // evaluates and factors s here (use a Stepper of its own). Returns the relative residual
   // left (a shortfall is counted in stats()).
   double minimumNormMultipliers(const System& sys, const State& s, const Inputs& in, Eigen::VectorXd& lambda);
+
+  // Finds the dependent rows at s (equalities and active limits; dependencies.h), writes
+  // s.dropped and leaves s evaluated with them dropped. Allocates on its first call.
+  DependencyReport analyzeDependencies(const System& sys, State& s);
 
   // ---- building blocks (assembly.cpp uses them)
   void load(const System& sys, const double* x, const double* u);
@@ -177,10 +182,20 @@ class Stepper {
                                   const std::vector<std::array<double, 2>>& scales) const;
   // The loaded states of c's bodies in c.bodies() order, as Constraint calls take them.
   void gather(const Constraint& c, const BodyKin** ptrs) const;
+  // The largest relative position residual of the dropped equality rows (0 when none is dropped):
+  // large when the rows kept no longer imply them.
+  double droppedResidual(const System& sys) const;
+  // Analyzes again (mechanisms whose rows can depend on others: loops, couplers) when the
+  // active limits changed or the dropped rows drifted; returns whether s.dropped changed.
+  bool refreshDependencies(const System& sys, State& s);
   [[noreturn]] void leftConstraints(const System& sys, double t, double err) const;
 
   std::vector<BodyKin> kin_;
   std::vector<char> dropped_;
+  DependencyAnalyzer dependencies_;
+  bool watch_dependencies_ = false;  // rows may depend on others (loops, couplers)
+  std::vector<char> dropped_before_;
+  std::vector<double> dropped_scale_;  // per row: the size of a dropped row's terms
   double length_scale_ = 1.0;  // of the last evaluation (State::dropped)
   using Jacobian = Eigen::Matrix<double, 6, Eigen::Dynamic>;  // 6 rows, zero past the size
   std::vector<Jacobian> J_, J_frozen_;  // J_frozen_: the last stage's, during projection
