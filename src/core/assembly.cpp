@@ -46,7 +46,7 @@ void checkMassRank(const System& sys, Stepper& st) {
 
 Row coordinateRow(const System& sys, const State& s, const Stepper& st, const CoordinateTarget& t) {
   const Joint& j = *sys.joints[t.joint];
-  Row rows[3];
+  Row rows[kMaxJointDofs];
   j.coordinates(st.kin()[j.bodyI()], st.kin()[j.bodyJ()], s.tracked[j.id()], rows);
   return rows[t.k];
 }
@@ -208,10 +208,9 @@ AssemblyReport assemble(const System& sys, State& s, Stepper& st,
   // defined in is accepted.
   for (int j = 0; j < sys.numJoints(); ++j) {
     const Joint& jt = *sys.joints[j];
-    const unsigned uses = jt.equationAxes();
     const JointGeometry g = jt.geometry(st.kin()[jt.bodyI()], st.kin()[jt.bodyJ()], kBxI | kBzI | kBxJ | kBzJ);
-    const bool parallel = (uses & kBzJ) && (uses & kByI);
-    const bool twist = parallel && (uses & kBxJ);
+    const bool parallel = jt.holdsAxesParallel();
+    const bool twist = parallel && jt.locksTwist();
     const double cz = g.bz_i.a.dot(g.bz_j.a), cx = g.bx_i.a.dot(g.bx_j.a);
     if ((parallel && cz < 0) || (twist && cx < 0)) {
       std::ostringstream os;

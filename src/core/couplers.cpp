@@ -30,7 +30,7 @@ void CoordinateCoupler::evaluate(const BodyKin* const* kin, const EvalContext& c
                                  Eigen::Ref<Eigen::VectorXd> Phi,
                                  Eigen::Ref<Eigen::MatrixXd> J,
                                  Eigen::Ref<Eigen::VectorXd> gamma) const {
-  std::array<Row, 3> ra, rb;
+  std::array<Row, kMaxJointDofs> ra, rb;
   a_.coordinates(*kin[slot_a_[0]], *kin[slot_a_[1]], ctx.tracked[a_.id()], ra.data());
   b_.coordinates(*kin[slot_b_[0]], *kin[slot_b_[1]], ctx.tracked[b_.id()], rb.data());
   const Row& qa = ra[k_a_];
@@ -54,7 +54,7 @@ void LimitConstraint::evaluate(const BodyKin* const* kin, const EvalContext& ctx
     gamma(0) = 0.0;
     return;
   }
-  std::array<Row, 3> rows;
+  std::array<Row, kMaxJointDofs> rows;
   joint_.coordinates(*kin[0], *kin[1], ctx.tracked[joint_.id()], rows.data());
   Phi(0) = rows[k_].Phi - (side < 0 ? lower_ : upper_);
   gamma(0) = rows[k_].gamma;

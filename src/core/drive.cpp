@@ -231,7 +231,7 @@ void DriveConstraint::velocityTerm(const EvalContext& ctx, double* nu) const {
 void DriveConstraint::evaluate(const BodyKin* const* kin, const EvalContext& ctx,
                                Eigen::Ref<Eigen::VectorXd> Phi, Eigen::Ref<Eigen::MatrixXd> J,
                                Eigen::Ref<Eigen::VectorXd> gamma) const {
-  Row rows[3];
+  Row rows[kMaxJointDofs];
   joint_.coordinates(*kin[0], *kin[1], ctx.tracked[joint_.id()], rows);
   double f, f_dot, f_ddot;
   profile_.eval(ctx.t, ctx.drive[drive_], &f, &f_dot, &f_ddot);

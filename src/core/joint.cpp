@@ -20,7 +20,7 @@ JointGeometry Joint::geometry(const BodyKin& ki, const BodyKin& kj, unsigned par
 
 void Joint::track(const BodyKin* const* kin, const EvalContext&, Tracked& t, Tracked& rate) const {
   rate = Tracked{};
-  Row rows[3];
+  Row rows[kMaxJointDofs];
   if (!trackedRows(*kin[0], *kin[1], t, rows)) return;
   for (int k = 0; k < dof(); ++k)
     if (trackedSlot(k) >= 0) {
@@ -31,7 +31,7 @@ void Joint::track(const BodyKin* const* kin, const EvalContext&, Tracked& t, Tra
 
 void Joint::trackedRates(const BodyKin* const* kin, const EvalContext& ctx, Tracked& rate) const {
   rate = Tracked{};
-  Row rows[3];
+  Row rows[kMaxJointDofs];
   if (!trackedRows(*kin[0], *kin[1], ctx.tracked[id()], rows)) return;
   for (int k = 0; k < dof(); ++k)
     if (trackedSlot(k) >= 0) rate[trackedSlot(k)] = rows[k].Phi_dot;

@@ -1,4 +1,4 @@
-// The joint types by name: adding a joint type is one line here.
+// The joint types by name: adding a joint type is one line here (registerJoint<ItsClass>()).
 #include <stdexcept>
 #include <utility>
 
@@ -14,16 +14,25 @@
 namespace mechanism_sim {
 namespace {
 
-// name, factory, dof names ("" for a one-dof joint), pose of frame j in frame i.
+// A joint type's entry, from what its class declares: kType, make, kDofNames ("" for a
+// one-dof joint), relativePose (the pose of frame j in frame i).
+template <class JointType>
+JointTypeInfo registerJoint() {
+  static_assert(JointType::kDofNames.size() <= kMaxJointDofs, "more degrees of freedom than kMaxJointDofs");
+  return {JointType::kType, &JointType::make,
+          std::vector<std::string>(JointType::kDofNames.begin(), JointType::kDofNames.end()),
+          &JointType::relativePose};
+}
+
 const JointTypeInfo kJointTypes[] = {
-    {"spherical", &SphericalJoint::make, {"x", "y", "z"}, &SphericalJoint::relativePose},
-    {"revolute", &RevoluteJoint::make, {""}, &RevoluteJoint::relativePose},
-    {"cylindrical", &CylindricalJoint::make, {"rotation", "translation"}, &CylindricalJoint::relativePose},
-    {"prismatic", &PrismaticJoint::make, {""}, &PrismaticJoint::relativePose},
-    {"screw", &ScrewJoint::make, {""}, &ScrewJoint::relativePose},
-    {"universal", &UniversalJoint::make, {"axis1", "axis2"}, &UniversalJoint::relativePose},
-    {"fixed", &FixedJoint::make, {}, &FixedJoint::relativePose},
-    {"planar", &PlanarJoint::make, {"x", "y", "rotation"}, &PlanarJoint::relativePose},
+    registerJoint<SphericalJoint>(),
+    registerJoint<RevoluteJoint>(),
+    registerJoint<CylindricalJoint>(),
+    registerJoint<PrismaticJoint>(),
+    registerJoint<ScrewJoint>(),
+    registerJoint<UniversalJoint>(),
+    registerJoint<FixedJoint>(),
+    registerJoint<PlanarJoint>(),
 };
 
 }  // namespace

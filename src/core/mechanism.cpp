@@ -235,7 +235,7 @@ Quaterniond Mechanism::orientation(int b) const {
 double Mechanism::jointPosition(int joint, int k) const {
   checkCoordinate(joint, k);
   const Joint& j = *sys_->joints[joint];
-  Row rows[3];
+  Row rows[kMaxJointDofs];
   j.coordinates(kin(j.bodyI()), kin(j.bodyJ()), state_.tracked[j.id()], rows);
   return rows[k].Phi;
 }
@@ -243,7 +243,7 @@ double Mechanism::jointPosition(int joint, int k) const {
 double Mechanism::jointVelocity(int joint, int k) const {
   checkCoordinate(joint, k);
   const Joint& j = *sys_->joints[joint];
-  Row rows[3];
+  Row rows[kMaxJointDofs];
   j.coordinates(kin(j.bodyI()), kin(j.bodyJ()), state_.tracked[j.id()], rows);
   return rows[k].Phi_dot;
 }
@@ -271,13 +271,7 @@ Reaction Mechanism::reaction(int ci) const {
   Reaction r;
   r.force = gen.head<3>();
   Vector3d arm = Vector3d::Zero();  // torque about the joint point B_j, not the centre of mass
-  if (const auto* j = dynamic_cast<const Joint*>(&c)) arm = kb.A_Oi * j->frameJ().sp_B;
-  if (const auto* l = dynamic_cast<const LimitConstraint*>(&c)) arm = kb.A_Oi * l->joint().frameJ().sp_B;
-  if (const auto* d = dynamic_cast<const DriveConstraint*>(&c)) arm = kb.A_Oi * d->joint().frameJ().sp_B;
-  if (const auto* cp = dynamic_cast<const CoordinateCoupler*>(&c)) {  // the joint whose body j it is
-    const Joint& on = cp->jointB().bodyJ() == c.bodies()[k] ? cp->jointB() : cp->jointA();
-    if (on.bodyJ() == c.bodies()[k]) arm = kb.A_Oi * on.frameJ().sp_B;
-  }
+  if (const Joint* on = c.jointOn(c.bodies()[k])) arm = kb.A_Oi * on->frameJ().sp_B;
   r.torque = kb.A_Oi * gen.tail<3>() - arm.cross(r.force);
   return r;
 }
@@ -316,13 +310,15 @@ std::vector<Reaction> Mechanism::jointReactions() const {
   auto along = [&](int j, int k, double tau) {
     if (tau == 0.0) return;
     const Joint& jt = *sys.joints[j];
-    Row rows[3];
+    Row rows[kMaxJointDofs];
     jt.coordinates(kin(jt.bodyI()), kin(jt.bodyJ()), s.tracked[jt.id()], rows);
     add(j, rows[k].J.segment<6>(6).transpose() * tau);
   };
   std::vector<int> joint_of(sys.constraints.size(), -1);
   for (int j = 0; j < numJoints(); ++j) joint_of[sys.joint_constraint[j]] = j;
   for (int ci = 0; ci < numConstraints(); ++ci) {
+  EvalContext ctx;
+  ctx.limit_side = s.limit_side.data();
     const ConstraintLayout& L = sys.layout[ci];
     const Constraint& c = *sys.constraints[ci];
     if (joint_of[ci] >= 0) {  // the joint's own equations: -Phi_q^T lambda on body j
@@ -331,18 +327,10 @@ std::vector<Reaction> Mechanism::jointReactions() const {
       Eigen::Matrix<double, 6, 1> gen = Eigen::Matrix<double, 6, 1>::Zero();
       for (int e = 0; e < L.size; ++e) gen -= J.block<1, 6>(e, 6).transpose() * lambda[L.row + e];
       add(joint_of[ci], gen);
-    } else if (const auto* l = dynamic_cast<const LimitConstraint*>(&c)) {
-      const LimitSpec& spec = sys.limits[l->limit()];
-      if (s.limit_side[l->limit()]) along(spec.joint, spec.k, -lambda[L.row]);
-    } else if (const auto* d = dynamic_cast<const DriveConstraint*>(&c)) {
-      const DriveSpec& spec = sys.drives[d->drive()];
-      along(spec.joint, spec.k, -lambda[L.row]);
-    } else if (const auto* cp = dynamic_cast<const CoordinateCoupler*>(&c)) {
-      // Phi = q_a - m q_b: efforts -lambda along q_a and m lambda along q_b
-      for (int j = 0; j < numJoints(); ++j) {
-        if (sys.joints[j] == &cp->jointA()) along(j, cp->coordinateA(), -lambda[L.row]);
-        if (sys.joints[j] == &cp->jointB()) along(j, cp->coordinateB(), cp->multiplier() * lambda[L.row]);
-      }
+    } else {  // limits, drives, couplers: efforts along joint coordinates
+      CoordinateEffort efforts[2];
+      const int n = c.coordinateEfforts(ctx, efforts);
+      for (int e = 0; e < n; ++e) along(joint_of[efforts[e].joint->id()], efforts[e].k, efforts[e].sign * lambda[L.row]);
     }
   }
   for (int j = 0; j < numJoints(); ++j)  // applied efforts: command, damping, friction

@@ -57,10 +57,10 @@ std::vector<int> Mechanism::replaceDrives(std::vector<DriveSpec> drives, const s
   for (int c = 0; c < sys->numConstraints(); ++c) {
     const Constraint& con = *sys->constraints[c];
     int was = c;
-    if (const auto* d = dynamic_cast<const DriveConstraint*>(&con))
-      was = from[d->drive()] >= 0 ? old.drives[from[d->drive()]].constraint : -1;
-    else if (const auto* l = dynamic_cast<const LimitConstraint*>(&con))
-      was = old.limits[l->limit()].constraint;
+    if (con.drive() >= 0)
+      was = from[con.drive()] >= 0 ? old.drives[from[con.drive()]].constraint : -1;
+    else if (con.limit() >= 0)
+      was = old.limits[con.limit()].constraint;
     s.tracked.push_back(was >= 0 ? state_.tracked[was] : con.initialTracked());
     if (was < 0) continue;
     const ConstraintLayout &L = sys->layout[c], &L0 = old.layout[was];
@@ -103,7 +103,7 @@ void Mechanism::commandDrivePath(int drive, std::shared_ptr<const DrivePath> pat
 double Mechanism::jointAcceleration(int joint, int k) const {
   checkCoordinate(joint, k);
   const Joint& j = *sys_->joints[joint];
-  Row rows[3];
+  Row rows[kMaxJointDofs];
   j.coordinates(kin(j.bodyI()), kin(j.bodyJ()), state_.tracked[j.id()], rows);
   double q_ddot = -rows[k].gamma;
   const int bodies[2] = {j.bodyI(), j.bodyJ()};

@@ -685,7 +685,7 @@ void Stepper::forces(const System& sys, const State& s, const Inputs& in,
     addForceAt(sd.body_i, sd.sp_i, F * e);
     addForceAt(sd.body_j, sd.sp_j, -F * e);
   }
-  Row rows[3];
+  Row rows[kMaxJointDofs];
   for (int j = 0; j < sys.numJoints(); ++j) {
     const auto& tau = in.effort[j];
     const auto& c = split_ ? stage_damping_[j] : sys.damping[j];  // (stiff_damping.cpp)
@@ -932,7 +932,7 @@ void Stepper::frictionFor(const System& sys, State& s, const Inputs& in, double 
   a_ = s.acc;
   lam_ = s.lambda;
   solveKKT(sys, HState::kCurrent, s.t);
-  Row rows[3];
+  Row rows[kMaxJointDofs];
   for (int j = 0; j < sys.numJoints(); ++j) {
     const auto& f = sys.friction[j];
     const Joint& jt = *sys.joints[j];
@@ -1207,7 +1207,7 @@ void Stepper::finishStep(const System& sys, State& s, const Inputs& in, bool aft
 // Activates a limit whose coordinate has passed its bound; returns whether any did.
 bool Stepper::updateLimits(const System& sys, State& s) {
   bool changed = false;
-  Row rows[3];
+  Row rows[kMaxJointDofs];
   for (size_t l = 0; l < sys.limits.size(); ++l) {
     const LimitSpec& L = sys.limits[l];
     if (s.limit_side[l]) continue;

@@ -75,7 +75,7 @@ void Stepper::initDamping(const System& sys) {
   const int nj = sys.numJoints();
   stage_damping_.assign(nj, {0.0, 0.0, 0.0});
   damping_bound_.assign(nj, {0.0, 0.0, 0.0});
-  damp_rows_.assign(nj, std::array<Row, 3>());
+  damp_rows_.assign(nj, std::array<Row, kMaxJointDofs>());
   joints_at_.assign(sys.nb, {});
   for (int j = 0; j < nj; ++j)
     for (int b : {sys.joints[j]->bodyI(), sys.joints[j]->bodyJ()})

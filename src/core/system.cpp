@@ -50,8 +50,7 @@ void System::finalize() {
   // until reached).
   constraints.erase(std::remove_if(constraints.begin(), constraints.end(),
                                    [](const std::shared_ptr<Constraint>& c) {
-                                     return dynamic_cast<const LimitConstraint*>(c.get()) != nullptr ||
-                                            dynamic_cast<const DriveConstraint*>(c.get()) != nullptr;
+                                     return c->limit() >= 0 || c->drive() >= 0;
                                    }),
                     constraints.end());
   for (size_t d = 0; d < drives.size(); ++d) {

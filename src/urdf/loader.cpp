@@ -554,7 +554,7 @@ class ModelBuilder {
       }
       return kb;
     };
-    Row rows[3];
+    Row rows[kMaxJointDofs];
     j.coordinates(kin(j.bodyI()), kin(j.bodyJ()), j.initialTracked(), rows);
     return rows[k].Phi;
   }

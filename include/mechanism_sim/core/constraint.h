@@ -17,6 +17,15 @@ constexpr int kMaxConstraintBodies = 4;
 using Tracked = std::array<double, 2>;
 
 struct DriveRamp;  // drive.h
+class Joint;       // joint.h
+
+// An effort along coordinate k of a joint that a constraint's multiplier lambda stands for:
+// tau = sign * lambda (Constraint::coordinateEfforts).
+struct CoordinateEffort {
+  const Joint* joint = nullptr;
+  int k = 0;
+  double sign = 0.0;
+};
 
 // What constraints read besides the bodies: the State's tracked angles (indexed by
 // constraint id), the sides of the position limits (indexed by limit id), the time and
@@ -62,6 +71,17 @@ class Constraint {
   virtual void velocityTerm(const EvalContext& /*ctx*/, double* nu) const {
     for (int e = 0; e < size(); ++e) nu[e] = 0.0;
   }
+  // The joint whose body j is body b (a body of this constraint): its reaction's torque on
+  // b is taken about that joint's point B_j; nullptr: about b's centre of mass.
+  virtual const Joint* jointOn(int /*b*/) const { return nullptr; }
+  // Constraints on joint coordinates: the efforts along those coordinates their multiplier
+  // stands for (at most 2, written to out; their number is returned), with the sides of
+  // the limits in ctx. Other constraints: none.
+  virtual int coordinateEfforts(const EvalContext& /*ctx*/, CoordinateEffort* /*out*/) const { return 0; }
+  // Constraints System::finalize makes from its drive and limit lists (so each build
+  // lays them out again): their entry there, or -1.
+  virtual int drive() const { return -1; }
+  virtual int limit() const { return -1; }
   // Tracked angles of the pose the constraint was defined in.
   virtual Tracked initialTracked() const { return Tracked{}; }
   // Position in its System's constraint list: where its tracked angles are in the State.

@@ -23,6 +23,17 @@ class CoordinateCoupler : public Constraint {
   int coordinateA() const { return k_a_; }
   int coordinateB() const { return k_b_; }
   double multiplier() const { return multiplier_; }
+  // the joint (of the two) whose body j is b
+  const Joint* jointOn(int b) const override {
+    const Joint& on = b_.bodyJ() == b ? b_ : a_;
+    return on.bodyJ() == b ? &on : nullptr;
+  }
+  // Phi = q_a - m q_b: efforts -lambda along q_a and m lambda along q_b
+  int coordinateEfforts(const EvalContext& /*ctx*/, CoordinateEffort* out) const override {
+    out[0] = {&a_, k_a_, -1.0};
+    out[1] = {&b_, k_b_, multiplier_};
+    return 2;
+  }
 
  private:
   const Joint& a_;
@@ -42,8 +53,15 @@ class LimitConstraint : public Constraint {
         joint_(joint), k_(k), limit_(limit), lower_(lower), upper_(upper) {}
   std::string type() const override { return "limit"; }
   int size() const override { return 1; }
-  int limit() const { return limit_; }
+  int limit() const override { return limit_; }
   const Joint& joint() const { return joint_; }
+  const Joint* jointOn(int b) const override { return joint_.jointOn(b); }
+  // while active, -lambda along q_k
+  int coordinateEfforts(const EvalContext& ctx, CoordinateEffort* out) const override {
+    if (!ctx.limit_side[limit_]) return 0;
+    out[0] = {&joint_, k_, -1.0};
+    return 1;
+  }
   void evaluate(const BodyKin* const* kin, const EvalContext& ctx, Eigen::Ref<Eigen::VectorXd> Phi,
                 Eigen::Ref<Eigen::MatrixXd> J, Eigen::Ref<Eigen::VectorXd> gamma) const override;
 

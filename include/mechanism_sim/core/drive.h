@@ -105,7 +105,13 @@ class DriveConstraint : public Constraint {
                 Eigen::Ref<Eigen::MatrixXd> J, Eigen::Ref<Eigen::VectorXd> gamma) const override;
   const Joint& joint() const { return joint_; }
   int coordinate() const { return k_; }
-  int drive() const { return drive_; }
+  int drive() const override { return drive_; }
+  const Joint* jointOn(int b) const override { return joint_.jointOn(b); }
+  // -lambda along q_k
+  int coordinateEfforts(const EvalContext& /*ctx*/, CoordinateEffort* out) const override {
+    out[0] = {&joint_, k_, -1.0};
+    return 1;
+  }
   const DriveProfile& profile() const { return profile_; }
 
  private:

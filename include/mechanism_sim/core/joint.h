@@ -2,6 +2,7 @@
 // (point B and axes bx, by, bz fixed in the body), plus the joint's own coordinates
 // along its free directions.
 #pragma once
+#include <array>
 #include <memory>
 #include <string>
 #include <vector>
@@ -11,6 +12,9 @@
 #include "mechanism_sim/core/constraint.h"
 
 namespace mechanism_sim {
+
+// The most degrees of freedom a joint has (spherical, planar): room for its coordinate rows.
+constexpr int kMaxJointDofs = 3;
 
 // Joint frame in body components: origin sp_B and axes Rp = [bxp byp bzp].
 struct JointFrame {
@@ -45,9 +49,16 @@ class Joint : public Constraint {
   const JointFrame& frameI() const { return frame_i_; }
   const JointFrame& frameJ() const { return frame_j_; }
 
-  // Degrees of freedom and their names ("" for a one-dof joint).
+  // Degrees of freedom and their names ("" for a one-dof joint). A joint class declares
+  // them once, as static kType and kDofNames (at most kMaxJointDofs); the registry reads
+  // those (registerJoint in joint_registry.cpp).
   virtual int dof() const = 0;
   std::string dofName(int k) const;  // from the registry (JointTypeInfo::dof_names)
+  // Whether the equations hold bz_j parallel to bz_i, which they also meet opposed
+  // (bz_j = -bz_i), and whether they lock the twist about it by bx_i . bx_j, which they
+  // also meet turned by pi: assembly rejects those mirrored closures.
+  virtual bool holdsAxesParallel() const { return false; }
+  virtual bool locksTwist() const { return false; }
   // Whether q_dot = G v is the time derivative of q (false for a spherical joint,
   // whose rates are the relative angular velocity in frame i).
   virtual bool holonomicCoordinates() const { return true; }
@@ -62,6 +73,8 @@ class Joint : public Constraint {
   // acts on the bodies as G_k^T tau_k.
   // The tracked angles t are the branch references (State).
   virtual void coordinates(const BodyKin& ki, const BodyKin& kj, const Tracked& t, Row* out) const = 0;
+
+  const Joint* jointOn(int b) const override { return b == bodyJ() ? this : nullptr; }
 
   void evaluate(const BodyKin* const* kin, const EvalContext& ctx, Eigen::Ref<Eigen::VectorXd> Phi,
                 Eigen::Ref<Eigen::MatrixXd> J, Eigen::Ref<Eigen::VectorXd> gamma) const final {

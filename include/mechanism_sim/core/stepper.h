@@ -247,7 +247,7 @@ class Stepper {
     double c;
   };
   std::vector<StiffRow> stiff_;                        // capacity: every coordinate
-  std::vector<std::array<Row, 3>> damp_rows_;          // per joint: its rows (damped joints)
+  std::vector<std::array<Row, kMaxJointDofs>> damp_rows_;          // per joint: its rows (damped joints)
   Eigen::VectorXd damp_u0_, damp_b_, damp_mu_;
   // positions loaded, evaluated and factored at: H and Phi_q are a consistent pair when
   // the last two agree

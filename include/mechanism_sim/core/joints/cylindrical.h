@@ -11,11 +11,14 @@ class CylindricalJoint : public Joint {
   static std::unique_ptr<Joint> make(const std::string& name, int bi, const JointFrame& fi,
                                      int bj, const JointFrame& fj, const JointParams& params);
   static Eigen::Isometry3d relativePose(const double* q, const JointParams& params);
-  std::string type() const override { return "cylindrical"; }
+  static constexpr const char* kType = "cylindrical";
+  static constexpr std::array<const char*, 2> kDofNames{{"rotation", "translation"}};
+  std::string type() const override { return kType; }
   int size() const override { return 4; }
   unsigned equationAxes() const override { return kBxI | kByI | kBzJ | kGap; }
   int trackedSlot(int k) const override { return k == 0 ? 0 : -1; }
-  int dof() const override { return 2; }
+  int dof() const override { return static_cast<int>(kDofNames.size()); }
+  bool holdsAxesParallel() const override { return true; }
   void coordinates(const BodyKin& ki, const BodyKin& kj, const Tracked& t, Row* out) const override;
 
  protected:

@@ -10,10 +10,14 @@ class FixedJoint : public Joint {
   static std::unique_ptr<Joint> make(const std::string& name, int bi, const JointFrame& fi,
                                      int bj, const JointFrame& fj, const JointParams& params);
   static Eigen::Isometry3d relativePose(const double* q, const JointParams& params);
-  std::string type() const override { return "fixed"; }
+  static constexpr const char* kType = "fixed";
+  static constexpr std::array<const char*, 0> kDofNames{{}};
+  std::string type() const override { return kType; }
   int size() const override { return 6; }
   unsigned equationAxes() const override { return kBxI | kByI | kBzJ | kBxJ | kGap; }
-  int dof() const override { return 0; }
+  int dof() const override { return static_cast<int>(kDofNames.size()); }
+  bool holdsAxesParallel() const override { return true; }
+  bool locksTwist() const override { return true; }
   void coordinates(const BodyKin&, const BodyKin&, const Tracked&, Row*) const override {}
 
  protected:

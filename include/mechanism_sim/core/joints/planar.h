@@ -12,12 +12,15 @@ class PlanarJoint : public Joint {
   static std::unique_ptr<Joint> make(const std::string& name, int bi, const JointFrame& fi,
                                      int bj, const JointFrame& fj, const JointParams& params);
   static Eigen::Isometry3d relativePose(const double* q, const JointParams& params);
-  std::string type() const override { return "planar"; }
+  static constexpr const char* kType = "planar";
+  static constexpr std::array<const char*, 3> kDofNames{{"x", "y", "rotation"}};
+  std::string type() const override { return kType; }
   bool planarTranslation() const override { return true; }
   int size() const override { return 3; }
   unsigned equationAxes() const override { return kBxI | kByI | kBzI | kBzJ | kGap; }
   int trackedSlot(int k) const override { return k == 2 ? 0 : -1; }
-  int dof() const override { return 3; }
+  int dof() const override { return static_cast<int>(kDofNames.size()); }
+  bool holdsAxesParallel() const override { return true; }
   void coordinates(const BodyKin& ki, const BodyKin& kj, const Tracked& t, Row* out) const override;
 
  protected:

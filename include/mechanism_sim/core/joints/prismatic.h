@@ -11,10 +11,14 @@ class PrismaticJoint : public Joint {
   static std::unique_ptr<Joint> make(const std::string& name, int bi, const JointFrame& fi,
                                      int bj, const JointFrame& fj, const JointParams& params);
   static Eigen::Isometry3d relativePose(const double* q, const JointParams& params);
-  std::string type() const override { return "prismatic"; }
+  static constexpr const char* kType = "prismatic";
+  static constexpr std::array<const char*, 1> kDofNames{{""}};
+  std::string type() const override { return kType; }
   int size() const override { return 5; }
   unsigned equationAxes() const override { return kBxI | kByI | kBzJ | kBxJ | kGap; }
-  int dof() const override { return 1; }
+  int dof() const override { return static_cast<int>(kDofNames.size()); }
+  bool holdsAxesParallel() const override { return true; }
+  bool locksTwist() const override { return true; }
   void coordinates(const BodyKin& ki, const BodyKin& kj, const Tracked& t, Row* out) const override;
 
  protected:

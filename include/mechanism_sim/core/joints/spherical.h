@@ -12,10 +12,12 @@ class SphericalJoint : public Joint {
   static std::unique_ptr<Joint> make(const std::string& name, int bi, const JointFrame& fi,
                                      int bj, const JointFrame& fj, const JointParams& params);
   static Eigen::Isometry3d relativePose(const double* q, const JointParams& params);
-  std::string type() const override { return "spherical"; }
+  static constexpr const char* kType = "spherical";
+  static constexpr std::array<const char*, 3> kDofNames{{"x", "y", "z"}};
+  std::string type() const override { return kType; }
   int size() const override { return 3; }
   unsigned equationAxes() const override { return kGap; }
-  int dof() const override { return 3; }
+  int dof() const override { return static_cast<int>(kDofNames.size()); }
   bool holonomicCoordinates() const override { return false; }
   void coordinates(const BodyKin& ki, const BodyKin& kj, const Tracked& t, Row* out) const override;
 

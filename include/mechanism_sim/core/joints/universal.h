@@ -12,11 +12,13 @@ class UniversalJoint : public Joint {
   static std::unique_ptr<Joint> make(const std::string& name, int bi, const JointFrame& fi,
                                      int bj, const JointFrame& fj, const JointParams& params);
   static Eigen::Isometry3d relativePose(const double* q, const JointParams& params);
-  std::string type() const override { return "universal"; }
+  static constexpr const char* kType = "universal";
+  static constexpr std::array<const char*, 2> kDofNames{{"axis1", "axis2"}};
+  std::string type() const override { return kType; }
   int size() const override { return 4; }
   unsigned equationAxes() const override { return kBxI | kByJ | kGap; }
   int trackedSlot(int k) const override { return k; }
-  int dof() const override { return 2; }
+  int dof() const override { return static_cast<int>(kDofNames.size()); }
   void coordinates(const BodyKin& ki, const BodyKin& kj, const Tracked& t, Row* out) const override;
 
  protected:
