@@ -21,9 +21,10 @@ from ._mechanism_sim import (  # noqa: F401
     SimulationError,
     Snapshot,
     StepFailure,
+    UsageError,
     load,
     load_string,
 )
 
 __all__ = ["Error", "LoadError", "Model", "ModelError", "SimulationError", "Snapshot", "StepFailure",
-           "load", "load_string"]
+           "UsageError", "load", "load_string"]

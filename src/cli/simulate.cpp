@@ -35,9 +35,7 @@ const char* kUsage =
     "                [--closures FILE.yaml] [--quiet]\n"
     "                [--trajectory FILE.csv] [--trajectory-start-tolerance X]\n";
 
-struct UsageError : std::runtime_error {
-  using std::runtime_error::runtime_error;
-};
+// A command line that cannot be run throws mechanism_sim::UsageError (exit 2 with the usage).
 
 struct BagFailure {};  // --bag FILE could not be written
 

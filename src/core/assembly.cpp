@@ -19,6 +19,13 @@ std::string fmt(double x) {
   return os.str();
 }
 
+// Assembly's limits: Levenberg-Marquardt iterations on the positions, augmented Lagrangian
+// passes on the velocities, and the relative residual above which either fails (ModelError:
+// the targets or the closures cannot be met) whatever the tolerances ask.
+constexpr int kMaxPositionIterations = 300;
+constexpr int kMaxVelocityIterations = 60;
+constexpr double kFailureResidual = 1e-9;
+
 // The constrained mass matrix H cannot be factored at the assembled pose although every
 // motion moves mass (checkMassRank passed): its condition is past double precision.
 constexpr const char* kSingularAtAssembly =
@@ -138,7 +145,7 @@ AssemblyReport assemble(const System& sys, State& s, Stepper& st,
   const double tol = sys.options.position_tol;
   Eigen::VectorXd dq(sys.n), saved_x;
   std::vector<Tracked> saved_tracked;
-  for (int it = 0; it < 300 && worst > tol; ++it) {
+  for (int it = 0; it < kMaxPositionIterations && worst > tol; ++it) {
     report.iterations = it + 1;
     const Eigen::VectorXd W = st.rowWeights(sys);
     st.assembleH(sys, 1.0, 0.0, mu);
@@ -181,7 +188,7 @@ AssemblyReport assemble(const System& sys, State& s, Stepper& st,
     }
   }
   report.position_residual = worst;
-  if (worst > std::max(tol, 1e-9)) {
+  if (worst > std::max(tol, kFailureResidual)) {
     std::ostringstream os;
     os << "the mechanism does not close (largest residual " << fmt(st.positionViolation()) << "):";
     for (int ci = 0; ci < sys.numConstraints(); ++ci) {
@@ -239,9 +246,7 @@ AssemblyReport assemble(const System& sys, State& s, Stepper& st,
   // augmented Lagrangian, starting from the bodies' own velocities.
   try {
     st.factorHere(sys, s.t);
-  } catch (const ModelError&) {
-    throw;
-  } catch (const std::runtime_error&) {
+  } catch (const SimulationError&) {  // factor(): singular; at assembly that is the model's fault
     throw ModelError(kSingularAtAssembly);
   }
   const Eigen::VectorXd W = st.rowWeights(sys);
@@ -274,7 +279,7 @@ AssemblyReport assemble(const System& sys, State& s, Stepper& st,
     }
     return worst_v;
   };
-  for (int it = 0; it < 60; ++it) {
+  for (int it = 0; it < kMaxVelocityIterations; ++it) {
     vres = velocityError();
     if (vres <= sys.options.velocity_tol) break;
     s.u = Mu;
@@ -290,7 +295,7 @@ AssemblyReport assemble(const System& sys, State& s, Stepper& st,
       mu_t[k] += wt[k] * (rowDot(sys, velocities[k], rows[k], s.u) - velocities[k].value);
   }
   report.velocity_residual = vres;
-  if (vres > 1e-9) {
+  if (vres > kFailureResidual) {
     std::ostringstream os;
     os << "initial velocities cannot be met (largest relative residual " << fmt(vres) << ")";
     for (const auto& t : velocities) os << " '" << sys.joints[t.joint]->name() << "'";

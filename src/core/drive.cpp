@@ -2,7 +2,8 @@
 #include "mechanism_sim/core/drive.h"
 
 #include <cmath>
-#include <stdexcept>
+
+#include "mechanism_sim/core/errors.h"
 
 namespace mechanism_sim {
 
@@ -29,13 +30,13 @@ void DriveRamp::eval(double t, double* f, double* f_dot, double* f_ddot) const {
 //   c4 = (-30 dq + (14 v1 + 16 v0) h + (3 a0 - 2 a1) h^2) / (2 h^4)
 //   c5 = (12 dq - 6 (v1 + v0) h + (a1 - a0) h^2) / (2 h^5)
 DrivePath::DrivePath(std::vector<PathKnot> knots) : knots_(std::move(knots)) {
-  if (knots_.empty()) throw std::invalid_argument("path: no knot");
+  if (knots_.empty()) throw UsageError("path: no knot");
   for (size_t i = 0; i < knots_.size(); ++i) {
     const PathKnot& k = knots_[i];
     if (!std::isfinite(k.t) || !std::isfinite(k.q) || !std::isfinite(k.v) || !std::isfinite(k.a))
-      throw std::invalid_argument("path: knot " + std::to_string(i + 1) + " is not finite");
+      throw UsageError("path: knot " + std::to_string(i + 1) + " is not finite");
     if (i > 0 && !(k.t > knots_[i - 1].t))
-      throw std::invalid_argument("path: times must increase (knot " + std::to_string(i + 1) + ")");
+      throw UsageError("path: times must increase (knot " + std::to_string(i + 1) + ")");
   }
   for (size_t i = 0; i + 1 < knots_.size(); ++i) {
     const PathKnot &k0 = knots_[i], &k1 = knots_[i + 1];
@@ -56,15 +57,15 @@ DrivePath DrivePath::through(const PathKnot& start, const std::vector<double>& t
                              const std::vector<double>& v, const std::vector<double>& a) {
   const size_t n = t.size();  // segments; knots 0 (start) .. n
   if (n == 0 || q.size() != n || (!v.empty() && v.size() != n) || (!a.empty() && a.size() != n))
-    throw std::invalid_argument("path: needs at least one point, and as many values as times");
+    throw UsageError("path: needs at least one point, and as many values as times");
   std::vector<PathKnot> k(n + 1);
   k[0] = start;
   for (size_t i = 0; i < n; ++i) {
     k[i + 1].t = t[i], k[i + 1].q = q[i];
     if (!std::isfinite(t[i]) || !std::isfinite(q[i]) || (!v.empty() && !std::isfinite(v[i])) ||
         (!a.empty() && !std::isfinite(a[i])))
-      throw std::invalid_argument("path: point " + std::to_string(i + 1) + " is not finite");
-    if (!(t[i] > k[i].t)) throw std::invalid_argument("path: times must increase (point " + std::to_string(i + 1) + ")");
+      throw UsageError("path: point " + std::to_string(i + 1) + " is not finite");
+    if (!(t[i] > k[i].t)) throw UsageError("path: times must increase (point " + std::to_string(i + 1) + ")");
   }
   std::vector<double> h(n), s(n);
   for (size_t i = 0; i < n; ++i) h[i] = k[i + 1].t - k[i].t, s[i] = (k[i + 1].q - k[i].q) / h[i];
@@ -127,7 +128,7 @@ void DrivePath::eval(double t, double* q, double* q_dot, double* q_ddot) const {
 }
 
 DriveProfile DriveProfile::velocity(double v) {
-  if (!std::isfinite(v)) throw std::invalid_argument("drive velocity must be finite");
+  if (!std::isfinite(v)) throw UsageError("drive velocity must be finite");
   DriveProfile p;
   p.kind_ = Kind::kVelocity;
   p.v_ = v;
@@ -136,7 +137,7 @@ DriveProfile DriveProfile::velocity(double v) {
 
 DriveProfile DriveProfile::harmonic(double offset, double amplitude, double frequency, double phase) {
   if (!std::isfinite(offset) || !std::isfinite(amplitude) || !std::isfinite(frequency) || !std::isfinite(phase))
-    throw std::invalid_argument("harmonic drive: offset, amplitude, frequency and phase must be finite");
+    throw UsageError("harmonic drive: offset, amplitude, frequency and phase must be finite");
   DriveProfile p;
   p.kind_ = Kind::kHarmonic;
   p.offset_ = offset, p.amplitude_ = amplitude, p.omega_ = 2.0 * M_PI * frequency, p.phase_ = phase;
@@ -148,12 +149,12 @@ DriveProfile DriveProfile::harmonic(double offset, double amplitude, double freq
 // s_i = (q_{i+1} - q_i) / h_i (de Boor, A Practical Guide to Splines, ch. IV).
 DriveProfile DriveProfile::spline(const std::vector<double>& t, const std::vector<double>& q) {
   const size_t n = t.size();
-  if (n < 2 || q.size() != n) throw std::invalid_argument("spline drive: needs at least 2 points");
+  if (n < 2 || q.size() != n) throw UsageError("spline drive: needs at least 2 points");
   for (size_t i = 0; i < n; ++i) {
     if (!std::isfinite(t[i]) || !std::isfinite(q[i]))
-      throw std::invalid_argument("spline drive: point " + std::to_string(i + 1) + " is not finite");
+      throw UsageError("spline drive: point " + std::to_string(i + 1) + " is not finite");
     if (i > 0 && !(t[i] > t[i - 1]))
-      throw std::invalid_argument("spline drive: times must increase (point " + std::to_string(i + 1) + ")");
+      throw UsageError("spline drive: times must increase (point " + std::to_string(i + 1) + ")");
   }
   DriveProfile p;
   p.kind_ = Kind::kSpline;

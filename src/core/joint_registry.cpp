@@ -2,6 +2,7 @@
 #include <stdexcept>
 #include <utility>
 
+#include "mechanism_sim/core/errors.h"
 #include "mechanism_sim/core/joints/cylindrical.h"
 #include "mechanism_sim/core/joints/fixed.h"
 #include "mechanism_sim/core/joints/planar.h"
@@ -40,7 +41,7 @@ const JointTypeInfo kJointTypes[] = {
 const JointTypeInfo& jointTypeInfo(const std::string& type) {
   for (const auto& entry : kJointTypes)
     if (type == entry.name) return entry;
-  throw std::invalid_argument("unknown joint type '" + type + "'");
+  throw ModelError("unknown joint type '" + type + "'");
 }
 
 std::string Joint::dofName(int k) const { return jointTypeInfo(type()).dof_names.at(k); }
@@ -50,7 +51,7 @@ std::unique_ptr<Joint> makeJoint(const std::string& type, const std::string& nam
                                  const JointFrame& frame_j, const JointParams& params) {
   for (const auto& entry : kJointTypes)
     if (type == entry.name) return entry.make(name, body_i, frame_i, body_j, frame_j, params);
-  throw std::invalid_argument("joint '" + name + "': unknown joint type '" + type + "'");
+  throw ModelError("joint '" + name + "': unknown joint type '" + type + "'");
 }
 
 std::vector<std::string> jointTypes() {

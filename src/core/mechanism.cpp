@@ -16,7 +16,7 @@ Mechanism::Mechanism() : sys_(std::make_shared<System>()) {
 }
 
 void Mechanism::requireUnbuilt(const char* what) const {
-  if (built_) throw std::logic_error(std::string("Mechanism::") + what + " after build()");
+  if (built_) throw UsageError(std::string("Mechanism::") + what + " after build()");
 }
 
 // Parameters that leave the layout alone may change after build(): copy on write, so a
@@ -82,7 +82,7 @@ int Mechanism::addSpring(const SpringDamper& s) {
 
 void Mechanism::checkCoordinate(int joint, int k) const {
   if (joint < 0 || joint >= numJoints() || k < 0 || k >= sys_->joints[joint]->dof())
-    throw std::out_of_range("no such joint coordinate");
+    throw UsageError("no such joint coordinate");
 }
 
 void Mechanism::setJointLimits(int joint, int k, double lower, double upper) {
@@ -121,13 +121,13 @@ void Mechanism::driveTarget(int drive, double* q, double* q_dot, double* q_ddot)
 }
 
 void Mechanism::commandDriveVelocity(int drive, double v, double acc) {
-  if (!built_) throw std::logic_error("Mechanism::commandDriveVelocity before build()");
+  if (!built_) throw UsageError("Mechanism::commandDriveVelocity before build()");
   const DriveSpec& D = sys_->drives.at(drive);
   const std::string who = "joint '" + sys_->joints[D.joint]->name() + "': ";
   if (D.profile.kind() != DriveProfile::Kind::kVelocity)
-    throw std::invalid_argument(who + "its drive follows a profile; only a velocity drive takes commands");
-  if (!std::isfinite(v)) throw std::invalid_argument(who + "drive velocity must be finite");
-  if (!(acc > 0)) throw std::invalid_argument(who + "drive acceleration must be positive");
+    throw UsageError(who + "its drive follows a profile; only a velocity drive takes commands");
+  if (!std::isfinite(v)) throw UsageError(who + "drive velocity must be finite");
+  if (!(acc > 0)) throw UsageError(who + "drive acceleration must be positive");
   double q, q_dot, q_ddot;
   driveTarget(drive, &q, &q_dot, &q_ddot);
   state_.drive[drive] = DriveRamp{state_.t, q, q_dot, v, std::isfinite(acc) ? acc : 0.0};
@@ -178,7 +178,7 @@ AssemblyReport Mechanism::assemble(const std::vector<CoordinateTarget>& position
 }
 
 void Mechanism::step(double h) {
-  if (!built_) throw std::logic_error("Mechanism::step before build() and assemble()");
+  if (!built_) throw UsageError("Mechanism::step before build() and assemble()");
   try {
     stepper_->step(*sys_, state_, inputs_, h);
   } catch (...) {
@@ -195,27 +195,27 @@ void Mechanism::step(double h) {
 
 void Mechanism::setJointEffort(int joint, int k, double tau) {
   checkCoordinate(joint, k);
-  if (!std::isfinite(tau)) throw std::invalid_argument("effort must be finite");
-  if (!built_) throw std::logic_error("Mechanism::setJointEffort before build()");
+  if (!std::isfinite(tau)) throw UsageError("effort must be finite");
+  if (!built_) throw UsageError("Mechanism::setJointEffort before build()");
   inputs_.effort[joint][k] = tau;
 }
 
 void Mechanism::setBodyWrench(int body, const Vector3d& force, const Vector3d& torque_body) {
-  if (!built_) throw std::logic_error("Mechanism::setBodyWrench before build()");
-  if (!force.allFinite() || !torque_body.allFinite()) throw std::invalid_argument("wrench must be finite");
+  if (!built_) throw UsageError("Mechanism::setBodyWrench before build()");
+  if (!force.allFinite() || !torque_body.allFinite()) throw UsageError("wrench must be finite");
   inputs_.force.at(body) = force;
   inputs_.torque.at(body) = torque_body;
 }
 
 void Mechanism::setSpringActuation(int spring, double f_act) {
-  if (!built_) throw std::logic_error("Mechanism::setSpringActuation before build()");
-  if (!std::isfinite(f_act)) throw std::invalid_argument("actuation must be finite");
+  if (!built_) throw UsageError("Mechanism::setSpringActuation before build()");
+  if (!std::isfinite(f_act)) throw UsageError("actuation must be finite");
   inputs_.spring_actuation.at(spring) = f_act - sys_->springs.at(spring).f_act;
 }
 
 void Mechanism::restore(const Snapshot& s) {
   if (!built_ || s.x.size() != state_.x.size() || s.tracked.size() != state_.tracked.size())
-    throw std::invalid_argument("Mechanism::restore: the snapshot is of another mechanism");
+    throw UsageError("Mechanism::restore: the snapshot is of another mechanism");
   state_ = s;
   // Queries read the evaluation at the state; stepping does not depend on it.
   State probe = state_;

@@ -33,8 +33,8 @@ int Mechanism::addDriveAfterBuild(int joint, int k, const DriveProfile& profile)
 }
 
 void Mechanism::removeDrive(int drive) {
-  if (!built_) throw std::logic_error("Mechanism::removeDrive before build()");
-  if (drive < 0 || drive >= numDrives()) throw std::out_of_range("no such drive");
+  if (!built_) throw UsageError("Mechanism::removeDrive before build()");
+  if (drive < 0 || drive >= numDrives()) throw UsageError("no such drive");
   std::vector<DriveSpec> drives;
   std::vector<int> from;
   std::vector<DriveRamp> refs;
@@ -87,12 +87,12 @@ std::vector<int> Mechanism::replaceDrives(std::vector<DriveSpec> drives, const s
 }
 
 void Mechanism::commandDrivePath(int drive, std::shared_ptr<const DrivePath> path) {
-  if (!built_) throw std::logic_error("Mechanism::commandDrivePath before build()");
+  if (!built_) throw UsageError("Mechanism::commandDrivePath before build()");
   const DriveSpec& D = sys_->drives.at(drive);
   if (D.profile.kind() != DriveProfile::Kind::kVelocity)
-    throw std::invalid_argument("joint '" + sys_->joints[D.joint]->name() +
+    throw UsageError("joint '" + sys_->joints[D.joint]->name() +
                                 "': its drive follows a profile; only a velocity drive takes a path");
-  if (!path) throw std::invalid_argument("commandDrivePath: no path");
+  if (!path) throw UsageError("commandDrivePath: no path");
   state_.drive[drive] = DriveRamp{state_.t, 0.0, 0.0, 0.0, 0.0, std::move(path)};
   // the accelerations and the driving effort of the new reference, now (queries read them)
   stepper_->settle(*sys_, state_, inputs_);

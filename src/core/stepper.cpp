@@ -27,6 +27,10 @@ constexpr double kFloor = 1e-6;
 // no longer implied by the rows kept (finishStep analyzes the dependencies again).
 constexpr double kDependentDrift = 10.0;
 constexpr int kMaxNewton = 20;
+// A projection that ends with a relative residual above position_tol (velocity_tol) is
+// counted and the run goes on; above kFailureResidual the constraints are visibly broken
+// and the step fails (StepFailure: retaken in halves, then the run stops).
+constexpr double kFailureResidual = 1e-6;
 constexpr int kMaxVelocityPasses = 8;
 constexpr int kMaxHalvings = 6;
 constexpr double kMaxTurn = 0.25;  // rad a body may turn in one step (phase error < 1e-6 rad)
@@ -987,7 +991,7 @@ void Stepper::frictionFor(const System& sys, State& s, const Inputs& in, double 
 }
 
 void Stepper::step(const System& sys, State& s, const Inputs& in, double h) {
-  if (!(h > 0) || !std::isfinite(h)) throw std::invalid_argument("step must be positive and finite");
+  if (!(h > 0) || !std::isfinite(h)) throw UsageError("step must be positive and finite");
   // A step that fails leaves the State where it was (the last accepted step), not part
   // way through its substeps.
   start_ = s;
@@ -1398,7 +1402,7 @@ bool Stepper::projectPositions(const System& sys, State& s, bool frozen) {
   if (err > tol) {
     ++stats_.position_shortfalls;
     stats_.worst_position = std::max(stats_.worst_position, err);
-    if (err > 1e-6) leftConstraints(sys, s.t, err);
+    if (err > kFailureResidual) leftConstraints(sys, s.t, err);
   }
   return it > 0;
 }
@@ -1442,7 +1446,7 @@ bool Stepper::projectVelocities(const System& sys, State& s) {
   if (err <= tol) return moves;
   ++stats_.velocity_shortfalls;
   stats_.worst_velocity = std::max(stats_.worst_velocity, err);
-  if (err > 1e-6) {
+  if (err > kFailureResidual) {
     // as for positions: the step cannot be repaired (it is retaken in halves, then the run
     // stops) rather than going on with the velocity constraints visibly broken
     mulJ(sys, s.u.data(), query_.data());

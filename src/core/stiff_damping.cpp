@@ -56,7 +56,10 @@ namespace {
 double stiffBound(const std::string& method) {
   return method == "rk2" ? 1.0 : method == "rk3" ? 1.6 : 2.0;
 }
+// The refinement's limits: at most kMaxPasses passes; a correction below kRoundOff of the
+// velocities' scale is round-off, and the refinement stops there.
 constexpr int kMaxPasses = 12;
+constexpr double kRoundOff = 1e-15;
 
 using Row6 = Eigen::Matrix<double, 1, 6>;
 
@@ -217,7 +220,7 @@ void Stepper::implicitDamping(const System& sys, State& s, double h) {
     damp_mu_ -= dl_;
     ++stats_.solve_passes;
     step = motionScale(sys, dn_);
-    if (!(step > 1e-15 * scale) || step > 0.5 * previous) break;
+    if (!(step > kRoundOff * scale) || step > 0.5 * previous) break;
     previous = step;
   }
   // A refinement that stopped (passes out, or gaining less than a factor 2) with its last

@@ -116,6 +116,8 @@ PYBIND11_MODULE(_mechanism_sim, m) {
       exceptionType(m, "SimulationError", {error, PyExc_RuntimeError}, "A run that cannot go on: 'FILE: at t = T s: what'.");
   static py::handle step_failure =
       exceptionType(m, "StepFailure", {simulation_error}, "A step that left the constraints beyond repair.");
+  static py::handle usage_error =
+      exceptionType(m, "UsageError", {error, PyExc_ValueError}, "A call with an argument the library does not take.");
   py::register_exception_translator([](std::exception_ptr p) {
     try {
       if (p) std::rethrow_exception(p);
@@ -127,6 +129,8 @@ PYBIND11_MODULE(_mechanism_sim, m) {
       PyErr_SetString(step_failure.ptr(), e.what());
     } catch (const SimulationError& e) {
       PyErr_SetString(simulation_error.ptr(), e.what());
+    } catch (const UsageError& e) {
+      PyErr_SetString(usage_error.ptr(), e.what());
     } catch (const Error& e) {  // InternalError: says it is a bug
       PyErr_SetString(error.ptr(), e.what());
     }

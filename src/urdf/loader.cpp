@@ -429,7 +429,7 @@ class ModelBuilder {
     try {
       joint = makeJoint(s.type, s.name, bi, frameOn(bodies, s.parent, s.P_J), bj, frameOn(bodies, s.child, s.C_J),
                         s.params);
-    } catch (const std::invalid_argument& e) {
+    } catch (const ModelError& e) {  // an unknown type, a bad parameter
       fail(s.element, e.what());
     }
     const int index = mech().addJoint(std::move(joint));
@@ -534,7 +534,7 @@ class ModelBuilder {
         const int drive = mech().addDrive(index->second, at.second, profile, q0);
         for (Dof& dof : model_->dofs_)
           if (dof.joint_index == index->second && dof.k == at.second) dof.drive = drive;
-      } catch (const std::invalid_argument& e) {
+      } catch (const UsageError& e) {  // a profile's points
         error = e.what();
       } catch (const ModelError& e) {
         error = e.what();

@@ -24,7 +24,7 @@ const DependencyReport& MechanismModel::dependencies() const { return mechanism_
 const Eigen::Vector3d& MechanismModel::gravity() const { return mechanism_->gravity(); }
 
 void MechanismModel::setGravity(const Eigen::Vector3d& g) {
-  if (!g.allFinite()) throw std::invalid_argument("gravity must be three finite numbers");
+  if (!g.allFinite()) throw UsageError("gravity must be three finite numbers");
   mechanism_->setGravity(g);
 }
 
@@ -79,21 +79,21 @@ double MechanismModel::effort(int dof) const {
 }
 
 void MechanismModel::commandDriveVelocity(int dof, double v, double acc) {
-  if (dof < 0 || dof >= static_cast<int>(dofs_.size())) throw std::out_of_range("no such degree of freedom");
-  if (dofs_[dof].drive < 0) throw std::invalid_argument("dof '" + dofs_[dof].name + "' is not driven");
+  if (dof < 0 || dof >= static_cast<int>(dofs_.size())) throw UsageError("no such degree of freedom");
+  if (dofs_[dof].drive < 0) throw UsageError("dof '" + dofs_[dof].name + "' is not driven");
   mechanism_->commandDriveVelocity(dofs_[dof].drive, v, acc);
 }
 
 double MechanismModel::driveVelocity(int dof) const {
-  if (dofs_.at(dof).drive < 0) throw std::invalid_argument("dof '" + dofs_[dof].name + "' is not driven");
+  if (dofs_.at(dof).drive < 0) throw UsageError("dof '" + dofs_[dof].name + "' is not driven");
   double q, q_dot, q_ddot;
   mechanism_->driveTarget(dofs_[dof].drive, &q, &q_dot, &q_ddot);
   return q_dot;
 }
 
 void MechanismModel::setEffort(int dof, double tau) {
-  if (dof < 0 || dof >= static_cast<int>(dofs_.size())) throw std::out_of_range("no such degree of freedom");
-  if (!std::isfinite(tau)) throw std::invalid_argument("effort for '" + dofs_[dof].name + "' is not finite");
+  if (dof < 0 || dof >= static_cast<int>(dofs_.size())) throw UsageError("no such degree of freedom");
+  if (!std::isfinite(tau)) throw UsageError("effort for '" + dofs_[dof].name + "' is not finite");
   const double limit = dofs_[dof].effort_limit;
   command_[dof] = limit > 0 ? std::max(-limit, std::min(limit, tau)) : tau;
 }
@@ -120,9 +120,7 @@ void MechanismModel::step(double h) {
     mechanism_->step(h);
   } catch (const StepFailure& e) {
     throw StepFailure(where() + e.what());
-  } catch (const Error& e) {  // SimulationError, InternalError (a bad h: a caller's error)
-    throw SimulationError(where() + e.what());
-  } catch (const std::invalid_argument& e) {
+  } catch (const Error& e) {  // SimulationError, UsageError (a bad h), InternalError
     throw SimulationError(where() + e.what());
   } catch (const std::exception& e) {
     throw SimulationError(where() + InternalError(e.what()).what());
@@ -130,20 +128,20 @@ void MechanismModel::step(double h) {
 }
 
 void MechanismModel::driveDof(int dof) {
-  if (dof < 0 || dof >= static_cast<int>(dofs_.size())) throw std::out_of_range("no such degree of freedom");
+  if (dof < 0 || dof >= static_cast<int>(dofs_.size())) throw UsageError("no such degree of freedom");
   Dof& d = dofs_[dof];
-  if (d.drive >= 0) throw std::invalid_argument("dof '" + d.name + "' is driven already");
+  if (d.drive >= 0) throw UsageError("dof '" + d.name + "' is driven already");
   try {
     d.drive = mechanism_->addDrive(d.joint_index, d.k, DriveProfile::velocity(0.0));
   } catch (const ModelError& e) {
-    throw std::invalid_argument("dof '" + d.name + "': " + e.what());
+    throw UsageError("dof '" + d.name + "': " + e.what());
   }
   driven_after_load_.push_back(dof);
 }
 
 void MechanismModel::undriveDof(int dof) {
   const auto it = std::find(driven_after_load_.begin(), driven_after_load_.end(), dof);
-  if (it == driven_after_load_.end()) throw std::invalid_argument("dof was not driven by driveDof()");
+  if (it == driven_after_load_.end()) throw UsageError("dof was not driven by driveDof()");
   const int drive = dofs_[dof].drive;
   mechanism_->removeDrive(drive);
   for (Dof& d : dofs_)

@@ -3,14 +3,13 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <stdexcept>
 
 namespace mechanism_sim {
 
 RunLoop::RunLoop(MechanismModel& model, double h, long steps_per_sample)
     : model_(model), h_(h), steps_per_sample_(steps_per_sample) {
-  if (!(h > 0)) throw std::invalid_argument("the step must be positive");
-  if (steps_per_sample < 1) throw std::invalid_argument("a sample needs at least one step");
+  if (!(h > 0)) throw UsageError("the step must be positive");
+  if (steps_per_sample < 1) throw UsageError("a sample needs at least one step");
   const size_t dofs = model.dofs().size();
   sample_.position.resize(dofs);
   sample_.velocity.resize(dofs);

@@ -109,7 +109,7 @@ void followTrajectory(MechanismModel& model, const Trajectory& traj, double star
     }
     try {
       paths.push_back(std::make_shared<const DrivePath>(DrivePath::through(from[j], t, q, v, a)));
-    } catch (const std::invalid_argument& e) {
+    } catch (const UsageError& e) {
       throw TrajectoryError("joint '" + traj.dofs[j] + "': " + e.what());
     }
   }
@@ -121,7 +121,7 @@ void followTrajectory(MechanismModel& model, const Trajectory& traj, double star
     try {
       model.driveDof(d);
       added.push_back(d);
-    } catch (const std::invalid_argument& e) {
+    } catch (const UsageError& e) {
       for (auto it = added.rbegin(); it != added.rend(); ++it) model.undriveDof(*it);
       throw TrajectoryError(e.what());
     }

@@ -265,7 +265,7 @@ ExtJoint readExtJoint(const XMLElement* e, const XmlReader& r) {
   j.type = e->Attribute("type");
   try {
     jointTypeInfo(j.type == "continuous" ? "revolute" : j.type);  // the core's joint types
-  } catch (const std::invalid_argument&) {
+  } catch (const ModelError&) {
     r.fail(e, "unknown joint type '" + j.type + "'");
   }
   if (j.type == "screw") {

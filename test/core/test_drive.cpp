@@ -138,13 +138,13 @@ TEST(Drive, VelocityCommandRampsAtTheGivenAcceleration) {
   p.mech.restore(snap);  // the ramp is in the State: a continuation is bit-identical
   for (int k = 0; k < 2000; ++k) p.mech.step(1e-3);
   EXPECT_EQ((p.mech.state().x - x).cwiseAbs().maxCoeff(), 0.0);
-  EXPECT_THROW(p.mech.commandDriveVelocity(0, NAN, 1.0), std::invalid_argument);
-  EXPECT_THROW(p.mech.commandDriveVelocity(0, 1.0, 0.0), std::invalid_argument);
+  EXPECT_THROW(p.mech.commandDriveVelocity(0, NAN, 1.0), UsageError);
+  EXPECT_THROW(p.mech.commandDriveVelocity(0, 1.0, 0.0), UsageError);
 }
 
 TEST(Drive, ProfileDrivesTakeNoVelocityCommand) {
   DrivenPendulum p(DriveProfile::harmonic(0, 1, 1, 0));
-  EXPECT_THROW(p.mech.commandDriveVelocity(0, 1.0, 1.0), std::invalid_argument);
+  EXPECT_THROW(p.mech.commandDriveVelocity(0, 1.0, 1.0), UsageError);
 }
 
 TEST(Drive, SplineInterpolatesAndIsTwiceContinuouslyDifferentiable) {
@@ -176,10 +176,10 @@ TEST(Drive, SplineInterpolatesAndIsTwiceContinuouslyDifferentiable) {
     EXPECT_NEAR(fd, (fp - fm) / (2 * e), 1e-8) << x;
     EXPECT_NEAR(fdd, (dp - dm) / (2 * e), 1e-7) << x;
   }
-  EXPECT_THROW(DriveProfile::spline({0.0}, {1.0}), std::invalid_argument);
-  EXPECT_THROW(DriveProfile::spline({0.0, 1.0, 1.0}, {1.0, 2.0, 3.0}), std::invalid_argument);
-  EXPECT_THROW(DriveProfile::spline({0.0, NAN}, {1.0, 2.0}), std::invalid_argument);
-  EXPECT_THROW(DriveProfile::velocity(INFINITY), std::invalid_argument);
+  EXPECT_THROW(DriveProfile::spline({0.0}, {1.0}), UsageError);
+  EXPECT_THROW(DriveProfile::spline({0.0, 1.0, 1.0}, {1.0, 2.0, 3.0}), UsageError);
+  EXPECT_THROW(DriveProfile::spline({0.0, NAN}, {1.0, 2.0}), UsageError);
+  EXPECT_THROW(DriveProfile::velocity(INFINITY), UsageError);
 }
 
 TEST(Drive, DrivingACoordinateTwiceOrWithoutPositionIsRefused) {
@@ -192,7 +192,7 @@ TEST(Drive, DrivingACoordinateTwiceOrWithoutPositionIsRefused) {
   m.addJoint(makeJoint("revolute", "j", Mechanism::kGround, JointFrame(), i, JointFrame()));
   m.addDrive(0, 0, DriveProfile::velocity(1));
   EXPECT_THROW(m.addDrive(0, 0, DriveProfile::velocity(2)), ModelError);
-  EXPECT_THROW(m.addDrive(0, 1, DriveProfile::velocity(2)), std::out_of_range);
+  EXPECT_THROW(m.addDrive(0, 1, DriveProfile::velocity(2)), UsageError);
 }
 
 // A drive that moves its joint past the joint's limits stops the run naming the joint,

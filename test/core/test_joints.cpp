@@ -11,6 +11,7 @@
 #include <algorithm>
 
 #include "fd_util.h"
+#include "mechanism_sim/core/errors.h"
 #include "mechanism_sim/core/joint.h"
 
 namespace mechanism_sim {
@@ -312,8 +313,8 @@ INSTANTIATE_TEST_SUITE_P(AllTypes, JointTypes, ::testing::ValuesIn(jointTypes())
 
 TEST(JointRegistry, UnknownTypeAndInfiniteLeadAreRejected) {
   JointFrame f;
-  EXPECT_THROW(makeJoint("helical", "j", 1, f, 2, f), std::invalid_argument);
-  EXPECT_THROW(makeJoint("screw", "j", 1, f, 2, f, JointParams{INFINITY, 0.0}), std::invalid_argument);
+  EXPECT_THROW(makeJoint("helical", "j", 1, f, 2, f), ModelError);
+  EXPECT_THROW(makeJoint("screw", "j", 1, f, 2, f, JointParams{INFINITY, 0.0}), ModelError);
   EXPECT_EQ(makeJoint("screw", "j", 1, f, 2, f, JointParams{0.01, 0.0})->size(), 5);
 }
 

@@ -112,12 +112,12 @@ TEST(DrivePath, VelocitiesWithoutAccelerationsKeepACubic) {
 
 TEST(DrivePath, BadPointsAreRefused) {
   const PathKnot s{1.0, 0, 0, 0};
-  EXPECT_THROW(DrivePath::through(s, {}, {}), std::invalid_argument);
-  EXPECT_THROW(DrivePath::through(s, {1.0}, {0.0}), std::invalid_argument);  // not after the start
-  EXPECT_THROW(DrivePath::through(s, {2.0, 2.0}, {0.0, 1.0}), std::invalid_argument);
-  EXPECT_THROW(DrivePath::through(s, {2.0, 3.0}, {0.0, NAN}), std::invalid_argument);
-  EXPECT_THROW(DrivePath::through(s, {2.0, 3.0}, {0.0, 1.0}, {1.0}), std::invalid_argument);
-  EXPECT_THROW(DrivePath::through(s, {2.0}, {0.0}, {INFINITY}), std::invalid_argument);
+  EXPECT_THROW(DrivePath::through(s, {}, {}), UsageError);
+  EXPECT_THROW(DrivePath::through(s, {1.0}, {0.0}), UsageError);  // not after the start
+  EXPECT_THROW(DrivePath::through(s, {2.0, 2.0}, {0.0, 1.0}), UsageError);
+  EXPECT_THROW(DrivePath::through(s, {2.0, 3.0}, {0.0, NAN}), UsageError);
+  EXPECT_THROW(DrivePath::through(s, {2.0, 3.0}, {0.0, 1.0}, {1.0}), UsageError);
+  EXPECT_THROW(DrivePath::through(s, {2.0}, {0.0}, {INFINITY}), UsageError);
 }
 
 // A mass m at distance L from a revolute about y (central inertia Ic), released from the
@@ -237,7 +237,7 @@ TEST(DriveAfterBuild, ADependentDriveIsRefusedAndChangesNothing) {
   EXPECT_NEAR(m.jointVelocity(1, 0), 2 * v, 1e-10);
   EXPECT_THROW(m.addDrive(0, 0, DriveProfile::velocity(0.0)), ModelError);        // already driven
   EXPECT_THROW(m.addDrive(1, 0, DriveProfile::harmonic(0, 1, 1, 0)), ModelError);  // a profile
-  EXPECT_THROW(m.removeDrive(3), std::out_of_range);
+  EXPECT_THROW(m.removeDrive(3), UsageError);
 }
 
 }  // namespace

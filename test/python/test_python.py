@@ -194,6 +194,8 @@ def test_a_file_that_cannot_be_loaded_raises_load_error_with_the_library_message
         mechanism_sim.load(bad)
     assert isinstance(e.value, ValueError) and isinstance(e.value, mechanism_sim.Error)
     assert "simulate: " + str(e.value) + "\n" == run.stderr
+    # a call the library does not take (core/errors.h UsageError) is a ValueError too
+    assert issubclass(mechanism_sim.UsageError, ValueError) and issubclass(mechanism_sim.UsageError, mechanism_sim.Error)
     with pytest.raises(mechanism_sim.LoadError, match="cannot open the file"):
         mechanism_sim.load("/nonexistent/model.urdf")
     with pytest.raises(mechanism_sim.LoadError, match="not a .xacro file"):

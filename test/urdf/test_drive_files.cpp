@@ -94,7 +94,7 @@ TEST(DriveFiles, VelocityCommandRampsTheDrivenCrank) {
   for (int k = 0; k < 600; ++k) m->step(1e-3);
   EXPECT_NEAR(m->velocity(crank), 0.0, 1e-9);
   EXPECT_NEAR(m->position(crank), M_PI, 1e-9);  // 2 pi / 2 over the ramp
-  EXPECT_THROW(m->commandDriveVelocity(m->dofIndex("slider_joint"), 1.0, 1.0), std::invalid_argument);
+  EXPECT_THROW(m->commandDriveVelocity(m->dofIndex("slider_joint"), 1.0, 1.0), UsageError);
   m->reset();
   EXPECT_NEAR(m->velocity(crank), 2 * M_PI, 1e-9);  // the ramp is in the State
 }

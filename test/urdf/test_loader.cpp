@@ -169,7 +169,7 @@ TEST(Urdf, EffortIsClampedToTheEffortLimit) {
   EXPECT_EQ(m->commandedEffort(b), 10.0);
   m->setEffort(b, -50.0);
   EXPECT_EQ(m->commandedEffort(b), -10.0);
-  EXPECT_THROW(m->setEffort(b, NAN), std::invalid_argument);
+  EXPECT_THROW(m->setEffort(b, NAN), UsageError);
 }
 
 TEST(Urdf, ScrewJackLiftsByLeadPerTurn) {
@@ -259,7 +259,7 @@ TEST(EmbeddingApi, ModelQueriesAgreeWithTheCore) {
   EXPECT_EQ(m->gravity(), Vector3d(0, 0, -9.81));
   m->setGravity(Vector3d(0, 0, -1.62));
   EXPECT_EQ(core.gravity(), Vector3d(0, 0, -1.62));
-  EXPECT_THROW(m->setGravity(Vector3d(0, NAN, 0)), std::invalid_argument);
+  EXPECT_THROW(m->setGravity(Vector3d(0, NAN, 0)), UsageError);
 }
 
 // The dependent equations are a property of the joints, not of where a link's centre of

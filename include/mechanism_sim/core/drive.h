@@ -27,7 +27,7 @@ struct PathKnot {
 // Immutable; a State shares it (DriveRamp::path).
 class DrivePath {
  public:
-  // Throws std::invalid_argument: no knot, times not increasing, a value not finite.
+  // Throws UsageError: no knot, times not increasing, a value not finite.
   explicit DrivePath(std::vector<PathKnot> knots);
   // The path from a drive's motion `start` through points (t_i > start.t, q_i), with their
   // velocities v_i and accelerations a_i where given (an empty vector: not given):
@@ -38,7 +38,7 @@ class DrivePath {
   //     spline is kept as it is), 0 at the last point;
   //   - the first knot is `start`, its acceleration included.
   // Every segment is then the quintic Hermite through its two knots. Throws
-  // std::invalid_argument as the constructor, or for arrays of different lengths.
+  // UsageError as the constructor, or for arrays of different lengths.
   static DrivePath through(const PathKnot& start, const std::vector<double>& t, const std::vector<double>& q,
                            const std::vector<double>& v = {}, const std::vector<double>& a = {});
   void eval(double t, double* q, double* q_dot, double* q_ddot) const;
@@ -76,7 +76,7 @@ class DriveProfile {
   enum class Kind { kVelocity, kHarmonic, kSpline };
   static DriveProfile velocity(double v);
   static DriveProfile harmonic(double offset, double amplitude, double frequency, double phase);
-  // Throws std::invalid_argument: fewer than 2 points, times not increasing, not finite.
+  // Throws UsageError: fewer than 2 points, times not increasing, not finite.
   static DriveProfile spline(const std::vector<double>& t, const std::vector<double>& q);
 
   Kind kind() const { return kind_; }

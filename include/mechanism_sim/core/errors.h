@@ -4,7 +4,15 @@
 //   ModelError       a model that cannot be simulated (found when it is built or assembled)
 //   SimulationError  a run that cannot go on (found while stepping)
 //   StepFailure      a step that left the constraints beyond repair (retried halved first)
+//   UsageError       a call the API does not allow: before or after build(), an index that
+//                    names nothing, a non-finite or out-of-range argument, a snapshot of
+//                    another mechanism, a drive profile or path with bad points
 //   InternalError    an invariant of this code failed: a bug, not the model's fault
+// The line between ModelError and UsageError: what describes the mechanism (a joint type,
+// a joint's parameters, a body, the assembly targets) is a ModelError whenever it is found;
+// what a caller passes to a call (an index, an effort, a step, a command) is a UsageError,
+// before build() and while stepping alike. Nothing in src/core or src/urdf throws a bare
+// std:: exception; a std::exception other than these reaching a caller is a bug.
 #pragma once
 #include <stdexcept>
 #include <string>
@@ -29,6 +37,11 @@ class SimulationError : public Error {
 class StepFailure : public SimulationError {
  public:
   using SimulationError::SimulationError;
+};
+
+class UsageError : public Error {
+ public:
+  using Error::Error;
 };
 
 class InternalError : public Error {

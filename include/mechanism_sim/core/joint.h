@@ -137,10 +137,10 @@ struct JointTypeInfo {
     return relative_pose(q, params);
   }
 };
-// Throws std::invalid_argument naming the type when it is unknown.
+// Throws ModelError naming the type when it is unknown.
 const JointTypeInfo& jointTypeInfo(const std::string& type);
 
-// Joint types by name ("revolute", "screw", ...); throws std::invalid_argument on an
+// Joint types by name ("revolute", "screw", ...); throws ModelError on an
 // unknown type or parameters the type cannot take.
 std::unique_ptr<Joint> makeJoint(const std::string& type, const std::string& name, int body_i,
                                  const JointFrame& frame_i, int body_j,

@@ -50,8 +50,9 @@ class Stepper {
   static constexpr double kKappa = 1e7;  // weight of the equations in H (stepper.cpp)
   explicit Stepper(const System& sys);
 
-  // Advances s by h under the inputs. Throws std::runtime_error (naming the constraint)
-  // when the step leaves the constraints beyond repair.
+  // Advances s by h under the inputs. Throws StepFailure (naming the constraint) when the
+  // step leaves the constraints beyond repair, SimulationError when the run cannot go on,
+  // UsageError for an h that is not positive and finite; s is then as it was.
   void step(const System& sys, State& s, const Inputs& in, double h);
   // Evaluates at s and solves accelerations and multipliers (s.acc, s.lambda) with the
   // friction efforts in s; after it the queries below describe s.

@@ -140,13 +140,13 @@ class MechanismModel {
   void setEffort(int dof, double tau);
   double commandedEffort(int dof) const { return command_[dof]; }
   // A velocity-driven dof moves to velocity v from now, at acceleration at most acc (> 0).
-  // Throws std::invalid_argument naming the dof (not driven, a profile drive, bad value).
+  // Throws UsageError naming the dof (not driven, a profile drive, bad value).
   void commandDriveVelocity(int dof, double v, double acc);
   // What the drive of a dof prescribes now (throws if the dof is not driven).
   double driveVelocity(int dof) const;
   // A free dof becomes velocity-driven from now on, going on at its current velocity until
   // commanded (Mechanism::addDrive after build; trajectory.h gives it a path); reset()
-  // frees it again. Throws std::invalid_argument naming the dof (driven already, or its
+  // frees it again. Throws UsageError naming the dof (driven already, or its
   // motion follows from the other joints and drives), the model unchanged.
   void driveDof(int dof);
   // Frees a dof that driveDof() drove (the drives after it move down by one).

@@ -13,9 +13,9 @@
 namespace mechanism_sim {
 
 // A trajectory that cannot be followed; what() is the reason, naming the dof or point.
-class TrajectoryError : public std::invalid_argument {
+class TrajectoryError : public UsageError {
  public:
-  using std::invalid_argument::invalid_argument;
+  using UsageError::UsageError;
 };
 
 struct Trajectory {

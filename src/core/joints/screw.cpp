@@ -1,7 +1,8 @@
 #include "mechanism_sim/core/joints/screw.h"
 
 #include <cmath>
-#include <stdexcept>
+
+#include "mechanism_sim/core/errors.h"
 
 namespace mechanism_sim {
 
@@ -15,7 +16,7 @@ std::unique_ptr<Joint> ScrewJoint::make(const std::string& name, int bi, const J
   // alpha = 0 is a revolute joint written as a screw (allowed here; the URDF loader
   // rejects a zero lead as a likely mistake).
   if (!std::isfinite(params.alpha) || !std::isfinite(params.phi0))
-    throw std::invalid_argument("screw joint '" + name + "': lead must be finite");
+    throw ModelError("screw joint '" + name + "': lead must be finite");
   return std::make_unique<ScrewJoint>(name, bi, fi, bj, fj, params.alpha, params.phi0);
 }
 
