@@ -157,6 +157,7 @@ void Mechanism::setJointFriction(int joint, int k, double f) {
 void Mechanism::setIntegrator(const IntegratorOptions& options) {
   options.validate();
   editable().options = options;
+  if (stepper_) stepper_->setMethod(parseMethod(options.method));  // the Stepper holds the integrator
 }
 
 void Mechanism::build() {

@@ -134,7 +134,9 @@ Stepper::Stepper(const System& sys) {
   zeros(r2_, sys.m), zeros(s2_, sys.m), zeros(dm_, sys.m), zeros(dl_, sys.m), zeros(query_, sys.m);
   zeros(Q_, sys.n), zeros(a_, sys.n), zeros(r1_, sys.n), zeros(s1_, sys.n), zeros(dn_, sys.n);
   zeros(x0_, 7 * sys.nb), zeros(u0_, sys.n), zeros(xs_, 7 * sys.nb), zeros(us_, sys.n);
-  for (int s = 0; s < 4; ++s) zeros(kx_[s], 7 * sys.nb), zeros(ku_[s], sys.n);
+  tableau_ = &tableau(parseMethod(sys.options.method));
+  for (int s = 0; s < Tableau::kMaxStages; ++s) zeros(kx_[s], 7 * sys.nb), zeros(ku_[s], sys.n);
+  zeros(sum_x_, 7 * sys.nb), zeros(sum_u_, sys.n);
   chol_.analyze(sys.nb, sys.block_edges);
   zeros(zero_rows_, sys.m);
   body_scale_.assign(sys.nb, {0.0, 0.0});
@@ -1088,40 +1090,35 @@ void Stepper::stepOnce(const System& sys, State& s, const Inputs& in, double h) 
       for (int k = 0; k < 2; ++k) s.tracked[ci][k] = tracked0_[ci][k] + tracked_rate_[ci][k] * dt;
   };
   const double t0 = s.t;
-  auto stage = [&](int k, double c, int from) {
-    xs_ = x0_ + (c * h) * kx_[from];
-    us_ = u0_ + (c * h) * ku_[from];
-    predictTracked(c * h);
-    s.t = t0 + c * h;  // rheonomic equations (drives) are evaluated at the stage's time
+  // y = y0 + (h / den) (sum_j w_j k_j) over the first n rates k (tableau.h: the sum in
+  // order of j, zero weights skipped, into sum, preallocated).
+  auto combine = [h](const double* w, int n, double den, const Eigen::VectorXd& y0, const Eigen::VectorXd* k,
+                     Eigen::VectorXd& sum, Eigen::VectorXd& y) {
+    bool first = true;
+    for (int j = 0; j < n; ++j) {
+      if (w[j] == 0.0) continue;
+      if (first) sum = w[j] * k[j];
+      else sum += w[j] * k[j];
+      first = false;
+    }
+    y = y0 + (h / den) * sum;
+  };
+  const Tableau& T = *tableau_;
+  for (int k = 1; k < T.stages; ++k) {
+    combine(T.a[k], k, T.a_den[k], x0_, kx_, sum_x_, xs_);
+    combine(T.a[k], k, T.a_den[k], u0_, ku_, sum_u_, us_);
+    const double dt = T.c[k] * h;
+    predictTracked(dt);
+    s.t = t0 + dt;  // rheonomic equations (drives) are evaluated at the stage's time
     // the row weights only precondition: computed at the first stage, kept for the step
     rates(sys, s, in, s.friction, xs_.data(), us_.data(), kx_[k].data(), ku_[k].data(), k == 1);
-  };
-  if (sys.options.method == "rk2") {  // Heun
-    stage(1, 1.0, 0);
-    s.x = x0_ + (0.5 * h) * (kx_[0] + kx_[1]);
-    s.u = u0_ + (0.5 * h) * (ku_[0] + ku_[1]);
-  } else if (sys.options.method == "rk3") {
-    // Kutta's third-order method (Hairer, Norsett & Wanner I, II.1): c = 0, 1/2, 1,
-    // stage 3 at x0 + h (2 k2 - k1), weights 1/6, 4/6, 1/6. Its stability region holds the
-    // imaginary axis up to |w h| = sqrt(3) (Heun's holds none of it), so an undamped
-    // oscillation does not grow; three solves a step instead of RK4's four.
-    stage(1, 0.5, 0);
-    kx_[3] = 2.0 * kx_[1] - kx_[0];  // stage 3 starts from x0 + h (2 k2 - k1)
-    ku_[3] = 2.0 * ku_[1] - ku_[0];
-    stage(2, 1.0, 3);
-    s.x = x0_ + (h / 6.0) * (kx_[0] + 4.0 * kx_[1] + kx_[2]);
-    s.u = u0_ + (h / 6.0) * (ku_[0] + 4.0 * ku_[1] + ku_[2]);
-  } else {  // classical RK4
-    stage(1, 0.5, 0);
-    stage(2, 0.5, 1);
-    stage(3, 1.0, 2);
-    s.x = x0_ + (h / 6.0) * (kx_[0] + 2.0 * kx_[1] + 2.0 * kx_[2] + kx_[3]);
-    s.u = u0_ + (h / 6.0) * (ku_[0] + 2.0 * ku_[1] + 2.0 * ku_[2] + ku_[3]);
   }
   for (int b = 0; b < sys.nb; ++b) s.x.segment<4>(7 * b + 3).normalize();
   predictTracked(h);  // references near the new angles; finishStep tracks them exactly
   s.t = t0 + h;
   ++s.steps;
+  combine(T.b, T.stages, T.b_den, x0_, kx_, sum_x_, s.x);
+  combine(T.b, T.stages, T.b_den, u0_, ku_, sum_u_, s.u);
   finishStep(sys, s, in, true);
 }
 

@@ -52,10 +52,6 @@
 namespace mechanism_sim {
 namespace {
 
-// s_k above which a damped coordinate is stiff for the integrator `method` (2.).
-double stiffBound(const std::string& method) {
-  return method == "rk2" ? 1.0 : method == "rk3" ? 1.6 : 2.0;
-}
 // The refinement's limits: at most kMaxPasses passes; a correction below kRoundOff of the
 // velocities' scale is round-off, and the refinement stops there.
 constexpr int kMaxPasses = 12;
@@ -103,7 +99,7 @@ bool Stepper::classifyDamping(const System& sys, const State& s, double h) {
     }
   }
   if (!any) return false;
-  const double stiff = stiffBound(sys.options.method);
+  const double stiff = tableau_->stiff_bound;  // s_k above which a coordinate is stiff (2.)
   for (int j = 0; j < nj; ++j) {
     const Joint& jt = *sys.joints[j];
     for (int k = 0; k < jt.dof(); ++k) {

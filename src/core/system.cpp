@@ -8,6 +8,7 @@
 #include <Eigen/Eigenvalues>
 
 #include "mechanism_sim/core/couplers.h"
+#include "mechanism_sim/core/tableau.h"
 
 namespace mechanism_sim {
 namespace {
@@ -32,9 +33,14 @@ void validateBody(const Body& b) {
 
 }  // namespace
 
+Method parseMethod(const std::string& name) {
+  for (Method m : {Method::kRk4, Method::kRk3, Method::kRk2})
+    if (name == tableau(m).name) return m;
+  throw ModelError("unknown integrator '" + name + "' (known: rk4, rk3, rk2)");
+}
+
 void IntegratorOptions::validate() const {
-  if (method != "rk4" && method != "rk2" && method != "rk3")
-    throw ModelError("unknown integrator '" + method + "' (known: rk4, rk3, rk2)");
+  parseMethod(method);
   if (!(position_tol > 0) || !(velocity_tol > 0) || !(solve_tol > 0))
     throw ModelError("integrator tolerances must be positive");
 }

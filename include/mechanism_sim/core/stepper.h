@@ -22,6 +22,7 @@
 #include "mechanism_sim/core/block_cholesky.h"
 #include "mechanism_sim/core/dependencies.h"
 #include "mechanism_sim/core/system.h"
+#include "mechanism_sim/core/tableau.h"
 
 namespace mechanism_sim {
 
@@ -48,7 +49,11 @@ void loadKinematics(const System& sys, const double* x, const double* u, std::ve
 class Stepper {
  public:
   static constexpr double kKappa = 1e7;  // weight of the equations in H (stepper.cpp)
-  explicit Stepper(const System& sys);
+  explicit Stepper(const System& sys);  // integrates with sys.options.method
+
+  // The integrator from here on (Mechanism::setIntegrator: the System's options changed).
+  void setMethod(Method m) { tableau_ = &tableau(m); }
+  const Tableau& method() const { return *tableau_; }
 
   // Advances s by h under the inputs. Throws StepFailure (naming the constraint) when the
   // step leaves the constraints beyond repair, SimulationError when the run cannot go on,
@@ -223,7 +228,9 @@ class Stepper {
   std::vector<std::vector<char>> kkt_transposed_;
   std::vector<int> kkt_added_;      // off-diagonal blocks the penalized equations add to
   Eigen::VectorXd z_, zero_rows_;
-  Eigen::VectorXd x0_, u0_, xs_, us_, kx_[4], ku_[4];
+  const Tableau* tableau_ = &kRk4;  // the integrator (tableau.h)
+  // The step's start, a stage's start, the stages' rates and a weighted sum of them.
+  Eigen::VectorXd x0_, u0_, xs_, us_, kx_[Tableau::kMaxStages], ku_[Tableau::kMaxStages], sum_x_, sum_u_;
   // The evaluation and factorization describe this state (compared by content, so no
   // flag has to be kept in step with anything).
   Eigen::VectorXd eval_x_, eval_u_;
