@@ -1113,12 +1113,12 @@ void Stepper::stepOnce(const System& sys, State& s, const Inputs& in, double h) 
     // the row weights only precondition: computed at the first stage, kept for the step
     rates(sys, s, in, s.friction, xs_.data(), us_.data(), kx_[k].data(), ku_[k].data(), k == 1);
   }
+  combine(T.b, T.stages, T.b_den, x0_, kx_, sum_x_, s.x);
+  combine(T.b, T.stages, T.b_den, u0_, ku_, sum_u_, s.u);
   for (int b = 0; b < sys.nb; ++b) s.x.segment<4>(7 * b + 3).normalize();
   predictTracked(h);  // references near the new angles; finishStep tracks them exactly
   s.t = t0 + h;
   ++s.steps;
-  combine(T.b, T.stages, T.b_den, x0_, kx_, sum_x_, s.x);
-  combine(T.b, T.stages, T.b_den, u0_, ku_, sum_u_, s.u);
   finishStep(sys, s, in, true);
 }
 
