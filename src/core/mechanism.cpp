@@ -317,9 +317,9 @@ std::vector<Reaction> Mechanism::jointReactions() const {
   };
   std::vector<int> joint_of(sys.constraints.size(), -1);
   for (int j = 0; j < numJoints(); ++j) joint_of[sys.joint_constraint[j]] = j;
-  for (int ci = 0; ci < numConstraints(); ++ci) {
   EvalContext ctx;
   ctx.limit_side = s.limit_side.data();
+  for (int ci = 0; ci < numConstraints(); ++ci) {
     const ConstraintLayout& L = sys.layout[ci];
     const Constraint& c = *sys.constraints[ci];
     if (joint_of[ci] >= 0) {  // the joint's own equations: -Phi_q^T lambda on body j
