@@ -12,12 +12,6 @@
 namespace mechanism_sim {
 namespace {
 
-std::string fmt(double x) {
-  std::ostringstream os;
-  os.precision(3);
-  os << x;
-  return os.str();
-}
 
 // Assembly's limits: Levenberg-Marquardt iterations on the positions, augmented Lagrangian
 // passes on the velocities, and the relative residual above which either fails (ModelError:

@@ -35,12 +35,6 @@ constexpr int kMaxVelocityPasses = 8;
 constexpr int kMaxHalvings = 6;
 constexpr double kMaxTurn = 0.25;  // rad a body may turn in one step (phase error < 1e-6 rad)
 
-std::string fmt(double x) {
-  std::ostringstream os;
-  os.precision(3);
-  os << x;
-  return os.str();
-}
 
 // max of |r1| s1 and |r2| s2 (either may be empty: a mechanism without constraints).
 inline double scaledMax(const Eigen::VectorXd& r1, const Eigen::VectorXd& s1, const Eigen::VectorXd& r2,
@@ -185,19 +179,16 @@ Stepper::Stepper(const System& sys) {
 DependencyReport Stepper::analyzeDependencies(const System& sys, State& s) {
   if (!dependencies_.ready()) dependencies_.init(sys);
   DependencyReport report;
-  std::fill(s.dropped.begin(), s.dropped.end(), 0);
   load(sys, s.x.data(), s.u.data());
-  evaluate(sys, s);
-  dependencies_.analyze(sys, kin_, J_, s.limit_side.data(), s.dropped, &report);
-  evaluate(sys, s);
+  refreshDependencies(sys, s, &report);
   return report;
 }
 
-bool Stepper::refreshDependencies(const System& sys, State& s) {
+bool Stepper::refreshDependencies(const System& sys, State& s, DependencyReport* report) {
   dropped_before_ = s.dropped;
   std::fill(s.dropped.begin(), s.dropped.end(), 0);
-  evaluate(sys, s);
-  dependencies_.analyze(sys, kin_, J_, s.limit_side.data(), s.dropped, nullptr);
+  evaluate(sys, s);  // every row, none dropped
+  dependencies_.analyze(sys, kin_, J_, s.limit_side.data(), s.dropped, report);
   evaluate(sys, s);
   return s.dropped != dropped_before_;
 }
@@ -1161,9 +1152,12 @@ void Stepper::finishStep(const System& sys, State& s, const Inputs& in, bool aft
   // (dependencies.h): a limit reached together with another through a loop is dependent.
   const bool limits_changed = updateLimits(sys, s);
   bool frozen = !limits_changed && after_stages && consistent;
-  if (limits_changed && watch_dependencies_) refreshDependencies(sys, s);
-  if (frozen) std::swap(J_, J_frozen_);
-  evaluate(sys, s);
+  if (limits_changed && watch_dependencies_) {
+    refreshDependencies(sys, s);  // (leaves s evaluated)
+  } else {
+    if (frozen) std::swap(J_, J_frozen_);
+    evaluate(sys, s);
+  }
   bool moved = projectPositions(sys, s, frozen);
   // A projection that stops one joint on its limit moves the joints around it: in a chain
   // it can carry another joint past its own stop (a three-rod chain swinging onto its
@@ -1172,7 +1166,7 @@ void Stepper::finishStep(const System& sys, State& s, const Inputs& in, bool aft
   for (size_t pass = 0; pass < sys.limits.size() && updateLimits(sys, s); ++pass) {
     frozen = false;
     if (watch_dependencies_) refreshDependencies(sys, s);
-    evaluate(sys, s);
+    else evaluate(sys, s);
     moved = projectPositions(sys, s, false) || moved;
   }
   // The rows kept stopped implying the rows dropped: the loop turned in space so that
@@ -1196,7 +1190,7 @@ void Stepper::finishStep(const System& sys, State& s, const Inputs& in, bool aft
     solveKKT(sys, HState::kNearby, s.t);
     if (pass > static_cast<int>(sys.limits.size()) || !releaseLimits(sys, s)) break;
     if (watch_dependencies_) refreshDependencies(sys, s);
-    evaluate(sys, s);
+    else evaluate(sys, s);
     factor(sys, "limit release", s.t);
   }
   s.acc = a_;

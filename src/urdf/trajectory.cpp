@@ -13,12 +13,8 @@
 namespace mechanism_sim {
 namespace {
 
-std::string fmt(double x) {
-  std::ostringstream os;
-  os.precision(6);
-  os << x;
-  return os.str();
-}
+// times and positions with six digits
+std::string fmt6(double x) { return fmt(x, 6); }
 
 // Whether coordinate k of joint j is the first (follower) coordinate of a coupler.
 bool isFollower(const Mechanism& mech, int j, int k) {
@@ -64,8 +60,8 @@ void checkTrajectory(const MechanismModel& model, const Trajectory& traj) {
     if (!std::isfinite(traj.times[i])) throw TrajectoryError("point " + std::to_string(i + 1) + ": time is not finite");
     if (traj.times[i] < 0) throw TrajectoryError("point " + std::to_string(i + 1) + ": time_from_start is negative");
     if (i > 0 && !(traj.times[i] > traj.times[i - 1]))
-      throw TrajectoryError("times must increase: point " + std::to_string(i + 1) + " at " + fmt(traj.times[i]) +
-                            " s does not come after point " + std::to_string(i) + " at " + fmt(traj.times[i - 1]) + " s");
+      throw TrajectoryError("times must increase: point " + std::to_string(i + 1) + " at " + fmt6(traj.times[i]) +
+                            " s does not come after point " + std::to_string(i) + " at " + fmt6(traj.times[i - 1]) + " s");
   }
   checkTable(traj.positions, n, m, "positions");
   checkTable(traj.velocities, n, m, "velocities");
@@ -82,7 +78,7 @@ void followTrajectory(MechanismModel& model, const Trajectory& traj, double star
   size_t first = 0;
   while (first < traj.times.size() && start + traj.times[first] <= now + 1e-9) ++first;
   if (first == traj.times.size())
-    throw TrajectoryError("it ends at t = " + fmt(start + traj.times.back()) + " s, not after the current time " + fmt(now) + " s");
+    throw TrajectoryError("it ends at t = " + fmt6(start + traj.times.back()) + " s, not after the current time " + fmt6(now) + " s");
   const size_t m = traj.dofs.size();
   std::vector<int> dofs(m);
   std::vector<PathKnot> from(m);
@@ -91,9 +87,9 @@ void followTrajectory(MechanismModel& model, const Trajectory& traj, double star
     const Dof& dof = model.dofs()[d];
     const double q = model.position(d), off = traj.positions[0][j] - q;
     if (!(std::fabs(off) <= start_tolerance))
-      throw TrajectoryError("joint '" + dof.name + "': the first point " + fmt(traj.positions[0][j]) + " is " +
-                            fmt(std::fabs(off)) + " from its position " + fmt(q) + " (start tolerance " +
-                            fmt(start_tolerance) + ")");
+      throw TrajectoryError("joint '" + dof.name + "': the first point " + fmt6(traj.positions[0][j]) + " is " +
+                            fmt6(std::fabs(off)) + " from its position " + fmt6(q) + " (start tolerance " +
+                            fmt6(start_tolerance) + ")");
     from[j].t = now;
     if (dof.drive >= 0) mech.driveTarget(dof.drive, &from[j].q, &from[j].v, &from[j].a);
     else from[j] = PathKnot{now, q, model.velocity(d), mech.jointAcceleration(dof.joint_index, dof.k)};
@@ -191,8 +187,8 @@ Trajectory readTrajectoryCsv(const std::string& path) {
       for (int c : vel_col) traj.velocities.back().push_back(value(c));
     }
     if (traj.times.size() > 1 && !(traj.times.back() > traj.times[traj.times.size() - 2]))
-      throw TrajectoryError(where + "times must increase (" + fmt(traj.times.back()) + " s after " +
-                            fmt(traj.times[traj.times.size() - 2]) + " s)");
+      throw TrajectoryError(where + "times must increase (" + fmt6(traj.times.back()) + " s after " +
+                            fmt6(traj.times[traj.times.size() - 2]) + " s)");
   }
   if (traj.times.empty()) throw TrajectoryError(path + ": no point (only a header)");
   return traj;

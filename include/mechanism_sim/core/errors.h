@@ -14,10 +14,19 @@
 // before build() and while stepping alike. Nothing in src/core or src/urdf throws a bare
 // std:: exception; a std::exception other than these reaching a caller is a bug.
 #pragma once
+#include <sstream>
 #include <stdexcept>
 #include <string>
 
 namespace mechanism_sim {
+
+// A number as error messages print it: `precision` significant digits.
+inline std::string fmt(double x, int precision = 3) {
+  std::ostringstream os;
+  os.precision(precision);
+  os << x;
+  return os.str();
+}
 
 class Error : public std::runtime_error {
  public:

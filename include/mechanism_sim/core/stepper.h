@@ -192,8 +192,9 @@ class Stepper {
   // large when the rows kept no longer imply them.
   double droppedResidual(const System& sys) const;
   // Analyzes again (mechanisms whose rows can depend on others: loops, couplers) when the
-  // active limits changed or the dropped rows drifted; returns whether s.dropped changed.
-  bool refreshDependencies(const System& sys, State& s);
+  // active limits changed or the dropped rows drifted; returns whether s.dropped changed and
+  // leaves s evaluated (kinematics loaded at s).
+  bool refreshDependencies(const System& sys, State& s, DependencyReport* report = nullptr);
   [[noreturn]] void leftConstraints(const System& sys, double t, double err) const;
 
   std::vector<BodyKin> kin_;
