@@ -1,8 +1,8 @@
 // bench_factor: the step's linear algebra against the library baselines (issue 7, item 4).
 // For harness mechanisms (bench/harness_models.h) at their assembled state, H =
 // M + kappa Phi_q^T W Phi_q (loops) or the tree KKT matrix [M J^T; J 0] (chains, "-kkt")
-// is built exactly as the stepper builds it (Stepper::evaluate, rowWeights, assembleH with
-// Stepper::kKappa, or assembleKKT), then one numeric factorization and one solve are timed
+// is built exactly as the stepper builds it (evaluateAt, rowWeights, PenaltyForm::assemble
+// with ConstraintSolver::kKappa, or TreeKktSolver::assembleKKT), then one numeric factorization and one solve are timed
 // per iteration with
 //   BlockCholesky      the core's 6x6 block Cholesky (factorize(0, false) + solve; on the
 //                      KKT matrix its signed L S L^T in the tree order);
@@ -34,7 +34,7 @@
 #include <benchmark/benchmark.h>
 
 #include "harness_models.h"
-#include "mechanism_sim/core/stepper.h"
+#include "mechanism_sim/core/solver.h"
 #if __has_include("mechanism_sim/core/sparse_ldlt.h")
 #include "mechanism_sim/core/sparse_ldlt.h"
 #define HAVE_SPARSE_LDLT 1
@@ -51,13 +51,15 @@ namespace {
 // The matrix of one case at its assembled state, as the stepper's block storage holds it
 // before factorization and as compressed columns (lower triangle, and both triangles): H,
 // or with `kkt` the tree KKT matrix [M J^T; J 0] (bodies and tree joints as block rows,
-// Stepper::assembleKKT), whose libraries get the stepper's elimination order (any other
+// TreeKktSolver::assembleKKT), whose libraries get the stepper's elimination order (any other
 // order may meet a joint's zero block first).
 struct Problem {
   std::string name;
   bool kkt = false;
   std::unique_ptr<ms::MechanismModel> model;
-  std::unique_ptr<ms::Stepper> stepper;
+  ms::SolverStats stats;
+  ms::Evaluation ev;
+  std::unique_ptr<ms::ConstraintSolver> solver;
   ms::BlockCholesky* ch = nullptr;
   std::vector<ms::BlockCholesky::Block> blocks;
   SpMat lower, full, lower_p, full_p;  // _p: in elimination order (kkt)
@@ -70,17 +72,19 @@ struct Problem {
     model = harness::loadCase(kase, N);
     const ms::System& sys = model->mechanism().system();
     const ms::State& s = model->mechanism().state();
-    stepper.reset(new ms::Stepper(sys));
-    stepper->load(sys, s.x.data(), s.u.data());
-    stepper->evaluate(sys, s);
-    stepper->rowWeights(sys);
+    ev = ms::Evaluation(sys);
+    ms::evaluateAt(sys, s, ev);
+    ms::rowWeights(sys, ev, sys.all_constraints);
     if (kkt) {
-      ch = &stepper->kkt();
-      if (ch->size() == 0) throw std::runtime_error(label + ": not a tree");
-      stepper->assembleKKT(sys);  // as Stepper::factor does
+      if (!sys.tree.tree) throw std::runtime_error(label + ": not a tree");
+      auto tree = std::make_unique<ms::TreeKktSolver>(sys, stats);
+      ch = &tree->kkt();
+      tree->assembleKKT(sys, ev);  // as TreeKktSolver::factor does
+      solver = std::move(tree);
     } else {
-      ch = &stepper->cholesky();
-      stepper->assembleH(sys, ms::Stepper::kKappa, 1.0, 0.0);  // as Stepper::factor does
+      solver = std::make_unique<ms::PenaltySolver>(sys, stats);
+      ch = &solver->penalty().cholesky();
+      solver->penalty().assemble(sys, ev, ms::ConstraintSolver::kKappa, 1.0, 0.0);  // as PenaltyForm::factor does
     }
     for (int a = 0; a < ch->size() + ch->offDiagonalBlocks(); ++a) blocks.push_back(ch->block(a));
     // the stored blocks: H(i, j) at its address

@@ -1,4 +1,4 @@
-// Assembly (a function of System, State and a Stepper's building blocks): bring rough
+// Assembly (a function of System, State, a Stepper's evaluation record and solver): bring rough
 // positions onto the constraints, check that every free motion moves mass, find the
 // dependent equations, and project the velocities.
 #include <algorithm>
@@ -30,46 +30,29 @@ constexpr const char* kSingularAtAssembly =
 // M + Phi_q^T W Phi_q (W: row weights, so the matrix is well conditioned) must be positive
 // definite: every motion the joints allow moves some mass. A zero pivot names a body that
 // can move without moving mass.
-void checkMassRank(const System& sys, Stepper& st) {
-  st.rowWeights(sys);
-  st.assembleH(sys, 1.0, 1.0, 0.0);
-  if (st.cholesky().factorize(1e-10, true) == 0) return;
+void checkMassRank(const System& sys, Evaluation& ev, PenaltyForm& H) {
+  rowWeights(sys, ev, sys.all_constraints);
+  H.assemble(sys, ev, 1.0, 1.0, 0.0);
+  if (H.factorize(1e-10, true) == 0) return;
   std::ostringstream os;
   os << "bodies that can move without moving any mass:";
   for (int b = 1; b <= sys.nb; ++b) {
     bool zero = false;
-    for (int r = 0; r < 6; ++r) zero = zero || st.cholesky().zeroPivot(b - 1, r);
+    for (int r = 0; r < 6; ++r) zero = zero || H.zeroPivot(b - 1, r);
     if (zero) os << " '" << sys.bodies[b].name << "'";
   }
   os << " (give them mass and inertia, or joints that fix every direction they can move in)";
   throw ModelError(os.str());
 }
 
-Row coordinateRow(const System& sys, const State& s, const Stepper& st, const CoordinateTarget& t) {
-  const Joint& j = *sys.joints[t.joint];
+Row coordinateRow(const System& sys, const State& s, const Evaluation& ev, const CoordinateTarget& t) {
   Row rows[kMaxJointDofs];
-  j.coordinates(st.kin()[j.bodyI()], st.kin()[j.bodyJ()], s.tracked[j.id()], rows);
+  jointRows(sys, ev, s, t.joint, rows);
   return rows[t.k];
 }
 
-// Adds x * row^T into out over the joint's two bodies.
-void addRowT(const System& sys, const CoordinateTarget& t, const Row& row, double x, double* out) {
-  const int bs[2] = {sys.joints[t.joint]->bodyI(), sys.joints[t.joint]->bodyJ()};
-  for (int s = 0; s < 2; ++s)
-    if (bs[s] != System::kGround)
-      for (int c = 0; c < 6; ++c) out[6 * (bs[s] - 1) + c] += row.J(6 * s + c) * x;
-}
-
-double rowDot(const System& sys, const CoordinateTarget& t, const Row& row, const Eigen::VectorXd& u) {
-  const int bs[2] = {sys.joints[t.joint]->bodyI(), sys.joints[t.joint]->bodyJ()};
-  double v = 0;
-  for (int s = 0; s < 2; ++s)
-    if (bs[s] != System::kGround) v += row.J.segment<6>(6 * s).dot(u.segment<6>(6 * (bs[s] - 1)));
-  return v;
-}
-
 // What a coordinate row's rate is judged against beside its target: the row's columns
-// times the mechanism's motion scale V (Stepper::motionScale, max over bodies of
+// times the mechanism's motion scale V (motionScale, max over bodies of
 // max(|v|, |w| L); all at rest, the gravity's velocity scale), for linear and V / L for
 // angular velocities. A
 // target of 0 is met when the rate is 0 to the rounding of the motion. (Judged against
@@ -97,6 +80,8 @@ AssemblyReport assemble(const System& sys, State& s, Stepper& st,
     if (!std::isfinite(t.value))
       throw ModelError("joint '" + sys.joints[t.joint]->name() + "': initial " + what + " not finite");
   };
+  Evaluation& ev = st.evaluation();
+  PenaltyForm& H = st.solver().penalty();
   st.load(sys, s.x.data(), s.u.data());
   std::fill(s.dropped.begin(), s.dropped.end(), 0);
   for (const auto& t : positions) {
@@ -118,14 +103,15 @@ AssemblyReport assemble(const System& sys, State& s, Stepper& st,
   const int nt = static_cast<int>(positions.size());
   auto residual = [&](double* cost) {
     st.evaluate(sys, s);
-    const Eigen::VectorXd& W = st.rowWeights(sys);
-    double worst = st.positionResidual(sys), sum = 0;
-    for (int e = 0; e < sys.m; ++e) sum += W[e] * st.Phi()[e] * st.Phi()[e];
+    rowWeights(sys, ev, sys.all_constraints);
+    const Eigen::VectorXd& W = ev.W;
+    double worst = positionResidual(sys, ev), sum = 0;
+    for (int e = 0; e < sys.m; ++e) sum += W[e] * ev.Phi[e] * ev.Phi[e];
     for (const auto& t : positions) {
-      const Row row = coordinateRow(sys, s, st, t);
+      const Row row = coordinateRow(sys, s, ev, t);
       const double r = row.Phi - t.value;
       Eigen::MatrixXd J = row.J;
-      const double scale = st.rowScale(*sys.joints[t.joint], J, 0) + std::fabs(t.value);
+      const double scale = rowScale(sys, ev, *sys.joints[t.joint], J, 0) + std::fabs(t.value);
       worst = std::max(worst, scale > 0 ? std::fabs(r) / scale : std::fabs(r));
       const double w = 1.0 / std::max(1e-300, row.J.squaredNorm());
       sum += w * r * r;
@@ -141,26 +127,27 @@ AssemblyReport assemble(const System& sys, State& s, Stepper& st,
   std::vector<Tracked> saved_tracked;
   for (int it = 0; it < kMaxPositionIterations && worst > tol; ++it) {
     report.iterations = it + 1;
-    const Eigen::VectorXd W = st.rowWeights(sys);
-    st.assembleH(sys, 1.0, 0.0, mu);
+    rowWeights(sys, ev, sys.all_constraints);
+    const Eigen::VectorXd W = ev.W;
+    H.assemble(sys, ev, 1.0, 0.0, mu);
     dq.setZero();
     Eigen::VectorXd y(sys.m);
-    for (int e = 0; e < sys.m; ++e) y[e] = -W[e] * st.Phi()[e];
-    st.addJt(sys, y.data(), dq.data());
+    for (int e = 0; e < sys.m; ++e) y[e] = -W[e] * ev.Phi[e];
+    addJt(sys, ev, sys.all_constraints, y.data(), dq.data());
     for (int k = 0; k < nt; ++k) {
       const CoordinateTarget& t = positions[k];
-      const Row row = coordinateRow(sys, s, st, t);
+      const Row row = coordinateRow(sys, s, ev, t);
       const double w = 1.0 / std::max(1e-300, row.J.squaredNorm());
       // weight the target row like a constraint row of the joint's bodies
       Eigen::MatrixXd R = row.J;
-      st.addRowsToH(sys, sys.joints[t.joint]->id(), R, w * 1.0);
-      addRowT(sys, t, row, -w * (row.Phi - t.value), dq.data());
+      H.addRows(sys, sys.joints[t.joint]->id(), R, w * 1.0);
+      scatterRow(sys, t.joint, row, -w * (row.Phi - t.value), dq.data());
     }
-    if (st.cholesky().factorize(1e-15, true) != 0) {
+    if (H.factorize(1e-15, true) != 0) {
       mu *= 10;
       continue;
     }
-    st.cholesky().solve(dq.data());
+    H.solve(dq.data());
     saved_x = s.x;
     saved_tracked = s.tracked;
     displace(sys, s.x, dq.data());
@@ -184,20 +171,20 @@ AssemblyReport assemble(const System& sys, State& s, Stepper& st,
   report.position_residual = worst;
   if (worst > std::max(tol, kFailureResidual)) {
     std::ostringstream os;
-    os << "the mechanism does not close (largest residual " << fmt(st.positionViolation()) << "):";
+    os << "the mechanism does not close (largest residual " << fmt(positionViolation(ev)) << "):";
     for (int ci = 0; ci < sys.numConstraints(); ++ci) {
       const ConstraintLayout& L = sys.layout[ci];
-      const double r = L.size ? st.Phi().segment(L.row, L.size).cwiseAbs().maxCoeff() : 0.0;
+      const double r = L.size ? ev.Phi.segment(L.row, L.size).cwiseAbs().maxCoeff() : 0.0;
       if (r > 1e-8 * sys.length_scale) os << " '" << sys.constraints[ci]->name() << "' (" << fmt(r) << ")";
     }
     for (const DriveSpec& D : sys.drives) {
       const ConstraintLayout& L = sys.layout[D.constraint];
-      const double r = std::fabs(st.Phi()[L.row]);
+      const double r = std::fabs(ev.Phi[L.row]);
       if (r > 1e-8 * sys.length_scale)
         os << "; the drive of '" << sys.joints[D.joint]->name() << "' asks for a position the mechanism cannot reach (off by " << fmt(r) << ")";
     }
     for (const auto& t : positions) {
-      const double r = coordinateRow(sys, s, st, t).Phi - t.value;
+      const double r = coordinateRow(sys, s, ev, t).Phi - t.value;
       if (std::fabs(r) > 1e-8 * (1 + std::fabs(t.value)))
         os << " initial position of '" << sys.joints[t.joint]->name() << "' (off by " << fmt(r) << ")";
     }
@@ -209,7 +196,7 @@ AssemblyReport assemble(const System& sys, State& s, Stepper& st,
   // defined in is accepted.
   for (int j = 0; j < sys.numJoints(); ++j) {
     const Joint& jt = *sys.joints[j];
-    const JointGeometry g = jt.geometry(st.kin()[jt.bodyI()], st.kin()[jt.bodyJ()], kBxI | kBzI | kBxJ | kBzJ);
+    const JointGeometry g = jt.geometry(ev.kin[jt.bodyI()], ev.kin[jt.bodyJ()], kBxI | kBzI | kBxJ | kBzJ);
     const bool parallel = jt.holdsAxesParallel();
     const bool twist = parallel && jt.locksTwist();
     const double cz = g.bz_i.a.dot(g.bz_j.a), cx = g.bx_i.a.dot(g.bx_j.a);
@@ -223,7 +210,7 @@ AssemblyReport assemble(const System& sys, State& s, Stepper& st,
   // An initial position outside a joint's limits is an error, never a jump.
   for (const LimitSpec& L : sys.limits) {
     const CoordinateTarget t{L.joint, L.k, 0.0};
-    const double q = coordinateRow(sys, s, st, t).Phi;
+    const double q = coordinateRow(sys, s, ev, t).Phi;
     const double slack = 1e-9 * (std::fabs(L.lower) + std::fabs(L.upper) + sys.length_scale);
     if (q < L.lower - slack || q > L.upper + slack) {
       std::ostringstream os;
@@ -232,42 +219,44 @@ AssemblyReport assemble(const System& sys, State& s, Stepper& st,
       throw ModelError(os.str());
     }
   }
-  checkMassRank(sys, st);
+  checkMassRank(sys, ev, H);
   const DependencyReport dependencies = st.analyzeDependencies(sys, s);
   if (deps) *deps = dependencies;
 
   // ---- velocities: mass-orthogonal projection onto Phi_q v = 0 and G_k v = target by the
   // augmented Lagrangian, starting from the bodies' own velocities.
   try {
-    st.factorHere(sys, s.t);
+    st.solver().factorPenalty(sys, ev, "assembly", s.t);
   } catch (const SimulationError&) {  // factor(): singular; at assembly that is the model's fault
     throw ModelError(kSingularAtAssembly);
   }
-  const Eigen::VectorXd W = st.rowWeights(sys);
-  constexpr double kKappa = Stepper::kKappa;
+  rowWeights(sys, ev, sys.all_constraints);
+  const Eigen::VectorXd W = ev.W;
+  constexpr double kKappa = ConstraintSolver::kKappa;
   std::vector<Row> rows;
   std::vector<double> wt;
   for (const auto& t : velocities) {
-    rows.push_back(coordinateRow(sys, s, st, t));
-    wt.push_back(kKappa * st.rowWeight(sys, sys.joints[t.joint]->id(), Eigen::MatrixXd(rows.back().J)));
+    rows.push_back(coordinateRow(sys, s, ev, t));
+    wt.push_back(kKappa * rowWeight(sys, sys.joints[t.joint]->id(), Eigen::MatrixXd(rows.back().J)));
   }
   if (!velocities.empty()) {
-    st.assembleH(sys, kKappa, 1.0, 0.0);
+    H.assemble(sys, ev, kKappa, 1.0, 0.0);
     for (size_t k = 0; k < velocities.size(); ++k) {
       Eigen::MatrixXd R = rows[k].J;
-      st.addRowsToH(sys, sys.joints[velocities[k].joint]->id(), R, wt[k]);
+      H.addRows(sys, sys.joints[velocities[k].joint]->id(), R, wt[k]);
     }
-    if (st.cholesky().factorize(0.0, false) != 0) throw ModelError(kSingularAtAssembly);
+    if (H.factorize(0.0, false) != 0) throw ModelError(kSingularAtAssembly);
   }
   Eigen::VectorXd Mu(sys.n), mu_c = Eigen::VectorXd::Zero(sys.m), Ju(sys.m), y(sys.m);
   std::vector<double> mu_t(velocities.size(), 0.0);
-  st.mulM(sys, s.u.data(), Mu.data());
+  mulM(sys, s.u.data(), Mu.data());
+  std::vector<std::array<double, 2>> scales(sys.nb);
   double vres = 0;
   auto velocityError = [&]() {
-    double worst_v = st.velocityResidual(sys, s.u);
-    const double moving = st.motionScale(sys, s.u), V = moving == 0 ? sys.velocity_scale : moving;
+    double worst_v = velocityResidual(sys, ev, s.u, scales);
+    const double moving = motionScale(sys, s.u), V = moving == 0 ? sys.velocity_scale : moving;
     for (size_t k = 0; k < velocities.size(); ++k) {
-      const double r = rowDot(sys, velocities[k], rows[k], s.u) - velocities[k].value;
+      const double r = rowDot(sys, velocities[k].joint, rows[k], s.u.data()) - velocities[k].value;
       const double scale = std::fabs(velocities[k].value) + rateScale(sys, velocities[k], rows[k], V);
       worst_v = std::max(worst_v, scale > 0 ? std::fabs(r) / scale : std::fabs(r));
     }
@@ -278,15 +267,15 @@ AssemblyReport assemble(const System& sys, State& s, Stepper& st,
     if (vres <= sys.options.velocity_tol) break;
     s.u = Mu;
     // Phi_q v = nu: the drives' rates (zero for scleronomic equations)
-    for (int e = 0; e < sys.m; ++e) y[e] = kKappa * W[e] * st.nu()[e] - mu_c[e];
-    st.addJt(sys, y.data(), s.u.data());
+    for (int e = 0; e < sys.m; ++e) y[e] = kKappa * W[e] * ev.nu[e] - mu_c[e];
+    addJt(sys, ev, sys.all_constraints, y.data(), s.u.data());
     for (size_t k = 0; k < velocities.size(); ++k)
-      addRowT(sys, velocities[k], rows[k], wt[k] * velocities[k].value - mu_t[k], s.u.data());
-    st.cholesky().solve(s.u.data());
-    st.mulJ(sys, s.u.data(), Ju.data());
-    for (int e = 0; e < sys.m; ++e) mu_c[e] += kKappa * W[e] * (Ju[e] - st.nu()[e]);
+      scatterRow(sys, velocities[k].joint, rows[k], wt[k] * velocities[k].value - mu_t[k], s.u.data());
+    H.solve(s.u.data());
+    mulJ(sys, ev, sys.all_constraints, s.u.data(), Ju.data());
+    for (int e = 0; e < sys.m; ++e) mu_c[e] += kKappa * W[e] * (Ju[e] - ev.nu[e]);
     for (size_t k = 0; k < velocities.size(); ++k)
-      mu_t[k] += wt[k] * (rowDot(sys, velocities[k], rows[k], s.u) - velocities[k].value);
+      mu_t[k] += wt[k] * (rowDot(sys, velocities[k].joint, rows[k], s.u.data()) - velocities[k].value);
   }
   report.velocity_residual = vres;
   if (vres > kFailureResidual) {

@@ -166,7 +166,8 @@ void Mechanism::build() {
   state_ = initialState(*sys_);
   inputs_ = zeroInputs(*sys_);
   stepper_ = std::make_unique<Stepper>(*sys_);
-  stepper_->load(*sys_, state_.x.data(), state_.u.data());
+  query_eval_.reset();
+  reactions_.reset();
   built_ = true;
 }
 
@@ -180,18 +181,9 @@ AssemblyReport Mechanism::assemble(const std::vector<CoordinateTarget>& position
 
 void Mechanism::step(double h) {
   if (!built_) throw UsageError("Mechanism::step before build() and assemble()");
-  try {
-    stepper_->step(*sys_, state_, inputs_, h);
-  } catch (...) {
-    // the State is back at the last accepted step (Stepper::step); the queries read the
-    // stepper's evaluation, which the failed step left elsewhere: evaluate there again
-    try {
-      State probe = state_;
-      stepper_->settle(*sys_, probe, inputs_);
-    } catch (...) {
-    }
-    throw;
-  }
+  // (a step that fails leaves the State at the last accepted step: the queries compute
+  // from it, not from the stepper's evaluation, which the failed step left elsewhere)
+  stepper_->step(*sys_, state_, inputs_, h);
 }
 
 void Mechanism::setJointEffort(int joint, int k, double tau) {
@@ -217,10 +209,14 @@ void Mechanism::setSpringActuation(int spring, double f_act) {
 void Mechanism::restore(const Snapshot& s) {
   if (!built_ || s.x.size() != state_.x.size() || s.tracked.size() != state_.tracked.size())
     throw UsageError("Mechanism::restore: the snapshot is of another mechanism");
-  state_ = s;
-  // Queries read the evaluation at the state; stepping does not depend on it.
-  State probe = state_;
-  stepper_->settle(*sys_, probe, inputs_);
+  state_ = s;  // (queries compute from it; stepping goes on from it bit for bit)
+}
+
+const Evaluation& Mechanism::evaluated() const {
+  if (stepper_ && stepper_->evaluation().stamp.describes(state_)) return stepper_->evaluation();
+  if (!query_eval_) query_eval_ = std::make_unique<Evaluation>(*sys_);
+  if (!query_eval_->stamp.describes(state_)) evaluateAt(*sys_, state_, *query_eval_);
+  return *query_eval_;
 }
 
 // ---- queries
@@ -229,7 +225,7 @@ Vector3d Mechanism::position(int b) const { return kin(b).r; }
 Matrix3d Mechanism::rotation(int b) const { return kin(b).A_Oi; }
 Quaterniond Mechanism::orientation(int b) const {
   if (b == kGround) return Quaterniond::Identity();
-  const double* p = state_.x.data() + 7 * (b - 1) + 3;
+  const double* p = state_.x.data() + BodyCoordinates::x(b - 1) + 3;
   return Quaterniond(p[0], p[1], p[2], p[3]).normalized();
 }
 
@@ -251,8 +247,8 @@ double Mechanism::jointVelocity(int joint, int k) const {
 
 double Mechanism::jointEffort(int joint, int k) const {
   checkCoordinate(joint, k);
-  double tau = inputs_.effort[joint][k] - sys_->damping[joint][k] * jointVelocity(joint, k) +
-               state_.friction[joint][k];
+  double tau = appliedEffort(inputs_.effort[joint][k], sys_->damping[joint][k], jointVelocity(joint, k),
+                             state_.friction[joint][k]);
   for (size_t l = 0; l < sys_->limits.size(); ++l)
     if (sys_->limits[l].joint == joint && sys_->limits[l].k == k && state_.limit_side[l])
       tau -= state_.lambda[sys_->layout[sys_->limits[l].constraint].row];
@@ -264,7 +260,7 @@ double Mechanism::jointEffort(int joint, int k) const {
 Reaction Mechanism::reaction(int ci) const {
   const ConstraintLayout& L = sys_->layout.at(ci);
   const Constraint& c = *sys_->constraints[ci];
-  const Eigen::MatrixXd& J = stepper_->jacobian(ci);
+  const Eigen::MatrixXd J = evaluated().jacobian(*sys_, ci);
   const int k = static_cast<int>(c.bodies().size()) - 1;  // the last body (j of a joint)
   Eigen::Matrix<double, 6, 1> gen = Eigen::Matrix<double, 6, 1>::Zero();
   for (int e = 0; e < L.size; ++e) gen -= J.block<1, 6>(e, 6 * k).transpose() * state_.lambda[L.row + e];
@@ -279,8 +275,8 @@ Reaction Mechanism::reaction(int ci) const {
 
 SolverStats Mechanism::solverStats() const {
   SolverStats s = stepper_->stats();
-  if (reaction_stepper_) {
-    const SolverStats& r = reaction_stepper_->stats();
+  if (reactions_) {
+    const SolverStats& r = reactions_->stats;
     s.solves += r.solves;
     s.solve_shortfalls += r.solve_shortfalls;
     s.worst_solve = std::max(s.worst_solve, r.worst_solve);
@@ -295,8 +291,12 @@ std::vector<Reaction> Mechanism::jointReactions() const {
   bool dependent = false;
   for (char d : s.dropped) dependent = dependent || d;
   if (dependent) {
-    if (!reaction_stepper_) reaction_stepper_ = std::make_unique<Stepper>(sys);
-    reaction_stepper_->minimumNormMultipliers(sys, s, inputs_, lambda);
+    if (!reactions_) {
+      reactions_ = std::make_unique<ReactionSolve>();
+      reactions_->ev = Evaluation(sys);
+      reactions_->solver = makeSolver(sys, reactions_->stats);
+    }
+    minimumNormMultipliers(sys, s, inputs_, reactions_->ev, *reactions_->solver, reactions_->stats, lambda);
   }
   std::vector<Reaction> out(sys.joints.size());
   // wrench of a generalized force gen = [f; n'] on body b, moved to joint point sp_B of b
@@ -323,8 +323,8 @@ std::vector<Reaction> Mechanism::jointReactions() const {
     const ConstraintLayout& L = sys.layout[ci];
     const Constraint& c = *sys.constraints[ci];
     if (joint_of[ci] >= 0) {  // the joint's own equations: -Phi_q^T lambda on body j
-      // (the dependent rows' Jacobian is in the reaction stepper's evaluation only)
-      const Eigen::MatrixXd J = (dependent ? *reaction_stepper_ : *stepper_).jacobian(ci);
+      // (the dependent rows' Jacobian is in the reactions' evaluation only)
+      const Eigen::MatrixXd J = (dependent ? reactions_->ev : evaluated()).jacobian(sys, ci);
       Eigen::Matrix<double, 6, 1> gen = Eigen::Matrix<double, 6, 1>::Zero();
       for (int e = 0; e < L.size; ++e) gen -= J.block<1, 6>(e, 6).transpose() * lambda[L.row + e];
       add(joint_of[ci], gen);
@@ -336,20 +336,24 @@ std::vector<Reaction> Mechanism::jointReactions() const {
   }
   for (int j = 0; j < numJoints(); ++j)  // applied efforts: command, damping, friction
     for (int k = 0; k < sys.joints[j]->dof(); ++k)
-      along(j, k, inputs_.effort[j][k] - sys.damping[j][k] * jointVelocity(j, k) + s.friction[j][k]);
+      along(j, k, appliedEffort(inputs_.effort[j][k], sys.damping[j][k], jointVelocity(j, k), s.friction[j][k]));
   return out;
 }
 
-double Mechanism::positionViolation() const { return stepper_->positionViolation(); }
-double Mechanism::velocityViolation() const { return stepper_->velocityViolation(*sys_, state_.u); }
-double Mechanism::relativePositionViolation() const { return stepper_->positionResidual(*sys_); }
-double Mechanism::relativeVelocityViolation() const { return stepper_->velocityResidual(*sys_, state_.u); }
+double Mechanism::positionViolation() const { return mechanism_sim::positionViolation(evaluated()); }
+double Mechanism::velocityViolation() const { return mechanism_sim::velocityViolation(*sys_, evaluated(), state_.u); }
+double Mechanism::relativePositionViolation() const { return positionResidual(*sys_, evaluated()); }
+double Mechanism::relativeVelocityViolation() const {
+  std::vector<std::array<double, 2>> scales(sys_->nb);
+  return velocityResidual(*sys_, evaluated(), state_.u, scales);
+}
 
 double Mechanism::kineticEnergy() const {
   double T = 0;
   for (int b = 1; b < numBodies(); ++b) {
     const Body& B = sys_->bodies[b];
-    const Eigen::Map<const Vector3d> v(state_.u.data() + 6 * (b - 1)), w(state_.u.data() + 6 * (b - 1) + 3);
+    const double* ub = state_.u.data() + BodyCoordinates::u(b - 1);
+    const Eigen::Map<const Vector3d> v(ub), w(ub + 3);
     T += 0.5 * B.m * v.squaredNorm() + 0.5 * w.dot(B.Jp * w);
   }
   return T;

@@ -81,7 +81,8 @@ std::vector<int> Mechanism::replaceDrives(std::vector<DriveSpec> drives, const s
   sys_ = std::move(sys);
   state_ = std::move(s);
   stepper_ = std::move(stepper);
-  reaction_stepper_.reset();
+  reactions_.reset();
+  query_eval_.reset();
   dependencies_ = deps;
   return {};
 }

@@ -12,7 +12,7 @@
 //     Gershgorin that is at most max_k s_k with
 //        s_k = h sum_l sqrt(c_k c_l) sum_b |G_k,b M_b^-1 G_l,b^T|,
 //     l over the damped coordinates on a body b of k's joint (k included), M_b^-1 the
-//     block-diagonal inverse masses with the stand-ins of rowWeights (Minv_). A ratio of
+//     block-diagonal inverse masses with the stand-ins of the row weights (System::Minv). A ratio of
 //     like quantities: metres or millimetres give the same s_k. Where it exceeds the
 //     threshold, s_k is taken again with P itself (1b.), one solve per such coordinate: a
 //     light link that carries a heavy one is not stiff, its joint moves the heavy one.
@@ -94,7 +94,7 @@ bool Stepper::classifyDamping(const System& sys, const State& s, double h) {
   for (int j = 0; j < nj; ++j) {
     const auto& c = sys.damping[j];
     if (c[0] > 0 || c[1] > 0 || c[2] > 0) {
-      jointRows(sys, s, j, damp_rows_[j].data());
+      jointRows(sys, ev_, s, j, damp_rows_[j].data());
       any = true;
     }
   }
@@ -118,7 +118,7 @@ bool Stepper::classifyDamping(const System& sys, const State& s, double h) {
             const double cl = sys.damping[l][kl];
             if (!(cl > 0)) continue;
             sum += std::sqrt(c * cl) *
-                   std::fabs(inverseMassProduct(g, damp_rows_[l][kl].J.segment<6>(6 * sl), Minv_[b - 1]));
+                   std::fabs(inverseMassProduct(g, damp_rows_[l][kl].J.segment<6>(6 * sl), sys.Minv[b - 1]));
           }
         }
       }
@@ -132,29 +132,21 @@ bool Stepper::classifyDamping(const System& sys, const State& s, double h) {
   // constrained inverse mass itself, P G_k^T from the factored matrix (exactly on a tree's
   // KKT matrix, to 1/kappa with H; H factored at these or nearby positions: a bound needs no
   // more), Gershgorin over every damped coordinate.
-  if (factored_x_.size() == 0 || !std::isfinite(factored_x_[0])) factor(sys, "stage 1", s.t);
+  if (!solver_->factored()) solver_->factor(sys, ev_, "stage 1", s.t);
   size_t kept = 0;
   for (size_t i = 0; i < stiff_.size(); ++i) {
     const StiffRow r = stiff_[i];
-    const Joint& jt = *sys.joints[r.joint];
-    damp_b_.setZero();
-    for (int slot = 0; slot < 2; ++slot) {
-      const int b = slot == 0 ? jt.bodyI() : jt.bodyJ();
-      if (b != System::kGround) damp_b_.segment<6>(6 * (b - 1)) = damp_rows_[r.joint][r.k].J.segment<6>(6 * slot).transpose();
-    }
-    precondition(sys, damp_b_.data(), zero_rows_.data(), false);  // dn_ = P G_k^T
+    Eigen::VectorXd& Pg = solver_->dn();  // P G_k^T
+    Pg.setZero();
+    scatterRow(sys, r.joint, damp_rows_[r.joint][r.k], 1.0, Pg.data());
+    solver_->applyInverseMass(sys, ev_);
     double sum = 0;
     for (int l = 0; l < nj; ++l) {
       const Joint& jl = *sys.joints[l];
       for (int kl = 0; kl < jl.dof(); ++kl) {
         const double cl = sys.damping[l][kl];
         if (!(cl > 0)) continue;
-        double g = 0;
-        for (int slot = 0; slot < 2; ++slot) {
-          const int b = slot == 0 ? jl.bodyI() : jl.bodyJ();
-          if (b != System::kGround) g += damp_rows_[l][kl].J.segment<6>(6 * slot).dot(dn_.segment<6>(6 * (b - 1)));
-        }
-        sum += std::sqrt(r.c * cl) * std::fabs(g);
+        sum += std::sqrt(r.c * cl) * std::fabs(rowDot(sys, l, damp_rows_[l][kl], Pg.data()));
       }
     }
     damping_bound_[r.joint][r.k] = h * sum;
@@ -174,48 +166,43 @@ bool Stepper::classifyDamping(const System& sys, const State& s, double h) {
 void Stepper::implicitDamping(const System& sys, State& s, double h) {
   // The stiff coordinates' rows G_k at these positions (damp_rows_ held those of the
   // step's start), then H + h sum_k c_k G_k^T G_k over the bodies of each one's joint.
-  for (const StiffRow& r : stiff_) jointRows(sys, s, r.joint, damp_rows_[r.joint].data());
-  rowWeights(sys);
-  assembleH(sys, kKappa, 1.0, 0.0);
+  for (const StiffRow& r : stiff_) jointRows(sys, ev_, s, r.joint, damp_rows_[r.joint].data());
+  rowWeights(sys, ev_, sys.all_constraints);
+  PenaltyForm& H = solver_->penalty();
+  H.assemble(sys, ev_, ConstraintSolver::kKappa, 1.0, 0.0);
   for (const StiffRow& r : stiff_)
-    addRowsToH(sys, sys.joint_constraint[r.joint], damp_rows_[r.joint][r.k].J, h * r.c);
+    H.addRows(sys, sys.joint_constraint[r.joint], damp_rows_[r.joint][r.k].J, h * r.c);
   ++stats_.factorizations;
-  if (chol_.factorize(0.0, false) != 0) {
+  if (H.factorize(0.0, false) != 0) {
     std::ostringstream os;
     os << "at t = " << s.t << " s (implicit damping): the constrained mass matrix is singular; some motion moves no mass";
     throw SimulationError(os.str());
   }
-  kkt_mode_ = false;
-  factored_x_.setConstant(NAN);  // not H of the equations alone: whoever needs H factors it
+  solver_->usePenalty(false);  // not H of the equations alone: whoever needs H factors it
   // Refinement of [M + hC, Phi_q^T; Phi_q, 0] [u'; mu] = [M u; nu] from (u, 0), as in
   // solveKKT: r1 = M u - (M + hC) u' - Phi_q^T mu, r2 = nu - Phi_q u'.
   damp_u0_ = s.u;
   mulM(sys, damp_u0_.data(), damp_b_.data());
+  const Eigen::VectorXd& dn = solver_->dn();
   damp_mu_.setZero();  // -mu
   const double scale = motionScale(sys, damp_u0_);
   double previous = HUGE_VAL, step = 0;
   for (int pass = 0; pass < kMaxPasses; ++pass) {
     mulM(sys, s.u.data(), r1_.data());
     r1_ = damp_b_ - r1_;
-    addJt(sys, damp_mu_.data(), r1_.data());
+    addJt(sys, ev_, sys.all_constraints, damp_mu_.data(), r1_.data());
     for (const StiffRow& r : stiff_) {
       const Row* rows = damp_rows_[r.joint].data();
-      const Joint& jt = *sys.joints[r.joint];
-      const int bs[2] = {jt.bodyI(), jt.bodyJ()};
-      double q_dot = 0;
-      for (int b = 0; b < 2; ++b)
-        if (bs[b] != System::kGround) q_dot += rows[r.k].J.segment<6>(6 * b).dot(s.u.segment<6>(6 * (bs[b] - 1)));
-      for (int b = 0; b < 2; ++b)
-        if (bs[b] != System::kGround)
-          r1_.segment<6>(6 * (bs[b] - 1)) -= (h * r.c * q_dot) * rows[r.k].J.segment<6>(6 * b).transpose();
+      const double q_dot = rowDot(sys, r.joint, rows[r.k], s.u.data());
+      scatterRow(sys, r.joint, rows[r.k], -(h * r.c * q_dot), r1_.data());
     }
-    mulJ(sys, s.u.data(), r2_.data());
-    r2_ = nu_ - r2_;
-    precondition(sys, r1_.data(), r2_.data(), true);
-    s.u += dn_;
-    damp_mu_ -= dl_;
+    mulJ(sys, ev_, sys.all_constraints, s.u.data(), r2_.data());
+    r2_ = ev_.nu - r2_;
+    solver_->precondition(sys, ev_, r1_.data(), r2_.data(), true);
+    s.u += dn;
+    damp_mu_ -= solver_->dl();
     ++stats_.solve_passes;
-    step = motionScale(sys, dn_);
+    step = motionScale(sys, dn);
     if (!(step > kRoundOff * scale) || step > 0.5 * previous) break;
     previous = step;
   }
@@ -228,8 +215,8 @@ void Stepper::implicitDamping(const System& sys, State& s, double h) {
     stats_.worst_solve = std::max(stats_.worst_solve, left);
   }
   // (4.) the positions: h (u' - u) / 2
-  dn_ = (0.5 * h) * (s.u - damp_u0_);
-  displace(sys, s.x, dn_.data());
+  solver_->dn() = (0.5 * h) * (s.u - damp_u0_);
+  displace(sys, s.x, solver_->dn().data());
 }
 
 }  // namespace mechanism_sim

@@ -145,6 +145,22 @@ void System::finalize() {
   inertia_scale = icount ? isum / icount : mass_scale * length_scale * length_scale;
   damping.resize(joints.size(), {0, 0, 0});
   friction.resize(joints.size(), {0, 0, 0});
+  // Inverse masses with stand-ins: a massless body weighs the mean mass, a body without
+  // moments the mean moment, and every moment is raised by 1e-3 of the body's mean
+  // moment, so a zero principal moment (a thin rod's) does not make the weights of the
+  // equations that hold that rotation vanish. They only scale W (the refinement solves the
+  // exact KKT system); with 1e-9 instead of 1e-3 a 7 kg ram with ixx = 0 fell short on
+  // nearly every solve (test FuzzFindings.ZeroPrincipalMoment...).
+  Minv.assign(nb, Eigen::Matrix<double, 6, 6>::Zero());
+  for (int b = 1; b <= nb; ++b) {
+    const Body& B = bodies[b];
+    const double m = B.m > 0 ? B.m : mass_scale;
+    const double tr = B.Jp.trace() / 3.0;
+    const Matrix3d Jp = B.Jp + (tr > 0 ? 1e-3 * tr : inertia_scale) * Matrix3d::Identity();
+    Minv[b - 1].topLeftCorner<3, 3>() = Matrix3d::Identity() / m;
+    Minv[b - 1].bottomRightCorner<3, 3>() = Jp.inverse();
+  }
+  buildTreeTopology(*this);
 }
 
 void System::updateLoadScales() {
@@ -156,7 +172,7 @@ void System::updateLoadScales() {
 
 State initialState(const System& sys) {
   State s;
-  s.x = Eigen::VectorXd::Zero(7 * sys.nb);
+  s.x = Eigen::VectorXd::Zero(7 * sys.nb);  // (evaluation.h BodyCoordinates)
   s.u = Eigen::VectorXd::Zero(sys.n);
   for (int b = 1; b <= sys.nb; ++b) {
     const Body& B = sys.bodies[b];

@@ -120,7 +120,8 @@ class Mechanism {
   const Vector3d& gravity() const { return sys_->gravity; }
   const IntegratorOptions& integrator() const { return sys_->options; }
 
-  // ---- state queries (of the current, accepted state)
+  // ---- state queries (of the current, accepted state: computed from the State, on the
+  // stepper's evaluation where that describes it, else on the queries' own)
   Vector3d position(int b) const;
   Matrix3d rotation(int b) const;
   Quaterniond orientation(int b) const;
@@ -160,14 +161,24 @@ class Mechanism {
   int addDriveAfterBuild(int joint, int k, const DriveProfile& profile);
   std::vector<int> replaceDrives(std::vector<DriveSpec> drives, const std::vector<int>& from,
                                  std::vector<DriveRamp> references);
-  const BodyKin& kin(int b) const { return stepper_->kin().at(b); }
+  // The evaluation at state_ (evaluation.h): the stepper's when its stamp describes
+  // state_, else the queries' own, evaluated on demand.
+  const Evaluation& evaluated() const;
+  const BodyKin& kin(int b) const { return evaluated().kin.at(b); }
 
   std::shared_ptr<System> sys_;
   bool built_ = false;
   State state_;
   Inputs inputs_;
   std::unique_ptr<Stepper> stepper_;
-  mutable std::unique_ptr<Stepper> reaction_stepper_;  // its own scratch: queries leave stepping alone
+  mutable std::unique_ptr<Evaluation> query_eval_;  // the queries' own evaluation
+  // The reactions' least-norm solve: its own evaluation and solver (queries leave stepping alone).
+  struct ReactionSolve {
+    SolverStats stats;
+    Evaluation ev;
+    std::unique_ptr<ConstraintSolver> solver;
+  };
+  mutable std::unique_ptr<ReactionSolve> reactions_;
   DependencyReport dependencies_;
 };
 
