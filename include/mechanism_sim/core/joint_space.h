@@ -1,0 +1,159 @@
+// Joint-space (relative-coordinate) dynamics of a tree: the first piece of a formulation in
+// which the spanning tree moves in joint coordinates and only loop closures stay algebraic.
+// Free-standing for now: it reads a finalized System and does not touch the Stepper.
+//
+//   TreeModel          the tree of a System whose joints form a forest: per moving body its
+//                      parent (or ground) and the joint to it; bodies that no joint reaches
+//                      float freely (6 dof, unit quaternion)
+//   forwardKinematics  joint state (q, q_dot) -> each body's absolute pose and velocity,
+//                      i.e. the absolute State x, u (r, p; v global, omega' body)
+//   forwardDynamics    q_ddot by the articulated-body algorithm (Featherstone, "Rigid Body
+//                      Dynamics Algorithms" (RBDA), 2008, section 7.3, table 7.1): O(n), no
+//                      mass matrix, no allocation after the workspace is built
+//   inverseDynamics    the efforts for a given q_ddot (recursive Newton-Euler, RBDA 5.3,
+//                      table 5.1): a second, independent recursion to check the first
+//   bodyAccelerations  q_ddot -> absolute accelerations as State::acc has them
+//
+// Coordinates (per joint, in sys.joints order; a free body's after all joints'):
+//   the joint's own coordinates, q_k = Row::Phi and q_dot_k = Row::Phi_dot of
+//   Joint::coordinates(), with the pose of frame j in frame i from
+//   JointTypeInfo::relativePose:
+//     revolute     1/1  angle about bz_i             prismatic  1/1  travel along bz_i
+//     cylindrical  2/2  angle, travel                screw      1/1  angle phi (travel
+//                                                                     alpha (phi - phi0))
+//     universal    2/2  Rx(q0) Ry(q1)                planar     3/3  x, y, angle
+//     fixed        0/0
+//     spherical    4/3  q: unit quaternion (w x y z) of frame j in frame i (its rotation
+//                       vector is what Joint::coordinates() reports); q_dot: the relative
+//                       angular velocity in frame-i components (as spherical.cpp), so
+//                       dq/dt = 1/2 (0, q_dot) (x) q
+//     free body    7/6  q: r (3, global), p (4, w x y z), as State::x; q_dot: v (3,
+//                       global), omega' (3, body), as State::u
+//   (nq/nv: position/velocity coordinates). A generalized effort tau_k is what the
+//   absolute solver takes as Inputs::effort (it acts as G_k^T tau_k); on a free body tau is
+//   (force global, torque in body components) at the centre of mass.
+// Fixed joints are 0-dof links of the recursion (merging the welded bodies into one
+// composite body would save their passes: a later optimisation).
+// Not modelled yet (the constructor throws ModelError when a System has them): couplers,
+// drives, limits, springs, joint damping and friction. Loop closures are refused too: they
+// are the next piece (cut joints as constraints on this tree).
+#pragma once
+#include <vector>
+
+#include <Eigen/Cholesky>
+#include <Eigen/Core>
+#include <Eigen/StdVector>
+
+#include "mechanism_sim/core/system.h"
+
+namespace mechanism_sim {
+
+using Vector6d = Eigen::Matrix<double, 6, 1>;
+using Matrix6d = Eigen::Matrix<double, 6, 6>;
+// At most 6 columns (a free body), stored in place: no heap.
+using MotionSubspace = Eigen::Matrix<double, 6, Eigen::Dynamic, 0, 6, 6>;
+using SmallMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 6, 6>;
+using SmallVector = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 6, 1>;
+// Vectors of the 16-byte-aligned fixed-size types.
+template <class T>
+using AlignedVector = std::vector<T, Eigen::aligned_allocator<T>>;
+
+enum class TreeJointKind { kFixed, kRevolute, kPrismatic, kCylindrical, kScrew, kUniversal, kSpherical, kPlanar, kFree };
+
+// The link from a moving body to its parent.
+struct TreeLink {
+  int body = 0;          // the moving body (1..nb)
+  int parent = 0;        // its parent (0: ground)
+  int joint = -1;        // index in sys.joints; -1: a free body (no joint)
+  const Joint* ptr = nullptr;
+  TreeJointKind kind = TreeJointKind::kFree;
+  // The child is the joint's body i (the joint was written parent-last): frame j then sits
+  // on the parent, and the child's frame is frame i.
+  bool reversed = false;
+  int nq = 0, nv = 0;    // coordinates of this link
+  int iq = 0, iv = 0;    // where they start in q and q_dot
+  JointParams params;    // screw: alpha, phi0
+  // The joint frame on the parent (F_p) and on the child (F_c), body components relative to
+  // that body's centre of mass; ground's in global components.
+  Matrix3d Rp = Matrix3d::Identity(), Rc = Matrix3d::Identity();
+  Vector3d sp = Vector3d::Zero(), sc = Vector3d::Zero();
+};
+
+struct TreeModel {
+  // Throws ModelError naming the joint (or constraint, spring) the tree cannot take: a joint
+  // that closes a loop, a coupler, drive or limit, a spring, joint damping or friction.
+  explicit TreeModel(const System& sys);
+
+  int nb = 0;                   // moving bodies
+  int nq = 0, nv = 0;           // position and velocity coordinates
+  std::vector<TreeLink> links;  // per moving body b at links[b - 1]
+  std::vector<int> order;       // moving bodies, each after its parent (b, 1..nb)
+  std::vector<int> joint_link;  // per sys joint: its link (body - 1)
+
+  const TreeLink& link(int b) const { return links[b - 1]; }
+  // A neutral joint state: zero coordinates, identity quaternions, free bodies where the
+  // System's bodies start.
+  Eigen::VectorXd neutralPositions(const System& sys) const;
+};
+
+// Scratch space of the recursions, one per model; sized once (no allocation after that).
+struct TreeWorkspace {
+  explicit TreeWorkspace(const TreeModel& model);
+  // per moving body (index b - 1), all spatial quantities (omega; v) in body coordinates at
+  // the centre of mass (the body's reference point): Featherstone's Plucker coordinates.
+  AlignedVector<Matrix3d> A;        // A_Oi: body -> global (seed lecture A^{Oi})
+  AlignedVector<Vector3d> r;        // centre of mass, global
+  AlignedVector<Matrix3d> E;        // X_{b <- parent}: rotation parent -> body components
+  AlignedVector<Vector3d> rho;      // X_{b <- parent}: b's centre relative to the parent's, parent components
+  AlignedVector<MotionSubspace> S;  // motion subspace in body coordinates
+  AlignedVector<Vector6d> v, c, cJ; // velocity, velocity-product acceleration, joint bias S_dot q_dot
+  AlignedVector<Vector6d> a;        // spatial acceleration
+  AlignedVector<Matrix6d> IA;       // articulated inertia
+  AlignedVector<Vector6d> pA;       // articulated bias force
+  AlignedVector<MotionSubspace> U;  // IA S
+  AlignedVector<SmallMatrix> Dinv;  // (S^T IA S)^-1
+  AlignedVector<SmallVector> u;     // tau - S^T pA
+  AlignedVector<Vector6d> f;        // RNEA: force transmitted by the joint
+};
+
+// Poses and velocities of the bodies for (q, q_dot) into ws (A, r, v and the per-link
+// transforms, subspaces and bias terms the dynamics reuse).
+void forwardKinematics(const TreeModel& model, const Eigen::VectorXd& q, const Eigen::VectorXd& qdot,
+                       TreeWorkspace& ws);
+// The absolute State that ws's kinematics describe: x (7 nb: r, p) and u (6 nb: v global,
+// omega' body), as State::x and State::u.
+void absoluteState(const TreeModel& model, const TreeWorkspace& ws, Eigen::VectorXd& x, Eigen::VectorXd& u);
+
+// q_ddot under gravity (sys.gravity), the generalized efforts tau (nv) and, when `loads` is
+// given, its body forces (global, at the centre of mass) and torques (body components) (its
+// efforts are not read: pass them in tau, jointEfforts()). Runs forwardKinematics itself.
+// Articulated-body algorithm; allocation-free once qddot has size nv.
+void forwardDynamics(const TreeModel& model, const System& sys, const Eigen::VectorXd& q,
+                     const Eigen::VectorXd& qdot, const Eigen::VectorXd& tau, TreeWorkspace& ws,
+                     Eigen::VectorXd& qddot, const Inputs* loads = nullptr);
+// The efforts that give q_ddot (the inverse of forwardDynamics): recursive Newton-Euler.
+void inverseDynamics(const TreeModel& model, const System& sys, const Eigen::VectorXd& q,
+                     const Eigen::VectorXd& qdot, const Eigen::VectorXd& qddot, TreeWorkspace& ws,
+                     Eigen::VectorXd& tau, const Inputs* loads = nullptr);
+// Inputs::effort as a vector tau over q_dot (a free body's entries zero).
+void jointEfforts(const TreeModel& model, const Inputs& in, Eigen::VectorXd& tau);
+
+// Absolute accelerations for q_ddot at the kinematics in ws (forwardKinematics or
+// forwardDynamics at the same q, q_dot), as State::acc: per body a (3, global, of the centre
+// of mass) and omega'_dot (3, body components).
+void bodyAccelerations(const TreeModel& model, TreeWorkspace& ws, const Eigen::VectorXd& qddot,
+                       Eigen::VectorXd& acc);
+
+// dq/dt for (q, q_dot) (nq): q_dot itself except at the quaternions.
+void positionRates(const TreeModel& model, const Eigen::VectorXd& q, const Eigen::VectorXd& qdot,
+                   Eigen::VectorXd& qrate);
+// Scales every quaternion in q to unit length.
+void normalizeQuaternions(const TreeModel& model, Eigen::VectorXd& q);
+
+// The pose of the child's joint frame in the parent's, the motion subspace in the child's
+// joint-frame components and the bias S_dot q_dot there (RBDA ch. 4, "jcalc"), of one link:
+// exposed for the tests.
+void jointTransform(const TreeLink& link, const double* q, const double* qdot, Matrix3d& R, Vector3d& t,
+                    MotionSubspace& S, Vector6d& c);
+
+}  // namespace mechanism_sim

@@ -1,0 +1,597 @@
+// Joint-space dynamics of a tree (joint_space.h).
+//
+// Spatial algebra after Featherstone, "Rigid Body Dynamics Algorithms" (RBDA), Springer
+// 2008, chapter 2: motion vectors m = (omega; v_O), force vectors f = (n_O; f), both in
+// Plucker coordinates of a frame. Every body's frame here is its centre-of-mass frame with
+// the body's axes (the seed lecture's r_i and A_Oi), so a body's spatial velocity is
+// (omega'_i; A_Oi^T r_dot_i) and its spatial inertia the block-diagonal diag(J'_i, m_i 1)
+// (RBDA ch. 2, spatial inertia, with c = 0).
+#include "mechanism_sim/core/joint_space.h"
+
+#include <cmath>
+#include <string>
+
+#include "mechanism_sim/core/errors.h"
+#include "mechanism_sim/core/joints/screw.h"
+
+namespace mechanism_sim {
+namespace {
+
+// ---- spatial algebra (RBDA ch. 2: Plucker transforms, spatial cross products)
+
+// m1 x m2, the motion cross product (RBDA ch. 2, crm).
+inline Vector6d crossMotion(const Vector6d& m1, const Vector6d& m2) {
+  Vector6d out;
+  out.head<3>() = m1.head<3>().cross(m2.head<3>());
+  out.tail<3>() = m1.head<3>().cross(m2.tail<3>()) + m1.tail<3>().cross(m2.head<3>());
+  return out;
+}
+
+// m x* f, the force cross product (RBDA ch. 2, crf).
+inline Vector6d crossForce(const Vector6d& m, const Vector6d& f) {
+  Vector6d out;
+  out.head<3>() = m.head<3>().cross(f.head<3>()) + m.tail<3>().cross(f.tail<3>());
+  out.tail<3>() = m.head<3>().cross(f.tail<3>());
+  return out;
+}
+
+// The Plucker transform X = B_X_A of motion vectors from frame A to frame B, given by E (A
+// components -> B components) and rho (B's origin relative to A's, A components):
+// X = [E 0; -E rho~ E] (RBDA ch. 2, with r = rho).
+inline Vector6d transformMotion(const Matrix3d& E, const Vector3d& rho, const Vector6d& m) {
+  Vector6d out;
+  out.head<3>() = E * m.head<3>();
+  out.tail<3>() = E * (m.tail<3>() - rho.cross(m.head<3>()));
+  return out;
+}
+
+// X^T f: a force in B coordinates back to A coordinates (B_X_A^* inverse = X^T).
+inline Vector6d transformForceBack(const Matrix3d& E, const Vector3d& rho, const Vector6d& f) {
+  Vector6d out;
+  out.tail<3>() = E.transpose() * f.tail<3>();
+  out.head<3>() = E.transpose() * f.head<3>() + rho.cross(out.tail<3>());
+  return out;
+}
+
+// X^T I X: an inertia in B coordinates back to A coordinates (table 7.1's X^T I^a X), with
+// the blocks of X = [E 0; -E rho~ E] written out: with I = [I11 I12; I12^T I22] in A-rotated
+// components (E^T I E), X^T I X = [I11 + rho~ I12^T - I12 rho~ - rho~ I22 rho~, I12 + rho~ I22;
+// .., I22] (all products 3x3: cheaper than the 6x6 product, which multiplies zeros).
+inline void addTransformedInertia(const Matrix3d& E, const Vector3d& rho, const Matrix6d& I, Matrix6d& target) {
+  const Matrix3d Et = E.transpose();
+  const Matrix3d I11 = Et * I.topLeftCorner<3, 3>() * E;
+  const Matrix3d I12 = Et * I.topRightCorner<3, 3>() * E;
+  const Matrix3d I22 = Et * I.bottomRightCorner<3, 3>() * E;
+  const Matrix3d R = tilde(rho);
+  const Matrix3d B = I12 + R * I22;               // top-right block
+  const Matrix3d T = I11 + R * I12.transpose() - B * R;  // I11 + rho~ I12^T - I12 rho~ - rho~ I22 rho~
+  target.topLeftCorner<3, 3>() += T;
+  target.topRightCorner<3, 3>() += B;
+  target.bottomLeftCorner<3, 3>() += B.transpose();
+  target.bottomRightCorner<3, 3>() += I22;
+}
+
+// Body spatial inertia at the centre of mass times a motion vector: (J' omega; m v).
+inline Vector6d inertiaTimes(const Body& B, const Vector6d& m) {
+  Vector6d out;
+  out.head<3>() = B.Jp * m.head<3>();
+  out.tail<3>() = B.m * m.tail<3>();
+  return out;
+}
+
+// Quaternion product a (x) b, (w, x, y, z) each.
+inline Eigen::Vector4d quatProduct(const Eigen::Vector4d& a, const Eigen::Vector4d& b) {
+  Eigen::Vector4d out;
+  out(0) = a(0) * b(0) - a.tail<3>().dot(b.tail<3>());
+  out.tail<3>() = a(0) * b.tail<3>() + b(0) * a.tail<3>() + a.tail<3>().cross(b.tail<3>());
+  return out;
+}
+
+inline Matrix3d rotationOf(const double* p) {
+  return Quaterniond(p[0], p[1], p[2], p[3]).normalized().toRotationMatrix();
+}
+
+TreeJointKind kindOf(const Joint& j) {
+  const std::string t = j.type();
+  if (t == "revolute") return TreeJointKind::kRevolute;
+  if (t == "prismatic") return TreeJointKind::kPrismatic;
+  if (t == "cylindrical") return TreeJointKind::kCylindrical;
+  if (t == "screw") return TreeJointKind::kScrew;
+  if (t == "universal") return TreeJointKind::kUniversal;
+  if (t == "spherical") return TreeJointKind::kSpherical;
+  if (t == "planar") return TreeJointKind::kPlanar;
+  if (t == "fixed") return TreeJointKind::kFixed;
+  throw ModelError("joint '" + j.name() + "': the joint-space tree has no model of joint type '" + t + "'");
+}
+
+void setSizes(TreeLink& L) {
+  switch (L.kind) {
+    case TreeJointKind::kFixed: L.nq = L.nv = 0; break;
+    case TreeJointKind::kRevolute:
+    case TreeJointKind::kPrismatic:
+    case TreeJointKind::kScrew: L.nq = L.nv = 1; break;
+    case TreeJointKind::kCylindrical:
+    case TreeJointKind::kUniversal: L.nq = L.nv = 2; break;
+    case TreeJointKind::kPlanar: L.nq = L.nv = 3; break;
+    case TreeJointKind::kSpherical: L.nq = 4, L.nv = 3; break;
+    case TreeJointKind::kFree: L.nq = 7, L.nv = 6; break;
+  }
+}
+
+}  // namespace
+
+// ---- the tree
+
+TreeModel::TreeModel(const System& sys) {
+  nb = sys.numBodies() - 1;
+  if (sys.nb != nb || nb < 1)
+    throw UsageError("TreeModel: the System must be finalized and have a moving body");
+  // What the recursion does not model yet: refuse it rather than leave it out silently.
+  for (const auto& c : sys.constraints)
+    if (!dynamic_cast<const Joint*>(c.get()))
+      throw ModelError("constraint '" + c->name() + "' (" + c->type() +
+                       "): the joint-space tree takes joints only (no couplers, drives or limits yet)");
+  if (!sys.springs.empty())
+    throw ModelError("spring '" + sys.springs[0].name + "': the joint-space tree has no springs yet");
+  for (int j = 0; j < sys.numJoints(); ++j)
+    for (int k = 0; k < 3; ++k)
+      if ((j < static_cast<int>(sys.damping.size()) && sys.damping[j][k] != 0) ||
+          (j < static_cast<int>(sys.friction.size()) && sys.friction[j][k] != 0))
+        throw ModelError("joint '" + sys.joints[j]->name() +
+                         "': the joint-space tree has no joint damping or friction yet");
+
+  // Spanning tree by breadth-first search from ground; the bodies ground does not reach
+  // are free-floating (each group rooted at its lowest-numbered body by a 6-dof link).
+  links.assign(nb, TreeLink());
+  joint_link.assign(sys.numJoints(), -1);
+  std::vector<char> reached(nb + 1, 0), used(sys.numJoints(), 0);
+  std::vector<std::vector<int>> incident(nb + 1);
+  for (int j = 0; j < sys.numJoints(); ++j) {
+    const Joint& J = *sys.joints[j];
+    if (J.bodyI() == J.bodyJ())
+      throw ModelError("joint '" + J.name() + "': joins a body to itself");
+    incident[J.bodyI()].push_back(j);
+    incident[J.bodyJ()].push_back(j);
+  }
+  order.clear();
+  order.reserve(nb);
+  reached[0] = 1;
+  auto grow = [&](int root) {  // breadth-first from root, appending to order
+    std::vector<int> queue{root};
+    for (size_t k = 0; k < queue.size(); ++k) {
+      const int b = queue[k];
+      for (int j : incident[b]) {
+        if (used[j]) continue;
+        used[j] = 1;
+        const Joint& J = *sys.joints[j];
+        const int child = J.bodyI() == b ? J.bodyJ() : J.bodyI();
+        if (reached[child])
+          throw ModelError("joint '" + J.name() + "' closes a loop (body '" + sys.bodies[child].name +
+                           "' is reached twice): the joint-space tree takes a forest only");
+        reached[child] = 1;
+        TreeLink& L = links[child - 1];
+        L.body = child;
+        L.parent = b;
+        L.joint = j;
+        L.ptr = &J;
+        L.kind = kindOf(J);
+        L.reversed = child == J.bodyI();
+        const JointFrame& fp = L.reversed ? J.frameJ() : J.frameI();
+        const JointFrame& fc = L.reversed ? J.frameI() : J.frameJ();
+        L.Rp = fp.Rp, L.sp = fp.sp_B, L.Rc = fc.Rp, L.sc = fc.sp_B;
+        if (L.kind == TreeJointKind::kScrew) {
+          const auto* screw = dynamic_cast<const ScrewJoint*>(&J);
+          if (!screw) throw ModelError("joint '" + J.name() + "': a screw joint that is not a ScrewJoint");
+          L.params.alpha = screw->alpha();
+          L.params.phi0 = screw->initialTracked()[0];
+        }
+        setSizes(L);
+        joint_link[j] = child - 1;
+        order.push_back(child);
+        queue.push_back(child);
+      }
+    }
+  };
+  grow(0);
+  for (int b = 1; b <= nb; ++b) {
+    if (reached[b]) continue;
+    reached[b] = 1;
+    TreeLink& L = links[b - 1];
+    L.body = b;
+    L.parent = 0;
+    L.kind = TreeJointKind::kFree;
+    setSizes(L);
+    order.push_back(b);
+    grow(b);
+  }
+  // Coordinates: the joints' in sys.joints order, then the free bodies'.
+  nq = nv = 0;
+  for (int j = 0; j < sys.numJoints(); ++j) {
+    TreeLink& L = links[joint_link[j]];
+    L.iq = nq, L.iv = nv;
+    nq += L.nq, nv += L.nv;
+  }
+  for (TreeLink& L : links)
+    if (L.kind == TreeJointKind::kFree) {
+      L.iq = nq, L.iv = nv;
+      nq += L.nq, nv += L.nv;
+    }
+}
+
+Eigen::VectorXd TreeModel::neutralPositions(const System& sys) const {
+  Eigen::VectorXd q = Eigen::VectorXd::Zero(nq);
+  for (const TreeLink& L : links) {
+    if (L.kind == TreeJointKind::kSpherical) q(L.iq) = 1.0;
+    if (L.kind == TreeJointKind::kFree) {
+      const Body& B = sys.bodies[L.body];
+      const Quaterniond p = B.p.normalized();
+      q.segment<3>(L.iq) = B.r;
+      q.segment<4>(L.iq + 3) << p.w(), p.x(), p.y(), p.z();
+    }
+  }
+  return q;
+}
+
+TreeWorkspace::TreeWorkspace(const TreeModel& model) {
+  const int n = model.nb;
+  A.assign(n, Matrix3d::Identity());
+  r.assign(n, Vector3d::Zero());
+  E.assign(n, Matrix3d::Identity());
+  rho.assign(n, Vector3d::Zero());
+  v.assign(n, Vector6d::Zero());
+  c = cJ = a = pA = f = v;
+  IA.assign(n, Matrix6d::Zero());
+  S.resize(n), U.resize(n), Dinv.resize(n), u.resize(n);
+  for (int k = 0; k < n; ++k) {
+    const int nv = model.links[k].nv;
+    S[k].setZero(6, nv);
+    U[k].setZero(6, nv);
+    Dinv[k].setZero(nv, nv);
+    u[k].setZero(nv);
+  }
+}
+
+// ---- joint models (RBDA ch. 4, "jcalc": X_J, S, c_J; for the types of joint.h)
+//
+// For the pose T(q) = (R, t) of frame j in frame i (JointTypeInfo::relativePose), S is the
+// motion subspace of frame j relative to frame i in frame-j Plucker coordinates, v_J = S
+// q_dot, and c = S_ring q_dot the apparent derivative of S's coordinates (RBDA ch. 4:
+// c_J, the velocity-product part of the joint acceleration). Where S is constant, c = 0.
+void jointTransform(const TreeLink& L, const double* q, const double* qd, Matrix3d& R, Vector3d& t,
+                    MotionSubspace& S, Vector6d& c) {
+  S.setZero(6, L.nv);
+  c.setZero();
+  R.setIdentity();
+  t.setZero();
+  switch (L.kind) {
+    case TreeJointKind::kFixed:
+      break;
+    case TreeJointKind::kRevolute:  // Rz(q0): S = (bz; 0)
+      R = rotZ(q[0]);
+      S(2, 0) = 1;
+      break;
+    case TreeJointKind::kPrismatic:  // along bz: S = (0; bz)
+      t.z() = q[0];
+      S(5, 0) = 1;
+      break;
+    case TreeJointKind::kCylindrical:  // Rz(q0), q1 along bz; R^T bz = bz
+      R = rotZ(q[0]);
+      t.z() = q[1];
+      S(2, 0) = 1;
+      S(5, 1) = 1;
+      break;
+    case TreeJointKind::kScrew:  // Rz(phi), alpha (phi - phi0) along bz (A8.8): S = (bz; alpha bz)
+      R = rotZ(q[0]);
+      t.z() = L.params.alpha * (q[0] - L.params.phi0);
+      S(2, 0) = 1;
+      S(5, 0) = L.params.alpha;
+      break;
+    case TreeJointKind::kUniversal: {
+      // R = Rx(q0) Ry(q1): omega in frame j = q0_dot Ry(q1)^T ex + q1_dot ey; the first
+      // column turns with q1: c = q0_dot q1_dot d(Ry^T ex)/dq1 = q0_dot q1_dot (-s1, 0, c1).
+      const double c1 = std::cos(q[1]), s1 = std::sin(q[1]);
+      R = Eigen::AngleAxisd(q[0], Vector3d::UnitX()).toRotationMatrix() *
+          Eigen::AngleAxisd(q[1], Vector3d::UnitY()).toRotationMatrix();
+      S(0, 0) = c1, S(2, 0) = s1;
+      S(1, 1) = 1;
+      c(0) = -qd[0] * qd[1] * s1;
+      c(2) = qd[0] * qd[1] * c1;
+      break;
+    }
+    case TreeJointKind::kSpherical: {
+      // q_dot is omega in frame i (spherical.cpp): in frame j R^T q_dot. With R_dot =
+      // R omega_j~, d(R^T)/dt q_dot = -omega_j x (R^T q_dot) = -omega_j x omega_j = 0: no bias.
+      R = rotationOf(q);
+      S.topLeftCorner<3, 3>() = R.transpose();
+      break;
+    }
+    case TreeJointKind::kPlanar: {
+      // Rz(q2), (q0, q1, 0): the origin's velocity in frame j is Rz^T (q0_dot, q1_dot, 0),
+      // turning with q2: c = -q2_dot bz x (Rz^T (q0_dot, q1_dot, 0)).
+      const double c2 = std::cos(q[2]), s2 = std::sin(q[2]);
+      R = rotZ(q[2]);
+      t << q[0], q[1], 0;
+      S(3, 0) = c2, S(4, 0) = -s2;
+      S(3, 1) = s2, S(4, 1) = c2;
+      S(2, 2) = 1;
+      const double vx = c2 * qd[0] + s2 * qd[1], vy = -s2 * qd[0] + c2 * qd[1];
+      c(3) = qd[2] * vy;
+      c(4) = -qd[2] * vx;
+      break;
+    }
+    case TreeJointKind::kFree: {
+      // q = (r, p), q_dot = (v global, omega' body): the body's spatial velocity is
+      // (omega'; A^T v), so S = [0 1; A^T 0] and c = (0; d(A^T)/dt v) = (0; -omega' x A^T v).
+      R = rotationOf(q + 3);
+      t = Vector3d(q[0], q[1], q[2]);
+      S.bottomLeftCorner<3, 3>() = R.transpose();
+      S.topRightCorner<3, 3>().setIdentity();
+      const Vector3d w(qd[3], qd[4], qd[5]);
+      c.tail<3>() = -w.cross(R.transpose() * Vector3d(qd[0], qd[1], qd[2]));
+      break;
+    }
+  }
+  if (L.reversed) {
+    // The child carries frame i: its motion relative to frame j is minus that of j
+    // relative to i, in frame-i coordinates S' = -(i_X_j) S. The bias is c' = -(i_X_j) c:
+    // the extra term -(d/dt i_X_j) S q_dot = -(i_X_j v_J) x (i_X_j v_J) vanishes (a vector
+    // fixed in j seen from i changes at v_J x: RBDA ch. 2, differentiation in moving
+    // frames). The pose is the inverse, (R^T, -R^T t).
+    const Matrix3d Et = R;                 // i_X_j: E = R (j -> i components)
+    const Vector3d rho = -R.transpose() * t;  // i's origin relative to j's, j components
+    for (int k = 0; k < L.nv; ++k) S.col(k) = -transformMotion(Et, rho, S.col(k));
+    c = -transformMotion(Et, rho, c);
+    t = -R.transpose() * t;
+    R.transposeInPlace();
+  }
+}
+
+// ---- kinematics (RBDA 7.3, table 7.1 first loop, without the dynamics)
+
+void forwardKinematics(const TreeModel& model, const Eigen::VectorXd& q, const Eigen::VectorXd& qdot,
+                       TreeWorkspace& ws) {
+  Matrix3d R;
+  Vector3d t;
+  for (int b : model.order) {
+    const int k = b - 1;
+    const TreeLink& L = model.links[k];
+    Vector6d cJ;
+    MotionSubspace& S = ws.S[k];
+    jointTransform(L, q.data() + L.iq, qdot.data() + L.iv, R, t, S, cJ);
+    // Child body axes in parent body axes, and the child's centre relative to the parent's.
+    const Matrix3d Rrel = L.Rp * R * L.Rc.transpose();
+    ws.E[k] = Rrel.transpose();
+    ws.rho[k] = L.sp + L.Rp * t - Rrel * L.sc;
+    // From the child's joint frame to its centre of mass: E = Rc, rho = -Rc^T sc, i.e.
+    // (omega; v) -> (Rc omega; Rc v + sc x Rc omega).
+    for (int col = 0; col < L.nv; ++col) {
+      const Vector3d w = L.Rc * S.col(col).head<3>();
+      S.col(col).tail<3>() = L.Rc * S.col(col).tail<3>() + L.sc.cross(w);
+      S.col(col).head<3>() = w;
+    }
+    {
+      const Vector3d w = L.Rc * cJ.head<3>();
+      cJ.tail<3>() = L.Rc * cJ.tail<3>() + L.sc.cross(w);
+      cJ.head<3>() = w;
+    }
+    ws.cJ[k] = cJ;
+    const Vector6d vJ = S * qdot.segment(L.iv, L.nv);
+    if (L.parent == 0) {
+      ws.A[k] = Rrel;
+      ws.r[k] = ws.rho[k];
+      ws.v[k] = vJ;
+    } else {
+      const int p = L.parent - 1;
+      ws.A[k] = ws.A[p] * Rrel;
+      ws.r[k] = ws.r[p] + ws.A[p] * ws.rho[k];
+      ws.v[k] = transformMotion(ws.E[k], ws.rho[k], ws.v[p]) + vJ;
+    }
+    // c_i = c_J + v_i x v_J (RBDA table 7.1)
+    ws.c[k] = cJ + crossMotion(ws.v[k], vJ);
+  }
+}
+
+void absoluteState(const TreeModel& model, const TreeWorkspace& ws, Eigen::VectorXd& x, Eigen::VectorXd& u) {
+  x.resize(7 * model.nb);
+  u.resize(6 * model.nb);
+  for (int k = 0; k < model.nb; ++k) {
+    const Quaterniond p(ws.A[k]);
+    x.segment<3>(7 * k) = ws.r[k];
+    x.segment<4>(7 * k + 3) << p.w(), p.x(), p.y(), p.z();
+    u.segment<3>(6 * k) = ws.A[k] * ws.v[k].tail<3>();  // v = A_Oi (A_Oi^T v)
+    u.segment<3>(6 * k + 3) = ws.v[k].head<3>();        // omega' (body components)
+  }
+}
+
+// ---- dynamics
+
+namespace {
+
+// The external force on body k in its own coordinates: gravity m g at the centre of mass
+// (no moment there) and the Inputs' force (global) and torque (body components).
+inline Vector6d externalForce(const System& sys, const TreeWorkspace& ws, int b, const Inputs* loads) {
+  const Body& B = sys.bodies[b];
+  const Matrix3d& A = ws.A[b - 1];
+  Vector6d f;
+  f.head<3>().setZero();
+  Vector3d F = B.m * sys.gravity;
+  if (loads) {
+    F += loads->force[b];
+    f.head<3>() = loads->torque[b];
+  }
+  f.tail<3>() = A.transpose() * F;
+  return f;
+}
+
+}  // namespace
+
+// Articulated-body algorithm, RBDA 7.3, table 7.1, in body coordinates: gravity enters as
+// a force on each body (not as the base acceleration -a_g of the table), so the spatial
+// accelerations a_i left in ws are the bodies' true ones.
+void forwardDynamics(const TreeModel& model, const System& sys, const Eigen::VectorXd& q,
+                     const Eigen::VectorXd& qdot, const Eigen::VectorXd& tau, TreeWorkspace& ws,
+                     Eigen::VectorXd& qddot, const Inputs* loads) {
+  // Pass 1 (outward): velocities and the bias c_i (forwardKinematics), then
+  // I^A_i = I_i, p^A_i = v_i x* I_i v_i - f^x_i (as table 7.1 starts them).
+  forwardKinematics(model, q, qdot, ws);
+  for (int b : model.order) {
+    const int k = b - 1;
+    const Body& B = sys.bodies[b];
+    ws.IA[k].setZero();
+    ws.IA[k].topLeftCorner<3, 3>() = B.Jp;
+    ws.IA[k].bottomRightCorner<3, 3>().diagonal().setConstant(B.m);
+    ws.pA[k] = crossForce(ws.v[k], inertiaTimes(B, ws.v[k])) - externalForce(sys, ws, b, loads);
+  }
+  // Pass 2 (inward): U_i = I^A_i S_i, D_i = S_i^T U_i, u_i = tau_i - S_i^T p^A_i, and the
+  // articulated inertia and bias the parent sees through the joint (RBDA 7.2-7.3, table
+  // 7.1): I^a = I^A - U D^-1 U^T, p^a = p^A + I^a c + U D^-1 u.
+  for (int n = model.nb - 1; n >= 0; --n) {
+    const int k = model.order[n] - 1;
+    const TreeLink& L = model.links[k];
+    Matrix6d& IA = ws.IA[k];
+    Vector6d pa = ws.pA[k];
+    if (L.nv == 1) {  // the common case without the small-matrix machinery
+      const Vector6d U = IA * ws.S[k].col(0);
+      const double Dinv = 1.0 / ws.S[k].col(0).dot(U);
+      const double u = tau(L.iv) - ws.S[k].col(0).dot(pa);
+      ws.U[k].col(0) = U;
+      ws.Dinv[k](0, 0) = Dinv;
+      ws.u[k](0) = u;
+      if (L.parent == 0) continue;
+      IA.noalias() -= (U * Dinv) * U.transpose();
+      pa += IA * ws.c[k] + U * (Dinv * u);
+    } else {
+      MotionSubspace& U = ws.U[k];
+      U.noalias() = IA * ws.S[k];
+      if (L.nv > 0) {
+        const SmallMatrix D = ws.S[k].transpose() * U;
+        // D is symmetric positive definite when the subtree has mass along every joint
+        // direction; LLT on at most 6 x 6 in place (no heap).
+        Eigen::LLT<SmallMatrix> llt(D);
+        if (llt.info() != Eigen::Success)
+          throw SimulationError("joint-space dynamics: the subtree at body '" + sys.bodies[L.body].name +
+                                "' has no inertia along a joint direction");
+        ws.Dinv[k] = llt.solve(SmallMatrix::Identity(L.nv, L.nv));
+        // (element by element: the expression with tau.segment() would evaluate through a
+        // heap temporary)
+        for (int i = 0; i < L.nv; ++i) ws.u[k](i) = tau(L.iv + i) - ws.S[k].col(i).dot(pa);
+      }
+      if (L.parent == 0) continue;
+      if (L.nv > 0) {
+        const MotionSubspace UD = U * ws.Dinv[k];
+        IA.noalias() -= UD * U.transpose();
+        pa += IA * ws.c[k] + UD * ws.u[k];
+      } else {
+        pa += IA * ws.c[k];
+      }
+    }
+    // The parent accumulates X^T I^a X and X^T p^a (table 7.1, with X = i_X_lambda(i)).
+    const int p = L.parent - 1;
+    addTransformedInertia(ws.E[k], ws.rho[k], IA, ws.IA[p]);
+    ws.pA[p] += transformForceBack(ws.E[k], ws.rho[k], pa);
+  }
+  // Pass 3 (outward): a'_i = X a_parent + c_i, q_ddot_i = D^-1 (u_i - U_i^T a'_i),
+  // a_i = a'_i + S_i q_ddot_i (ground does not accelerate: gravity is a force here).
+  qddot.resize(model.nv);
+  for (int b : model.order) {
+    const int k = b - 1;
+    const TreeLink& L = model.links[k];
+    Vector6d ap = ws.c[k];
+    if (L.parent != 0) ap += transformMotion(ws.E[k], ws.rho[k], ws.a[L.parent - 1]);
+    if (L.nv == 1) {
+      const double qdd = ws.Dinv[k](0, 0) * (ws.u[k](0) - ws.U[k].col(0).dot(ap));
+      qddot(L.iv) = qdd;
+      ws.a[k] = ap + ws.S[k].col(0) * qdd;
+    } else if (L.nv > 0) {
+      const SmallVector qdd = ws.Dinv[k] * (ws.u[k] - ws.U[k].transpose() * ap);
+      qddot.segment(L.iv, L.nv) = qdd;
+      ws.a[k] = ap + ws.S[k] * qdd;
+    } else {
+      ws.a[k] = ap;
+    }
+  }
+}
+
+// Recursive Newton-Euler, RBDA 5.3, table 5.1 (gravity as a body force as above):
+// a_i = X a_parent + S_i q_ddot_i + c_i, f_i = I_i a_i + v_i x* I_i v_i - f^x_i outward;
+// tau_i = S_i^T f_i, f_parent += X^T f_i inward.
+void inverseDynamics(const TreeModel& model, const System& sys, const Eigen::VectorXd& q,
+                     const Eigen::VectorXd& qdot, const Eigen::VectorXd& qddot, TreeWorkspace& ws,
+                     Eigen::VectorXd& tau, const Inputs* loads) {
+  forwardKinematics(model, q, qdot, ws);
+  for (int b : model.order) {
+    const int k = b - 1;
+    const TreeLink& L = model.links[k];
+    const Body& B = sys.bodies[b];
+    Vector6d a = ws.c[k] + ws.S[k] * qddot.segment(L.iv, L.nv);
+    if (L.parent != 0) a += transformMotion(ws.E[k], ws.rho[k], ws.a[L.parent - 1]);
+    ws.a[k] = a;
+    ws.f[k] = inertiaTimes(B, a) + crossForce(ws.v[k], inertiaTimes(B, ws.v[k])) - externalForce(sys, ws, b, loads);
+  }
+  tau.resize(model.nv);
+  for (int n = model.nb - 1; n >= 0; --n) {
+    const int k = model.order[n] - 1;
+    const TreeLink& L = model.links[k];
+    tau.segment(L.iv, L.nv) = ws.S[k].transpose() * ws.f[k];
+    if (L.parent != 0) ws.f[L.parent - 1] += transformForceBack(ws.E[k], ws.rho[k], ws.f[k]);
+  }
+}
+
+void jointEfforts(const TreeModel& model, const Inputs& in, Eigen::VectorXd& tau) {
+  tau.setZero(model.nv);
+  for (size_t j = 0; j < model.joint_link.size(); ++j) {
+    const TreeLink& L = model.links[model.joint_link[j]];
+    for (int k = 0; k < L.nv; ++k) tau(L.iv + k) = in.effort[j][k];
+  }
+}
+
+// The seed's absolute accelerations from the spatial ones: omega'_dot is the angular part
+// (omega_dot = A_Oi omega'_dot, the omega' x omega' term vanishing); the centre of mass
+// accelerates by v_O_dot + omega x v_O in body components (the spatial acceleration is
+// not the classical one: RBDA ch. 2, spatial acceleration), rotated to global.
+void bodyAccelerations(const TreeModel& model, TreeWorkspace& ws, const Eigen::VectorXd& qddot,
+                       Eigen::VectorXd& acc) {
+  acc.resize(6 * model.nb);
+  for (int b : model.order) {
+    const int k = b - 1;
+    const TreeLink& L = model.links[k];
+    Vector6d a = ws.c[k] + ws.S[k] * qddot.segment(L.iv, L.nv);
+    if (L.parent != 0) a += transformMotion(ws.E[k], ws.rho[k], ws.a[L.parent - 1]);
+    ws.a[k] = a;
+    acc.segment<3>(6 * k) = ws.A[k] * (a.tail<3>() + ws.v[k].head<3>().cross(ws.v[k].tail<3>()));
+    acc.segment<3>(6 * k + 3) = a.head<3>();
+  }
+}
+
+void positionRates(const TreeModel& model, const Eigen::VectorXd& q, const Eigen::VectorXd& qdot,
+                   Eigen::VectorXd& qrate) {
+  qrate.resize(model.nq);
+  for (const TreeLink& L : model.links) {
+    switch (L.kind) {
+      case TreeJointKind::kSpherical: {
+        // omega in frame i: d/dt q = 1/2 (0, omega) (x) q
+        Eigen::Vector4d w(0, qdot(L.iv), qdot(L.iv + 1), qdot(L.iv + 2));
+        qrate.segment<4>(L.iq) = 0.5 * quatProduct(w, q.segment<4>(L.iq));
+        break;
+      }
+      case TreeJointKind::kFree: {
+        // r_dot = v; omega' in body components: p_dot = 1/2 p (x) (0, omega')
+        qrate.segment<3>(L.iq) = qdot.segment<3>(L.iv);
+        Eigen::Vector4d w(0, qdot(L.iv + 3), qdot(L.iv + 4), qdot(L.iv + 5));
+        qrate.segment<4>(L.iq + 3) = 0.5 * quatProduct(q.segment<4>(L.iq + 3), w);
+        break;
+      }
+      default:
+        qrate.segment(L.iq, L.nq) = qdot.segment(L.iv, L.nv);
+    }
+  }
+}
+
+void normalizeQuaternions(const TreeModel& model, Eigen::VectorXd& q) {
+  for (const TreeLink& L : model.links) {
+    if (L.kind == TreeJointKind::kSpherical) q.segment<4>(L.iq).normalize();
+    if (L.kind == TreeJointKind::kFree) q.segment<4>(L.iq + 3).normalize();
+  }
+}
+
+}  // namespace mechanism_sim
