@@ -18,7 +18,7 @@ namespace {
 // the targets or the closures cannot be met) whatever the tolerances ask.
 constexpr int kMaxPositionIterations = 300;
 constexpr int kMaxVelocityIterations = 60;
-constexpr double kFailureResidual = 1e-9;
+constexpr double kAssemblyFailureResidual = 1e-9;
 
 // The constrained mass matrix H cannot be factored at the assembled pose although every
 // motion moves mass (checkMassRank passed): its condition is past double precision.
@@ -169,7 +169,7 @@ AssemblyReport assemble(const System& sys, State& s, Stepper& st,
     }
   }
   report.position_residual = worst;
-  if (worst > std::max(tol, kFailureResidual)) {
+  if (worst > std::max(tol, kAssemblyFailureResidual)) {
     std::ostringstream os;
     os << "the mechanism does not close (largest residual " << fmt(positionViolation(ev)) << "):";
     for (int ci = 0; ci < sys.numConstraints(); ++ci) {
@@ -278,7 +278,7 @@ AssemblyReport assemble(const System& sys, State& s, Stepper& st,
       mu_t[k] += wt[k] * (rowDot(sys, velocities[k].joint, rows[k], s.u.data()) - velocities[k].value);
   }
   report.velocity_residual = vres;
-  if (vres > kFailureResidual) {
+  if (vres > kAssemblyFailureResidual) {
     std::ostringstream os;
     os << "initial velocities cannot be met (largest relative residual " << fmt(vres) << ")";
     for (const auto& t : velocities) os << " '" << sys.joints[t.joint]->name() << "'";

@@ -12,30 +12,21 @@ namespace {
 // Dropped rows whose relative residual passes this many times the position tolerance are
 // no longer implied by the rows kept (finishStep analyzes the dependencies again).
 constexpr double kDependentDrift = 10.0;
-constexpr int kMaxNewton = 20;
-// A projection that ends with a relative residual above position_tol (velocity_tol) is
-// counted and the run goes on; above kFailureResidual the constraints are visibly broken
-// and the step fails (StepFailure: retaken in halves, then the run stops).
-constexpr double kFailureResidual = 1e-6;
-constexpr int kMaxVelocityPasses = 8;
 constexpr int kMaxHalvings = 6;
 constexpr double kMaxTurn = 0.25;  // rad a body may turn in one step (phase error < 1e-6 rad)
 using HState = ConstraintSolver::HState;
 
 }  // namespace
 
-Stepper::Stepper(const System& sys) : ev_(sys), solver_(makeSolver(sys, stats_)) {
-  J_frozen_ = ev_.J;
+Stepper::Stepper(const System& sys) : ev_(sys), solver_(makeSolver(sys, stats_)), projection_(sys) {
   auto zeros = [](Eigen::VectorXd& v, int size) { v = Eigen::VectorXd::Zero(size); };
   const int nx = BodyCoordinates::positions(sys);
-  zeros(lam_, sys.m), zeros(r2_, sys.m), zeros(query_, sys.m);
+  zeros(lam_, sys.m), zeros(r2_, sys.m);
   zeros(a_, sys.n), zeros(r1_, sys.n);
   zeros(x0_, nx), zeros(u0_, sys.n), zeros(xs_, nx), zeros(us_, sys.n);
   tableau_ = &tableau(parseMethod(sys.options.method));
   for (int s = 0; s < Tableau::kMaxStages; ++s) zeros(kx_[s], nx), zeros(ku_[s], sys.n);
   zeros(sum_x_, nx), zeros(sum_u_, sys.n);
-  body_scale_.assign(sys.nb, {0.0, 0.0});
-  start_scale_.assign(sys.nb, {0.0, 0.0});
   // everything a step writes is sized here: a step allocates nothing
   backup_.assign(kMaxHalvings + 1, initialState(sys));
   start_ = backup_[0];
@@ -338,10 +329,10 @@ void Stepper::finishStep(const System& sys, State& s, const Inputs& in, bool aft
   if (limits_changed && watch_dependencies_) {
     refreshDependencies(sys, s);  // (leaves s evaluated)
   } else {
-    if (frozen) std::swap(ev_.J, J_frozen_);
+    if (frozen) std::swap(ev_.J, projection_.J_frozen);
     evaluate(sys, s);
   }
-  bool moved = projectPositions(sys, s, frozen);
+  bool moved = projectPositions(sys, s, ev_, *solver_, projection_, stats_, frozen);
   // A projection that stops one joint on its limit moves the joints around it: in a chain
   // it can carry another joint past its own stop (a three-rod chain swinging onto its
   // stops ended 3.4e-4 rad past one this way). Such limits become active and the
@@ -350,7 +341,7 @@ void Stepper::finishStep(const System& sys, State& s, const Inputs& in, bool aft
     frozen = false;
     if (watch_dependencies_) refreshDependencies(sys, s);
     else evaluate(sys, s);
-    moved = projectPositions(sys, s, false) || moved;
+    moved = projectPositions(sys, s, ev_, *solver_, projection_, stats_, false) || moved;
   }
   // The rows kept stopped implying the rows dropped: the loop turned in space so that
   // another of its cut joint's rows is the dependent one (a parallelogram gripper on an
@@ -358,10 +349,10 @@ void Stepper::finishStep(const System& sys, State& s, const Inputs& in, bool aft
   if (watch_dependencies_ && droppedResidual(sys, ev_) > kDependentDrift * sys.options.position_tol &&
       refreshDependencies(sys, s)) {
     frozen = false;
-    moved = projectPositions(sys, s, false) || moved;
+    moved = projectPositions(sys, s, ev_, *solver_, projection_, stats_, false) || moved;
   }
   if (moved || !frozen) solver_->factor(sys, ev_, "projection", s.t, !frozen);  // velocities need H at this Phi_q
-  const bool sped = projectVelocities(sys, s);
+  const bool sped = projectVelocities(sys, s, ev_, *solver_, projection_, stats_);
   // Tracked angles move to the new pose. The evaluation above stands when neither
   // projection moved the state: its branch references were predicted within O(h^2) of
   // these (the branch, all an evaluation takes from them, is the same).
@@ -420,117 +411,5 @@ bool Stepper::releaseLimits(const System& sys, State& s) {
   return released;
 }
 
-
-// The constraint with the largest |r| over its rows (r per equation), and that value.
-static int worstConstraint(const System& sys, const Eigen::VectorXd& r, double* value) {
-  int worst = 0;
-  *value = -1.0;
-  for (int ci = 0; ci < sys.numConstraints(); ++ci) {
-    const ConstraintLayout& L = sys.layout[ci];
-    const double e = L.size ? r.segment(L.row, L.size).cwiseAbs().maxCoeff() : 0.0;
-    if (e > *value) *value = e, worst = ci;
-  }
-  return worst;
-}
-
-[[noreturn]] void Stepper::leftConstraints(const System& sys, double t, double err) const {
-  double worst_err = 0;
-  const int worst = worstConstraint(sys, ev_.Phi, &worst_err);
-  std::ostringstream os;
-  os << "the step left the constraints (relative residual " << fmt(err) << ", largest at '"
-     << sys.constraints[worst]->name() << "': " << fmt(worst_err) << ", reached at t = " << t
-     << " s); try a smaller step";
-  throw StepFailure(os.str());
-}
-
-// Mass-orthogonal projection of positions, simplified Newton: dq from the factored
-// matrix applied to r2 = -Phi (precondition(): on H, dq = -H^-1 Phi_q^T W Phi, the
-// least-squares step, dependent equations included; on the tree KKT matrix the
-// mass-orthogonal step onto the tree's equations), renewing the factorization when
-// progress is slow.
-bool Stepper::projectPositions(const System& sys, State& s, bool frozen) {
-  const double tol = sys.options.position_tol;
-  double err = positionResidual(sys, ev_), previous = HUGE_VAL;
-  int it = 0;
-  for (; err > tol && it < kMaxNewton; ++it) {
-    if (!frozen || (it > 1 && err > 0.1 * previous)) {  // full Newton
-      solver_->factor(sys, ev_, "position projection", s.t);
-      frozen = false;
-    }
-    previous = err;
-    r2_ = -ev_.Phi;
-    r1_.setZero();
-    if (frozen) std::swap(ev_.J, J_frozen_);
-    solver_->precondition(sys, ev_, r1_.data(), r2_.data(), false);
-    if (frozen) std::swap(ev_.J, J_frozen_);
-    displace(sys, s.x, solver_->dn().data());
-    load(sys, s.x.data(), s.u.data());
-    evaluate(sys, s);
-    err = positionResidual(sys, ev_);
-  }
-  ++stats_.position_projections;
-  if (err > tol) {
-    ++stats_.position_shortfalls;
-    stats_.worst_position = std::max(stats_.worst_position, err);
-    if (err > kFailureResidual) leftConstraints(sys, s.t, err);
-  }
-  return it > 0;
-}
-
-// Mass-orthogonal projection of velocities onto Phi_q v = nu: dv from the factored matrix
-// applied to r2 = nu - Phi_q v (on H: dv = H^-1 Phi_q^T W r2), repeated until the relative
-// residual meets velocity_tol. A pass that gains less than a factor 2 ends it (as in
-// solveKKT): what is left lies along equations that are nearly dependent at this
-// configuration (a parallelogram passing flat), where each further pass moves the
-// velocities by about residual / sigma_min^2 along the dependent direction and gains
-// little (measured: 8 passes of 0.98 each moved them by 1.2e-7 m/s to gain 10%). A pass
-// that made it worse is undone; the residual left is counted. The gain is measured against
-// the scales of the velocities the projection started from: the residual relative to the
-// current velocities does not fall when the projection stops most of the motion (a limit
-// that just engaged: relative 1 before and after a pass that cut the velocity into it by
-// a factor 270).
-bool Stepper::projectVelocities(const System& sys, State& s) {
-  const double tol = sys.options.velocity_tol;
-  double err = velocityResidual(sys, ev_, s.u, body_scale_);
-  const bool moves = err > tol;
-  double gauge = err;  // the residual against the starting scales
-  if (moves) start_scale_ = body_scale_;
-  for (int it = 0; err > tol && it < kMaxVelocityPasses; ++it) {
-    mulJ(sys, ev_, sys.all_constraints, s.u.data(), r2_.data());
-    r2_ = ev_.nu - r2_;
-    r1_.setZero();
-    solver_->precondition(sys, ev_, r1_.data(), r2_.data(), false);
-    s.u += solver_->dn();
-    err = velocityResidual(sys, ev_, s.u, body_scale_);
-    if (err <= tol) break;
-    const double previous = gauge;
-    gauge = velocityResidualAtScales(sys, ev_, s.u, start_scale_);
-    if (gauge > previous) {
-      s.u -= solver_->dn();
-      err = velocityResidual(sys, ev_, s.u, body_scale_);
-      break;
-    }
-    if (gauge > 0.5 * previous) break;
-  }
-  ++stats_.velocity_projections;
-  if (err <= tol) return moves;
-  ++stats_.velocity_shortfalls;
-  stats_.worst_velocity = std::max(stats_.worst_velocity, err);
-  if (err > kFailureResidual) {
-    // as for positions: the step cannot be repaired (it is retaken in halves, then the run
-    // stops) rather than going on with the velocity constraints visibly broken
-    mulJ(sys, ev_, sys.all_constraints, s.u.data(), query_.data());
-    query_ -= ev_.nu;
-    double worst_v = 0;
-    const int worst = worstConstraint(sys, query_, &worst_v);
-    std::ostringstream os;
-    os << "the velocities cannot be brought onto the constraints (relative residual " << fmt(err)
-       << ", largest at '" << sys.constraints[worst]->name() << "': " << fmt(worst_v) << ", reached at t = " << s.t
-       << " s); the mechanism may be near a singular or locking configuration (joint axes almost but not "
-          "exactly aligned?) or too badly scaled for double precision (parts of very different sizes)";
-    throw StepFailure(os.str());
-  }
-  return moves;
-}
 
 }  // namespace mechanism_sim

@@ -23,6 +23,7 @@
 
 #include "mechanism_sim/core/dependencies.h"
 #include "mechanism_sim/core/evaluation.h"
+#include "mechanism_sim/core/projection.h"
 #include "mechanism_sim/core/solver.h"
 #include "mechanism_sim/core/system.h"
 #include "mechanism_sim/core/tableau.h"
@@ -84,15 +85,12 @@ class Stepper {
   void advance(const System& sys, State& s, const Inputs& in, double h, int depth);
   void stepOnce(const System& sys, State& s, const Inputs& in, double h);
   void finishStep(const System& sys, State& s, const Inputs& in, bool after_stages);
-  bool projectPositions(const System& sys, State& s, bool frozen);  // whether it moved
-  bool projectVelocities(const System& sys, State& s);  // whether it moved
   bool updateLimits(const System& sys, State& s);
   bool releaseLimits(const System& sys, State& s);
   // Analyzes again (mechanisms whose rows can depend on others: loops, couplers) when the
   // active limits changed or the dropped rows drifted; returns whether s.dropped changed and
   // leaves s evaluated (kinematics loaded at s).
   bool refreshDependencies(const System& sys, State& s, DependencyReport* report = nullptr);
-  [[noreturn]] void leftConstraints(const System& sys, double t, double err) const;
 
   SolverStats stats_;
   Evaluation ev_;
@@ -100,9 +98,8 @@ class Stepper {
   DependencyAnalyzer dependencies_;
   bool watch_dependencies_ = false;  // rows may depend on others (loops, couplers)
   std::vector<char> dropped_before_;
-  std::vector<Jacobian> J_frozen_;  // the last stage's Jacobian, during projection
-  std::vector<std::array<double, 2>> body_scale_, start_scale_;  // projectVelocities(): per body
-  Eigen::VectorXd a_, lam_, r1_, r2_, query_;
+  Projection projection_;  // the projections' scratch (its J_frozen: the last stage's Jacobian)
+  Eigen::VectorXd a_, lam_, r1_, r2_;
   const Tableau* tableau_ = &kRk4;  // the integrator (tableau.h)
   // The step's start, a stage's start, the stages' rates and a weighted sum of them.
   Eigen::VectorXd x0_, u0_, xs_, us_, kx_[Tableau::kMaxStages], ku_[Tableau::kMaxStages], sum_x_, sum_u_;

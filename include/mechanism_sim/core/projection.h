@@ -1,0 +1,47 @@
+// Projection onto the constraints (doc/method.md "Integration method"): free functions on a
+// State, its evaluation record and the solver interface, as the stepper and whoever
+// embeds the core call them.
+//   * positions: simplified Newton on Phi = 0, mass-orthogonal, to position_tol;
+//   * velocities: mass-orthogonal onto Phi_q v = nu, to velocity_tol.
+// Both count their shortfalls in SolverStats; past kFailureResidual the step cannot be
+// repaired (StepFailure, naming the constraint).
+#pragma once
+#include <array>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "mechanism_sim/core/evaluation.h"
+#include "mechanism_sim/core/solver.h"
+
+namespace mechanism_sim {
+
+// Above this relative residual the constraints are visibly broken and the step fails
+// (StepFailure: retaken in halves, then the run stops); between the tolerance and it a
+// projection is counted short and the run goes on.
+constexpr double kFailureResidual = 1e-6;
+
+// The projections' scratch, sized once for a System (no allocation in a projection).
+struct Projection {
+  Eigen::VectorXd r1, r2, query;
+  std::vector<std::array<double, 2>> body_scale, start_scale;  // per body
+  std::vector<Jacobian> J_frozen;  // the Jacobian H was factored with (frozen Newton)
+  Projection() = default;
+  explicit Projection(const System& sys)
+      : r1(Eigen::VectorXd::Zero(sys.n)), r2(Eigen::VectorXd::Zero(sys.m)), query(Eigen::VectorXd::Zero(sys.m)),
+        body_scale(sys.nb, {0.0, 0.0}), start_scale(sys.nb, {0.0, 0.0}), J_frozen(Evaluation(sys).J) {}
+};
+
+// Moves s.x onto Phi = 0 (ev evaluated at s on entry and on return). With `frozen` the
+// factorization at hand and w.J_frozen (the Jacobian it was taken with) make the Newton
+// steps, refactored when progress is slow. Returns whether it moved.
+bool projectPositions(const System& sys, State& s, Evaluation& ev, ConstraintSolver& solver, Projection& w,
+                      SolverStats& stats, bool frozen);
+// Moves s.u onto Phi_q v = nu with the factorization at hand (at s's positions). Returns
+// whether it moved.
+bool projectVelocities(const System& sys, State& s, Evaluation& ev, ConstraintSolver& solver, Projection& w,
+                       SolverStats& stats);
+// The constraint with the largest |r| over its rows (r per equation), and that value.
+int worstConstraint(const System& sys, const Eigen::VectorXd& r, double* value);
+
+}  // namespace mechanism_sim
