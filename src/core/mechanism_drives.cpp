@@ -106,11 +106,7 @@ double Mechanism::jointAcceleration(int joint, int k) const {
   const Joint& j = *sys_->joints[joint];
   Row rows[kMaxJointDofs];
   j.coordinates(kin(j.bodyI()), kin(j.bodyJ()), state_.tracked[j.id()], rows);
-  double q_ddot = -rows[k].gamma;
-  const int bodies[2] = {j.bodyI(), j.bodyJ()};
-  for (int s = 0; s < 2; ++s)
-    if (bodies[s] != kGround) q_ddot += rows[k].J.segment<6>(6 * s).dot(state_.acc.segment<6>(6 * (bodies[s] - 1)));
-  return q_ddot;
+  return rowDot(*sys_, joint, rows[k], state_.acc.data()) - rows[k].gamma;
 }
 
 }  // namespace mechanism_sim

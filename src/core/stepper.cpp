@@ -181,7 +181,7 @@ void Stepper::advance(const System& sys, State& s, const Inputs& in, double h, i
   int fastest = 0;
   double spin = 0;
   for (int b = 0; b < sys.nb; ++b) {
-    const double w = s.u.segment<3>(6 * b + 3).norm();
+    const double w = s.u.segment<3>(BodyCoordinates::u(b) + 3).norm();
     if (w > spin) spin = w, fastest = b + 1;
   }
   if (spin * h > kMaxTurn) {
@@ -277,7 +277,7 @@ void Stepper::stepOnce(const System& sys, State& s, const Inputs& in, double h) 
   }
   combine(T.b, T.stages, T.b_den, x0_, kx_, sum_x_, s.x);
   combine(T.b, T.stages, T.b_den, u0_, ku_, sum_u_, s.u);
-  for (int b = 0; b < sys.nb; ++b) s.x.segment<4>(7 * b + 3).normalize();
+  for (int b = 0; b < sys.nb; ++b) s.x.segment<4>(BodyCoordinates::x(b) + 3).normalize();
   predictTracked(h);  // references near the new angles; finishStep tracks them exactly
   s.t = t0 + h;
   ++s.steps;
@@ -285,7 +285,7 @@ void Stepper::stepOnce(const System& sys, State& s, const Inputs& in, double h) 
 }
 
 void Stepper::settle(const System& sys, State& s, const Inputs& in) {
-  for (int b = 0; b < sys.nb; ++b) s.x.segment<4>(7 * b + 3).normalize();
+  for (int b = 0; b < sys.nb; ++b) s.x.segment<4>(BodyCoordinates::x(b) + 3).normalize();
   finishStep(sys, s, in, false);
 }
 

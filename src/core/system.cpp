@@ -8,6 +8,7 @@
 #include <Eigen/Eigenvalues>
 
 #include "mechanism_sim/core/couplers.h"
+#include "mechanism_sim/core/evaluation.h"
 #include "mechanism_sim/core/tableau.h"
 
 namespace mechanism_sim {
@@ -172,15 +173,15 @@ void System::updateLoadScales() {
 
 State initialState(const System& sys) {
   State s;
-  s.x = Eigen::VectorXd::Zero(7 * sys.nb);  // (evaluation.h BodyCoordinates)
+  s.x = Eigen::VectorXd::Zero(BodyCoordinates::positions(sys));
   s.u = Eigen::VectorXd::Zero(sys.n);
   for (int b = 1; b <= sys.nb; ++b) {
     const Body& B = sys.bodies[b];
-    s.x.segment<3>(7 * (b - 1)) = B.r;
+    s.x.segment<3>(BodyCoordinates::x(b - 1)) = B.r;
     const Quaterniond p = B.p.normalized();
-    s.x.segment<4>(7 * (b - 1) + 3) << p.w(), p.x(), p.y(), p.z();
-    s.u.segment<3>(6 * (b - 1)) = B.v;
-    s.u.segment<3>(6 * (b - 1) + 3) = B.w;
+    s.x.segment<4>(BodyCoordinates::x(b - 1) + 3) << p.w(), p.x(), p.y(), p.z();
+    s.u.segment<3>(BodyCoordinates::u(b - 1)) = B.v;
+    s.u.segment<3>(BodyCoordinates::u(b - 1) + 3) = B.w;
   }
   for (const auto& c : sys.constraints) s.tracked.push_back(c->initialTracked());
   s.limit_side.assign(sys.limits.size(), 0);
