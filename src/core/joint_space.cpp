@@ -8,11 +8,11 @@
 // (RBDA ch. 2, spatial inertia, with c = 0).
 #include "mechanism_sim/core/joint_space.h"
 
+#include <algorithm>
 #include <cmath>
 #include <string>
 
 #include "mechanism_sim/core/errors.h"
-#include "mechanism_sim/core/joints/screw.h"
 
 namespace mechanism_sim {
 namespace {
@@ -91,6 +91,12 @@ inline Matrix3d rotationOf(const double* p) {
   return Quaterniond(p[0], p[1], p[2], p[3]).normalized().toRotationMatrix();
 }
 
+bool treeJointKnown(const Joint& j) {
+  const std::string t = j.type();
+  return t == "revolute" || t == "prismatic" || t == "cylindrical" || t == "screw" || t == "universal" ||
+         t == "spherical" || t == "planar" || t == "fixed";
+}
+
 TreeJointKind kindOf(const Joint& j) {
   const std::string t = j.type();
   if (t == "revolute") return TreeJointKind::kRevolute;
@@ -122,23 +128,39 @@ void setSizes(TreeLink& L) {
 
 // ---- the tree
 
+std::string jointSpaceUnsupported(const System& sys) {
+  if (sys.nb != sys.numBodies() - 1 || sys.nb < 1) return "the System is not finalized or has no moving body";
+  std::vector<char> is_joint(sys.numConstraints(), 0);
+  for (int c : sys.joint_constraint)
+    if (c >= 0 && c < sys.numConstraints()) is_joint[c] = 1;
+  for (int c = 0; c < sys.numConstraints(); ++c)
+    if (!is_joint[c])
+      return "constraint '" + sys.constraints[c]->name() + "' (" + sys.constraints[c]->type() +
+             "): the joint-space formulation takes joints only (no couplers, drives or limits yet)";
+  for (const Joint* J : sys.joints) {
+    if (!treeJointKnown(*J))
+      return "joint '" + J->name() + "': the joint-space tree has no model of joint type '" + J->type() + "'";
+    if (J->bodyI() == J->bodyJ()) return "joint '" + J->name() + "': joins a body to itself";
+  }
+  for (int j = 0; j < sys.numJoints(); ++j)
+    for (int k = 0; k < 3; ++k)
+      if (j < static_cast<int>(sys.friction.size()) && sys.friction[j][k] != 0)
+        return "joint '" + sys.joints[j]->name() + "': the joint-space formulation has no Coulomb friction yet";
+  const TreeModel model(sys);
+  if (!model.cut_joints.empty())
+    return "joint '" + sys.joints[model.cut_joints[0]]->name() +
+           "' closes a loop: the joint-space formulation takes a forest only (loop closures are not done yet)";
+  return std::string();
+}
+
 TreeModel::TreeModel(const System& sys) {
   nb = sys.numBodies() - 1;
   if (sys.nb != nb || nb < 1)
     throw UsageError("TreeModel: the System must be finalized and have a moving body");
-  // What the recursion does not model yet: refuse it rather than leave it out silently.
-  for (const auto& c : sys.constraints)
-    if (!dynamic_cast<const Joint*>(c.get()))
-      throw ModelError("constraint '" + c->name() + "' (" + c->type() +
-                       "): the joint-space tree takes joints only (no couplers, drives or limits yet)");
-  if (!sys.springs.empty())
-    throw ModelError("spring '" + sys.springs[0].name + "': the joint-space tree has no springs yet");
-  for (int j = 0; j < sys.numJoints(); ++j)
-    for (int k = 0; k < 3; ++k)
-      if ((j < static_cast<int>(sys.damping.size()) && sys.damping[j][k] != 0) ||
-          (j < static_cast<int>(sys.friction.size()) && sys.friction[j][k] != 0))
-        throw ModelError("joint '" + sys.joints[j]->name() +
-                         "': the joint-space tree has no joint damping or friction yet");
+  // Constraints other than joints (couplers, drives, limits), springs, joint damping and
+  // friction are not the recursion's business: jointSpaceUnsupported() says which of them
+  // the formulation runs, the caller applies the rest (damping as efforts, springs as
+  // loads). Joints the spanning tree does not use are cut joints (cut_joints).
 
   // Spanning tree by breadth-first search from ground; the bodies ground does not reach
   // are free-floating (each group rooted at its lowest-numbered body by a 6-dof link).
@@ -165,9 +187,10 @@ TreeModel::TreeModel(const System& sys) {
         used[j] = 1;
         const Joint& J = *sys.joints[j];
         const int child = J.bodyI() == b ? J.bodyJ() : J.bodyI();
-        if (reached[child])
-          throw ModelError("joint '" + J.name() + "' closes a loop (body '" + sys.bodies[child].name +
-                           "' is reached twice): the joint-space tree takes a forest only");
+        if (reached[child]) {  // closes a loop: a cut joint, left to the closures
+          cut_joints.push_back(j);
+          continue;
+        }
         reached[child] = 1;
         TreeLink& L = links[child - 1];
         L.body = child;
@@ -179,12 +202,7 @@ TreeModel::TreeModel(const System& sys) {
         const JointFrame& fp = L.reversed ? J.frameJ() : J.frameI();
         const JointFrame& fc = L.reversed ? J.frameI() : J.frameJ();
         L.Rp = fp.Rp, L.sp = fp.sp_B, L.Rc = fc.Rp, L.sc = fc.sp_B;
-        if (L.kind == TreeJointKind::kScrew) {
-          const auto* screw = dynamic_cast<const ScrewJoint*>(&J);
-          if (!screw) throw ModelError("joint '" + J.name() + "': a screw joint that is not a ScrewJoint");
-          L.params.alpha = screw->alpha();
-          L.params.phi0 = screw->initialTracked()[0];
-        }
+        L.params = J.params();
         setSizes(L);
         joint_link[j] = child - 1;
         order.push_back(child);
@@ -206,7 +224,9 @@ TreeModel::TreeModel(const System& sys) {
   }
   // Coordinates: the joints' in sys.joints order, then the free bodies'.
   nq = nv = 0;
+  std::sort(cut_joints.begin(), cut_joints.end());
   for (int j = 0; j < sys.numJoints(); ++j) {
+    if (joint_link[j] < 0) continue;  // a cut joint
     TreeLink& L = links[joint_link[j]];
     L.iq = nq, L.iv = nv;
     nq += L.nq, nv += L.nv;
@@ -540,6 +560,7 @@ void inverseDynamics(const TreeModel& model, const System& sys, const Eigen::Vec
 void jointEfforts(const TreeModel& model, const Inputs& in, Eigen::VectorXd& tau) {
   tau.setZero(model.nv);
   for (size_t j = 0; j < model.joint_link.size(); ++j) {
+    if (model.joint_link[j] < 0) continue;  // a cut joint: its effort acts through the closure
     const TreeLink& L = model.links[model.joint_link[j]];
     for (int k = 0; k < L.nv; ++k) tau(L.iv + k) = in.effort[j][k];
   }

@@ -68,6 +68,8 @@ class Joint : public Constraint {
   // Whether coordinates 0 and 1 are two translations in one plane (a planar joint): their
   // Coulomb friction is then a disc (an ellipse for unequal values), not a box.
   virtual bool planarTranslation() const { return false; }
+  // The type's parameters beyond its frames (a screw's alpha and phi0; the defaults else).
+  virtual JointParams params() const { return {}; }
   // Joint coordinates: out[k] (k < dof) holds q_k (Phi), its rate (Phi_dot), the row G_k
   // (J) with q_dot_k = G_k v, and gamma_k. A generalized effort tau_k along coordinate k
   // acts on the bodies as G_k^T tau_k.

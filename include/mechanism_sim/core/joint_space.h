@@ -34,10 +34,14 @@
 //   (force global, torque in body components) at the centre of mass.
 // Fixed joints are 0-dof links of the recursion (merging the welded bodies into one
 // composite body would save their passes: a later optimisation).
-// Not modelled yet (the constructor throws ModelError when a System has them): couplers,
-// drives, limits, springs, joint damping and friction. Loop closures are refused too: they
-// are the next piece (cut joints as constraints on this tree).
+// What the formulation runs is jointSpaceUnsupported()'s answer; the TreeModel itself only
+// refuses what the recursion cannot represent (an unknown joint type on the tree, a joint
+// from a body to itself). It leaves out everything that is not a tree joint: couplers,
+// drives, limits, springs, joint damping and friction are the caller's (a stepper applies
+// damping as tau -= c q_dot and springs as body loads), and joints the spanning tree does
+// not use are cut joints (TreeModel::cut_joints), for the loop closures.
 #pragma once
+#include <string>
 #include <vector>
 
 #include <Eigen/Cholesky>
@@ -79,16 +83,23 @@ struct TreeLink {
   Vector3d sp = Vector3d::Zero(), sc = Vector3d::Zero();
 };
 
+// Empty when the joint-space formulation can run the System; otherwise a sentence naming
+// the first thing it cannot run yet (a coupler, drive or limit, Coulomb friction, a joint
+// type without a tree model, a loop closure). Springs and joint damping pass: the caller
+// applies them as loads and efforts.
+std::string jointSpaceUnsupported(const System& sys);
+
 struct TreeModel {
-  // Throws ModelError naming the joint (or constraint, spring) the tree cannot take: a joint
-  // that closes a loop, a coupler, drive or limit, a spring, joint damping or friction.
+  // Throws UsageError for a System that is not finalized, ModelError for a tree joint of a
+  // type the recursion has no model of, or a joint from a body to itself.
   explicit TreeModel(const System& sys);
 
   int nb = 0;                   // moving bodies
   int nq = 0, nv = 0;           // position and velocity coordinates
   std::vector<TreeLink> links;  // per moving body b at links[b - 1]
   std::vector<int> order;       // moving bodies, each after its parent (b, 1..nb)
-  std::vector<int> joint_link;  // per sys joint: its link (body - 1)
+  std::vector<int> joint_link;  // per sys joint: its link (body - 1); -1 for a cut joint
+  std::vector<int> cut_joints;  // sys joints that close loops (not on the tree), ascending
 
   const TreeLink& link(int b) const { return links[b - 1]; }
   // A neutral joint state: zero coordinates, identity quaternions, free bodies where the

@@ -25,6 +25,7 @@ class ScrewJoint : public Joint {
   bool holdsAxesParallel() const override { return true; }
   bool locksTwist() const override { return true; }
   double alpha() const { return alpha_; }
+  JointParams params() const override { return JointParams{alpha_, phi0_}; }
   void coordinates(const BodyKin& ki, const BodyKin& kj, const Tracked& t, Row* out) const override;
 
  protected:
