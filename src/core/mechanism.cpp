@@ -23,7 +23,24 @@ void Mechanism::requireUnbuilt(const char* what) const {
 // System that a Stepper or a snapshot refers to never changes under it.
 System& Mechanism::editable() {
   if (built_) sys_ = std::make_shared<System>(*sys_);
+  if (joint_) joint_->invalidate();  // (the State's accelerations were of the old System)
   return *sys_;
+}
+
+void Mechanism::useFormulation(bool settle) {
+  const Formulation f = chooseFormulation(*sys_, parseFormulation(sys_->options.formulation), &formulation_why_);
+  if (f == Formulation::kJoint) {
+    if (!joint_) joint_ = std::make_unique<JointStepper>(*sys_);
+    joint_->setMethod(parseMethod(sys_->options.method));
+    if (settle) joint_->settle(*sys_, state_, inputs_);
+  } else {
+    const bool was_joint = joint_ != nullptr;
+    joint_.reset();
+    state_.q.resize(0), state_.qdot.resize(0), state_.qddot.resize(0);
+    // the absolute stepper's accelerations and multipliers of this state
+    if (settle && was_joint) stepper_->settle(*sys_, state_, inputs_);
+  }
+  formulation_ = f;
 }
 
 int Mechanism::addBody(const Body& body) {
@@ -151,13 +168,19 @@ void Mechanism::setJointFriction(int joint, int k, double f) {
   checkCoordinate(joint, k);
   if (!(f >= 0) || !std::isfinite(f))
     throw ModelError("joint '" + sys_->joints[joint]->name() + "': friction must be finite and >= 0");
+  if (built_ && f > 0 && parseFormulation(sys_->options.formulation) == Formulation::kJoint)
+    throw ModelError("joint '" + sys_->joints[joint]->name() +
+                     "': the joint formulation has no Coulomb friction yet (formulation 'auto' or 'absolute' has)");
   editable().friction[joint][k] = f;
+  if (built_) useFormulation(true);  // (the joint formulation has no Coulomb friction yet)
 }
 
 void Mechanism::setIntegrator(const IntegratorOptions& options) {
   options.validate();
+  if (built_) chooseFormulation(*sys_, parseFormulation(options.formulation), nullptr);  // (throws, nothing changed)
   editable().options = options;
   if (stepper_) stepper_->setMethod(parseMethod(options.method));  // the Stepper holds the integrator
+  if (built_) useFormulation(true);
 }
 
 void Mechanism::build() {
@@ -169,6 +192,7 @@ void Mechanism::build() {
   query_eval_.reset();
   reactions_.reset();
   built_ = true;
+  useFormulation(false);  // (settled by assemble(), or by the first step)
 }
 
 AssemblyReport Mechanism::assemble(const std::vector<CoordinateTarget>& positions,
@@ -176,6 +200,7 @@ AssemblyReport Mechanism::assemble(const std::vector<CoordinateTarget>& position
   build();
   const AssemblyReport r = mechanism_sim::assemble(*sys_, state_, *stepper_, positions, velocities, &dependencies_);
   stepper_->settle(*sys_, state_, inputs_);
+  if (joint_) joint_->settle(*sys_, state_, inputs_);  // the joint state of the assembled one
   return r;
 }
 
@@ -183,7 +208,12 @@ void Mechanism::step(double h) {
   if (!built_) throw UsageError("Mechanism::step before build() and assemble()");
   // (a step that fails leaves the State at the last accepted step: the queries compute
   // from it, not from the stepper's evaluation, which the failed step left elsewhere)
-  stepper_->step(*sys_, state_, inputs_, h);
+  if (joint_) {
+    if (state_.q.size() == 0) joint_->settle(*sys_, state_, inputs_);
+    joint_->step(*sys_, state_, inputs_, h);
+  } else {
+    stepper_->step(*sys_, state_, inputs_, h);
+  }
 }
 
 void Mechanism::setJointEffort(int joint, int k, double tau) {
@@ -191,6 +221,7 @@ void Mechanism::setJointEffort(int joint, int k, double tau) {
   if (!std::isfinite(tau)) throw UsageError("effort must be finite");
   if (!built_) throw UsageError("Mechanism::setJointEffort before build()");
   inputs_.effort[joint][k] = tau;
+  if (joint_) joint_->invalidate();
 }
 
 void Mechanism::setBodyWrench(int body, const Vector3d& force, const Vector3d& torque_body) {
@@ -198,18 +229,26 @@ void Mechanism::setBodyWrench(int body, const Vector3d& force, const Vector3d& t
   if (!force.allFinite() || !torque_body.allFinite()) throw UsageError("wrench must be finite");
   inputs_.force.at(body) = force;
   inputs_.torque.at(body) = torque_body;
+  if (joint_) joint_->invalidate();
 }
 
 void Mechanism::setSpringActuation(int spring, double f_act) {
   if (!built_) throw UsageError("Mechanism::setSpringActuation before build()");
   if (!std::isfinite(f_act)) throw UsageError("actuation must be finite");
   inputs_.spring_actuation.at(spring) = f_act - sys_->springs.at(spring).f_act;
+  if (joint_) joint_->invalidate();
 }
 
 void Mechanism::restore(const Snapshot& s) {
   if (!built_ || s.x.size() != state_.x.size() || s.tracked.size() != state_.tracked.size())
     throw UsageError("Mechanism::restore: the snapshot is of another mechanism");
   state_ = s;  // (queries compute from it; stepping goes on from it bit for bit)
+  if (joint_) {
+    joint_->invalidate();  // (recomputed at the next step: the same bits)
+    if (state_.q.size() == 0) joint_->settle(*sys_, state_, inputs_);  // a snapshot of the absolute formulation
+  } else {
+    state_.q.resize(0), state_.qdot.resize(0), state_.qddot.resize(0);
+  }
 }
 
 const Evaluation& Mechanism::evaluated() const {
@@ -257,13 +296,34 @@ double Mechanism::jointEffort(int joint, int k) const {
   return tau;
 }
 
+Eigen::VectorXd Mechanism::multipliers(const Evaluation** with) const {
+  const System& sys = *sys_;
+  bool dependent = false;
+  for (char d : state_.dropped) dependent = dependent || d;
+  if (!dependent && !joint_) {
+    *with = &evaluated();
+    return state_.lambda;
+  }
+  if (!reactions_) {
+    reactions_ = std::make_unique<ReactionSolve>();
+    reactions_->ev = Evaluation(sys);
+    reactions_->solver = makeSolver(sys, reactions_->stats);
+  }
+  Eigen::VectorXd lambda;
+  minimumNormMultipliers(sys, state_, inputs_, reactions_->ev, *reactions_->solver, reactions_->stats, lambda);
+  *with = &reactions_->ev;  // (the dependent rows' Jacobian is in this evaluation only)
+  return lambda;
+}
+
 Reaction Mechanism::reaction(int ci) const {
   const ConstraintLayout& L = sys_->layout.at(ci);
   const Constraint& c = *sys_->constraints[ci];
-  const Eigen::MatrixXd J = evaluated().jacobian(*sys_, ci);
+  const Evaluation* ev = nullptr;
+  const Eigen::VectorXd lambda = multipliers(&ev);
+  const Eigen::MatrixXd J = ev->jacobian(*sys_, ci);
   const int k = static_cast<int>(c.bodies().size()) - 1;  // the last body (j of a joint)
   Eigen::Matrix<double, 6, 1> gen = Eigen::Matrix<double, 6, 1>::Zero();
-  for (int e = 0; e < L.size; ++e) gen -= J.block<1, 6>(e, 6 * k).transpose() * state_.lambda[L.row + e];
+  for (int e = 0; e < L.size; ++e) gen -= J.block<1, 6>(e, 6 * k).transpose() * lambda[L.row + e];
   const BodyKin& kb = kin(c.bodies()[k]);
   Reaction r;
   r.force = gen.head<3>();
@@ -275,6 +335,7 @@ Reaction Mechanism::reaction(int ci) const {
 
 SolverStats Mechanism::solverStats() const {
   SolverStats s = stepper_->stats();
+  if (joint_) s.solves += joint_->stats().solves;  // (its stages: the articulated-body passes)
   if (reactions_) {
     const SolverStats& r = reactions_->stats;
     s.solves += r.solves;
@@ -287,17 +348,8 @@ SolverStats Mechanism::solverStats() const {
 std::vector<Reaction> Mechanism::jointReactions() const {
   const System& sys = *sys_;
   const State& s = state_;
-  Eigen::VectorXd lambda = s.lambda;
-  bool dependent = false;
-  for (char d : s.dropped) dependent = dependent || d;
-  if (dependent) {
-    if (!reactions_) {
-      reactions_ = std::make_unique<ReactionSolve>();
-      reactions_->ev = Evaluation(sys);
-      reactions_->solver = makeSolver(sys, reactions_->stats);
-    }
-    minimumNormMultipliers(sys, s, inputs_, reactions_->ev, *reactions_->solver, reactions_->stats, lambda);
-  }
+  const Evaluation* ev = nullptr;
+  const Eigen::VectorXd lambda = multipliers(&ev);
   std::vector<Reaction> out(sys.joints.size());
   // wrench of a generalized force gen = [f; n'] on body b, moved to joint point sp_B of b
   auto add = [&](int j, const Eigen::Matrix<double, 6, 1>& gen) {
@@ -323,8 +375,7 @@ std::vector<Reaction> Mechanism::jointReactions() const {
     const ConstraintLayout& L = sys.layout[ci];
     const Constraint& c = *sys.constraints[ci];
     if (joint_of[ci] >= 0) {  // the joint's own equations: -Phi_q^T lambda on body j
-      // (the dependent rows' Jacobian is in the reactions' evaluation only)
-      const Eigen::MatrixXd J = (dependent ? reactions_->ev : evaluated()).jacobian(sys, ci);
+      const Eigen::MatrixXd J = ev->jacobian(sys, ci);
       Eigen::Matrix<double, 6, 1> gen = Eigen::Matrix<double, 6, 1>::Zero();
       for (int e = 0; e < L.size; ++e) gen -= J.block<1, 6>(e, 6).transpose() * lambda[L.row + e];
       add(joint_of[ci], gen);

@@ -70,6 +70,9 @@ std::vector<int> Mechanism::replaceDrives(std::vector<DriveSpec> drives, const s
   // Assembly finds the dependent equations at this pose (it moves nothing that already
   // satisfies the equations: the new drives start where their coordinates are); then the
   // accelerations and multipliers are solved with the new equations.
+  // the formulation asked for must run the new System (the joint formulation has no drives
+  // yet: "joint" refuses it here, the mechanism unchanged; "auto" turns to absolute)
+  chooseFormulation(*sys, parseFormulation(sys->options.formulation), nullptr);
   auto stepper = std::make_unique<Stepper>(*sys);
   DependencyReport deps;
   mechanism_sim::assemble(*sys, s, *stepper, {}, {}, &deps);
@@ -84,6 +87,8 @@ std::vector<int> Mechanism::replaceDrives(std::vector<DriveSpec> drives, const s
   reactions_.reset();
   query_eval_.reset();
   dependencies_ = deps;
+  joint_.reset();  // (a JointStepper is of one System)
+  useFormulation(true);
   return {};
 }
 

@@ -40,8 +40,23 @@ Method parseMethod(const std::string& name) {
   throw ModelError("unknown integrator '" + name + "' (known: rk4, rk3, rk2)");
 }
 
+Formulation parseFormulation(const std::string& name) {
+  for (Formulation f : {Formulation::kAuto, Formulation::kJoint, Formulation::kAbsolute})
+    if (name == formulationName(f)) return f;
+  throw ModelError("unknown formulation '" + name + "' (known: auto, joint, absolute)");
+}
+
+const char* formulationName(Formulation f) {
+  switch (f) {
+    case Formulation::kJoint: return "joint";
+    case Formulation::kAbsolute: return "absolute";
+    default: return "auto";
+  }
+}
+
 void IntegratorOptions::validate() const {
   parseMethod(method);
+  parseFormulation(formulation);
   if (!(position_tol > 0) || !(velocity_tol > 0) || !(solve_tol > 0))
     throw ModelError("integrator tolerances must be positive");
 }

@@ -9,43 +9,12 @@
 
 #include "bodies.h"
 #include "mechanism_sim/core/models.h"
+#include "pendulum.h"
 
 namespace mechanism_sim {
 namespace {
 
-constexpr double kG = 9.81;
 
-
-// A point-like mass m (central inertia Ic) at distance L from a revolute about y through
-// `pivot`, released from the horizontal (+x side) at rest, gravity -z.
-struct Pendulum {
-  double m = 1.0, L = 1.0, Ic = 1e-6;
-  Vector3d pivot = Vector3d::Zero();
-  int add(Mechanism& mech, const std::string& name = "bob") const {
-    const int b = mech.addBody(body(name, m, Ic * Matrix3d::Identity(), pivot + Vector3d(L, 0, 0)));
-    mech.addJoint(makeJoint("revolute", name + "_pivot", Mechanism::kGround, models::axisY(pivot), b,
-                            models::axisY(Vector3d(-L, 0, 0))));
-    return b;
-  }
-  // Exact motion: (m L^2 + Ic) q'' = m g L cos q, q the angle below the horizontal, by RK4
-  // on the scalar equation with a step of 1e-5 s (its own error, against the same in long
-  // double: 2.4e-13 m after 10 s, the round-off of its 1e6 steps).
-  Vector3d exact(double T) const {
-    const double c = m * kG * L / (m * L * L + Ic);
-    double q = 0, v = 0;
-    const double h = 1e-5;
-    auto f = [c](double x) { return c * std::cos(x); };
-    for (long k = 0, n = std::lround(T / h); k < n; ++k) {
-      const double k1x = v, k1v = f(q);
-      const double k2x = v + 0.5 * h * k1v, k2v = f(q + 0.5 * h * k1x);
-      const double k3x = v + 0.5 * h * k2v, k3v = f(q + 0.5 * h * k2x);
-      const double k4x = v + h * k3v, k4v = f(q + h * k3x);
-      q += h / 6.0 * (k1x + 2 * k2x + 2 * k3x + k4x);
-      v += h / 6.0 * (k1v + 2 * k2v + 2 * k3v + k4v);
-    }
-    return pivot + L * Vector3d(std::cos(q), 0, -std::sin(q));
-  }
-};
 
 double pendulumError(const Pendulum& p, double h, double T, SolverStats* stats = nullptr,
                      const std::string& method = "rk4") {

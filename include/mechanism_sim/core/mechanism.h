@@ -9,6 +9,7 @@
 #include <utility>
 #include <vector>
 
+#include "mechanism_sim/core/joint_stepper.h"
 #include "mechanism_sim/core/stepper.h"
 #include "mechanism_sim/core/system.h"
 
@@ -119,6 +120,9 @@ class Mechanism {
   const DependencyReport& dependencies() const { return dependencies_; }
   const Vector3d& gravity() const { return sys_->gravity; }
   const IntegratorOptions& integrator() const { return sys_->options; }
+  // The formulation that runs (after build(): "joint" or "absolute") and why, one phrase.
+  const char* formulation() const { return formulationName(formulation_); }
+  const std::string& formulationReason() const { return formulation_why_; }
 
   // ---- state queries (of the current, accepted state: computed from the State, on the
   // stepper's evaluation where that describes it, else on the queries' own)
@@ -164,13 +168,24 @@ class Mechanism {
   // The evaluation at state_ (evaluation.h): the stepper's when its stamp describes
   // state_, else the queries' own, evaluated on demand.
   const Evaluation& evaluated() const;
+  // The multipliers of state_ and the evaluation whose Jacobian they go with: the State's
+  // own (absolute formulation, independent equations), or the least-norm ones from its
+  // accelerations (dependent equations; the joint formulation, whose tree joints have no
+  // multipliers of their own).
+  Eigen::VectorXd multipliers(const Evaluation** with) const;
+  // Chooses the formulation from the System's options (chooseFormulation), with `settle`
+  // bringing the State to it.
+  void useFormulation(bool settle);
   const BodyKin& kin(int b) const { return evaluated().kin.at(b); }
 
   std::shared_ptr<System> sys_;
   bool built_ = false;
   State state_;
   Inputs inputs_;
-  std::unique_ptr<Stepper> stepper_;
+  std::unique_ptr<Stepper> stepper_;     // absolute formulation (and assembly)
+  std::unique_ptr<JointStepper> joint_;  // joint formulation, when it runs
+  Formulation formulation_ = Formulation::kAbsolute;
+  std::string formulation_why_;
   mutable std::unique_ptr<Evaluation> query_eval_;  // the queries' own evaluation
   // The reactions' least-norm solve: its own evaluation and solver (queries leave stepping alone).
   struct ReactionSolve {

@@ -39,6 +39,13 @@ struct SpringDamper {
   double k = 0.0, c = 0.0, L0 = 0.0, f_act = 0.0;
 };
 
+// Which formulation runs a mechanism (joint_stepper.h): the tree in joint coordinates
+// ("joint"), every body in absolute coordinates ("absolute", the seed lecture's method and
+// the reference), or per mechanism ("auto").
+enum class Formulation { kAuto, kJoint, kAbsolute };
+Formulation parseFormulation(const std::string& name);  // ModelError for an unknown name
+const char* formulationName(Formulation f);
+
 struct IntegratorOptions {
   // "rk4" (classical Runge-Kutta, default), "rk3" (Kutta's third order: three solves a
   // step, stable for undamped oscillation) or "rk2" (Heun).
@@ -48,6 +55,9 @@ struct IntegratorOptions {
   double position_tol = 1e-13;
   double velocity_tol = 1e-14;
   double solve_tol = 1e-13;
+  // "absolute" (default), "joint" or "auto" (Formulation; joint_stepper.h says what the
+  // joint formulation runs so far).
+  std::string formulation = "absolute";
   // Throws ModelError naming what is wrong (an unknown method, a tolerance not positive).
   void validate() const;
 };
@@ -162,6 +172,9 @@ struct State {
   Eigen::VectorXd acc;                     // accelerations at this state
   std::vector<std::array<double, 3>> friction;  // friction effort of the step that led here
   std::vector<DriveRamp> drive;            // per drive: a velocity drive's reference
+  // The joint formulation's state (joint_stepper.h; empty in the absolute formulation):
+  // joint positions, rates and accelerations (x, u, acc above are written from them).
+  Eigen::VectorXd q, qdot, qddot;
   EvalContext context() const { return EvalContext{tracked.data(), limit_side.data(), t, drive.data()}; }
 };
 

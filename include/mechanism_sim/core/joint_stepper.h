@@ -1,0 +1,77 @@
+// The joint-space formulation's stepper (issue 20): the spanning tree moves in joint
+// coordinates (joint_space.h: q, q_dot per joint, unit quaternions for spherical joints and
+// free bodies), integrated by the same Butcher tableaus as the absolute formulation
+// (tableau.h) with the articulated-body algorithm for q_ddot: O(n) a stage, and a revolute
+// joint's angle is a coordinate, not a rotation to be followed (a wheel at 4000 rad/s, a
+// pendulum far from the origin are exact to round-off).
+//
+// After every step the absolute State (x, u, acc, tracked angles) is written from the joint
+// state, so every query, the node and the tools read it as they read the absolute
+// formulation's. The joint state itself (State::q, qdot, qddot) is part of the State: a
+// snapshot restores it bit for bit.
+//
+// What it runs today (jointFormulationUnsupported says what it does not): trees of every
+// joint type and free bodies, with gravity, applied efforts, body wrenches and springs
+// (body loads at the tree's poses). Not yet: loop closures, couplers, drives, limits, joint
+// damping (the absolute formulation integrates stiff damping implicitly), Coulomb friction.
+#pragma once
+#include <string>
+
+#include <Eigen/Core>
+
+#include "mechanism_sim/core/joint_space.h"
+#include "mechanism_sim/core/solver.h"
+#include "mechanism_sim/core/system.h"
+#include "mechanism_sim/core/tableau.h"
+
+namespace mechanism_sim {
+
+// Empty when the joint formulation runs sys, else a sentence naming what it cannot run.
+std::string jointFormulationUnsupported(const System& sys);
+
+// The formulation that runs sys when `asked` is requested, and why (one sentence). kJoint
+// for a System the joint formulation cannot run throws ModelError with the reason; kAuto
+// takes the joint formulation wherever it runs the System (on a tree it costs O(n) a stage
+// where the absolute KKT form costs several times more: bench/RESULTS.md), else absolute.
+Formulation chooseFormulation(const System& sys, Formulation asked, std::string* why);
+
+class JointStepper {
+ public:
+  // Throws ModelError when the joint formulation cannot run sys (jointSpaceUnsupported).
+  explicit JointStepper(const System& sys);
+  void setMethod(Method m) { tableau_ = &tableau(m); }
+
+  // The joint state of s from its absolute state (an assembled or restored State: joint
+  // coordinates from Joint::coordinates, quaternions from the relative rotations), then the
+  // absolute state again from it (exactly on the tree) with accelerations.
+  void settle(const System& sys, State& s, const Inputs& in);
+  // Advances s by h; s.q, s.qdot must be set (settle()). Throws UsageError for an h that
+  // is not positive and finite; s is then as it was.
+  void step(const System& sys, State& s, const Inputs& in, double h);
+  const SolverStats& stats() const { return stats_; }
+  // The inputs or the System changed: the accelerations a State holds are not reused.
+  void invalidate() { fresh_ = false; }
+  const TreeModel& model() const { return model_; }
+
+ private:
+  // q_ddot at (q, q_dot) under the inputs and springs.
+  void accelerations(const System& sys, const Inputs& in, const Eigen::VectorXd& q, const Eigen::VectorXd& qdot,
+                     Eigen::VectorXd& qddot);
+  // s.x, s.u, s.acc and the tracked angles from s.q, s.qdot, s.qddot.
+  void writeAbsolute(const System& sys, State& s);
+
+  TreeModel model_;
+  TreeWorkspace ws_;
+  const Tableau* tableau_ = &kRk4;
+  SolverStats stats_;
+  Eigen::VectorXd tau_, q0_, v0_, qs_, vs_, kq_[Tableau::kMaxStages], kv_[Tableau::kMaxStages], sum_q_, sum_v_;
+  Inputs loads_;  // the inputs plus the springs' body loads
+  // s.qddot is q_ddot at (q_end_, v_end_) under the current inputs: stage 1 of the next step
+  bool fresh_ = false;
+  Eigen::VectorXd q_end_, v_end_;
+  std::vector<BodyKin> kin_;
+  Eigen::VectorXd spring_x_, spring_u_;
+  std::vector<Tracked> rate_;
+};
+
+}  // namespace mechanism_sim

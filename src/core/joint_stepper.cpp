@@ -1,0 +1,185 @@
+// The joint-space formulation's stepper (joint_stepper.h).
+#include "mechanism_sim/core/joint_stepper.h"
+
+#include <cmath>
+#include <sstream>
+
+#include "mechanism_sim/core/evaluation.h"
+
+namespace mechanism_sim {
+
+std::string jointFormulationUnsupported(const System& sys) {
+  std::string why = jointSpaceUnsupported(sys);
+  if (!why.empty()) return why;
+  // Viscous joint damping can be too stiff for explicit stages (a light link on a damped
+  // joint): the absolute formulation integrates such coordinates implicitly
+  // (stiff_damping.cpp); the joint formulation does not yet.
+  for (int j = 0; j < sys.numJoints(); ++j)
+    for (int k = 0; k < sys.joints[j]->dof(); ++k)
+      if (sys.damping[j][k] != 0.0)
+        return "joint '" + sys.joints[j]->name() + "': the joint formulation has no implicit joint damping yet";
+  return why;
+}
+
+Formulation chooseFormulation(const System& sys, Formulation asked, std::string* why) {
+  if (asked == Formulation::kAbsolute) {
+    if (why) *why = "absolute coordinates, as asked";
+    return Formulation::kAbsolute;
+  }
+  const std::string unsupported = jointFormulationUnsupported(sys);
+  if (asked == Formulation::kJoint) {
+    if (!unsupported.empty()) throw ModelError("the joint formulation cannot run this mechanism: " + unsupported);
+    if (why) *why = "joint coordinates, as asked";
+    return Formulation::kJoint;
+  }
+  if (unsupported.empty()) {
+    if (why) *why = "joint coordinates (auto: a tree, O(n) a stage)";
+    return Formulation::kJoint;
+  }
+  if (why) *why = "absolute coordinates (auto: " + unsupported + ")";
+  return Formulation::kAbsolute;
+}
+
+JointStepper::JointStepper(const System& sys) : model_(sys), ws_(model_) {
+  const std::string unsupported = jointFormulationUnsupported(sys);
+  if (!unsupported.empty()) throw ModelError("the joint formulation cannot run this mechanism: " + unsupported);
+  tableau_ = &tableau(parseMethod(sys.options.method));
+  auto zeros = [](Eigen::VectorXd& v, int n) { v = Eigen::VectorXd::Zero(n); };
+  zeros(tau_, model_.nv), zeros(q0_, model_.nq), zeros(v0_, model_.nv), zeros(qs_, model_.nq), zeros(vs_, model_.nv);
+  for (int k = 0; k < Tableau::kMaxStages; ++k) zeros(kq_[k], model_.nq), zeros(kv_[k], model_.nv);
+  zeros(sum_q_, model_.nq), zeros(sum_v_, model_.nv);
+  loads_ = zeroInputs(sys);
+  kin_.assign(sys.bodies.size(), BodyKin());
+  rate_.assign(sys.constraints.size(), Tracked{});
+}
+
+void JointStepper::accelerations(const System& sys, const Inputs& in, const Eigen::VectorXd& q,
+                                 const Eigen::VectorXd& qdot, Eigen::VectorXd& qddot) {
+  jointEfforts(model_, in, tau_);  // efforts along the joint coordinates
+  const Inputs* loads = &in;
+  if (!sys.springs.empty()) {
+    // springs act between points of bodies: body loads at the tree's poses (appliedForces)
+    forwardKinematics(model_, q, qdot, ws_);
+    absoluteState(model_, ws_, spring_x_, spring_u_);
+    loadKinematics(sys, spring_x_.data(), spring_u_.data(), kin_);
+    loads_.force = in.force;
+    loads_.torque = in.torque;
+    for (size_t i = 0; i < sys.springs.size(); ++i) {
+      const SpringDamper& sd = sys.springs[i];
+      const Gap g = gap(kin_[sd.body_i], sd.sp_i, kin_[sd.body_j], sd.sp_j);
+      const double L = g.d.norm();
+      if (!(L > 1e-12 * sys.length_scale)) continue;  // direction undefined; no force
+      const Vector3d e = g.d / L;
+      const double F = sd.k * (L - sd.L0) + sd.c * e.dot(g.d_dot) + sd.f_act + in.spring_actuation[i];
+      auto addForceAt = [&](int b, const Vector3d& sp, const Vector3d& f) {
+        if (b == System::kGround) return;
+        loads_.force[b] += f;
+        loads_.torque[b] += sp.cross(kin_[b].A_Oi.transpose() * f);
+      };
+      addForceAt(sd.body_i, sd.sp_i, F * e);
+      addForceAt(sd.body_j, sd.sp_j, -F * e);
+    }
+    loads = &loads_;
+  }
+  forwardDynamics(model_, sys, q, qdot, tau_, ws_, qddot, loads);
+}
+
+void JointStepper::writeAbsolute(const System& sys, State& s) {
+  // (ws_ holds the kinematics of s.q, s.qdot: accelerations() ran there last)
+  absoluteState(model_, ws_, s.x, s.u);
+  bodyAccelerations(model_, ws_, s.qddot, s.acc);
+  loadKinematics(sys, s.x.data(), s.u.data(), kin_);
+  // Tracked angles: a tree joint's are its coordinates themselves (so an angle may advance
+  // by any amount in a step: a wheel at 4000 rad/s turns 4 rad a millisecond); track()
+  // then takes each from the pose on that branch.
+  for (const TreeLink& L : model_.links) {
+    if (L.joint < 0 || L.kind == TreeJointKind::kSpherical) continue;
+    for (int k = 0; k < L.ptr->dof(); ++k) {
+      const int slot = L.ptr->trackedSlot(k);
+      if (slot >= 0) s.tracked[L.ptr->id()][slot] = s.q[L.iq + k];
+    }
+  }
+  const EvalContext ctx = s.context();
+  const BodyKin* ptrs[kMaxConstraintBodies];
+  for (int ci = 0; ci < sys.numConstraints(); ++ci) {
+    const Constraint& c = *sys.constraints[ci];
+    for (size_t k = 0; k < c.bodies().size(); ++k) ptrs[k] = &kin_[c.bodies()[k]];
+    c.track(ptrs, ctx, s.tracked[ci], rate_[ci]);
+  }
+  q_end_ = s.q;
+  v_end_ = s.qdot;
+  fresh_ = true;
+}
+
+void JointStepper::settle(const System& sys, State& s, const Inputs& in) {
+  // The joint coordinates of the absolute state: each link's joint reads them from its two
+  // bodies (Joint::coordinates, branch references in s.tracked); a spherical joint's
+  // quaternion is the rotation of frame j in frame i; a free body's are its own x, u.
+  loadKinematics(sys, s.x.data(), s.u.data(), kin_);
+  s.q = model_.neutralPositions(sys);
+  s.qdot = Eigen::VectorXd::Zero(model_.nv);
+  s.qddot = Eigen::VectorXd::Zero(model_.nv);
+  Row rows[kMaxJointDofs];
+  for (const TreeLink& L : model_.links) {
+    if (L.joint < 0) {  // a free body
+      const int b = L.body - 1;
+      s.q.segment<7>(L.iq) = s.x.segment<7>(BodyCoordinates::x(b));
+      s.qdot.segment<6>(L.iv) = s.u.segment<6>(BodyCoordinates::u(b));
+      continue;
+    }
+    const Joint& J = *L.ptr;
+    J.coordinates(kin_[J.bodyI()], kin_[J.bodyJ()], s.tracked[J.id()], rows);
+    for (int k = 0; k < J.dof(); ++k) s.qdot[L.iv + k] = rows[k].Phi_dot;
+    if (L.kind == TreeJointKind::kSpherical) {
+      const Matrix3d Ri = kin_[J.bodyI()].A_Oi * J.frameI().Rp, Rj = kin_[J.bodyJ()].A_Oi * J.frameJ().Rp;
+      const Quaterniond p(Ri.transpose() * Rj);
+      s.q.segment<4>(L.iq) << p.w(), p.x(), p.y(), p.z();
+    } else {
+      for (int k = 0; k < J.dof(); ++k) s.q[L.iq + k] = rows[k].Phi;
+    }
+  }
+  normalizeQuaternions(model_, s.q);
+  accelerations(sys, in, s.q, s.qdot, s.qddot);
+  writeAbsolute(sys, s);
+}
+
+void JointStepper::step(const System& sys, State& s, const Inputs& in, double h) {
+  if (!(h > 0) || !std::isfinite(h)) throw UsageError("step must be positive and finite");
+  if (s.q.size() != model_.nq || s.qdot.size() != model_.nv)
+    throw UsageError("JointStepper::step: the State has no joint state (settle() first)");
+  const Tableau& T = *tableau_;
+  q0_ = s.q;
+  v0_ = s.qdot;
+  // stage 1: the accelerations the last step (or settle) left, when they are of this state
+  // under these inputs; else computed here
+  if (!(fresh_ && q_end_ == s.q && v_end_ == s.qdot)) accelerations(sys, in, q0_, v0_, s.qddot);
+  positionRates(model_, q0_, v0_, kq_[0]);
+  kv_[0] = s.qddot;
+  auto combine = [h](const double* w, int n, double den, const Eigen::VectorXd& y0, const Eigen::VectorXd* k,
+                     Eigen::VectorXd& sum, Eigen::VectorXd& y) {
+    bool first = true;
+    for (int j = 0; j < n; ++j) {
+      if (w[j] == 0.0) continue;
+      if (first) sum = w[j] * k[j];
+      else sum += w[j] * k[j];
+      first = false;
+    }
+    y = y0 + (h / den) * sum;
+  };
+  for (int k = 1; k < T.stages; ++k) {
+    combine(T.a[k], k, T.a_den[k], q0_, kq_, sum_q_, qs_);
+    combine(T.a[k], k, T.a_den[k], v0_, kv_, sum_v_, vs_);
+    accelerations(sys, in, qs_, vs_, kv_[k]);
+    positionRates(model_, qs_, vs_, kq_[k]);
+  }
+  combine(T.b, T.stages, T.b_den, q0_, kq_, sum_q_, s.q);
+  combine(T.b, T.stages, T.b_den, v0_, kv_, sum_v_, s.qdot);
+  normalizeQuaternions(model_, s.q);
+  s.t += h;
+  ++s.steps;
+  accelerations(sys, in, s.q, s.qdot, s.qddot);
+  writeAbsolute(sys, s);
+  stats_.solves += T.stages;
+}
+
+}  // namespace mechanism_sim
