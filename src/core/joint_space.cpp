@@ -146,10 +146,7 @@ std::string jointSpaceUnsupported(const System& sys) {
     for (int k = 0; k < 3; ++k)
       if (j < static_cast<int>(sys.friction.size()) && sys.friction[j][k] != 0)
         return "joint '" + sys.joints[j]->name() + "': the joint-space formulation has no Coulomb friction yet";
-  const TreeModel model(sys);
-  if (!model.cut_joints.empty())
-    return "joint '" + sys.joints[model.cut_joints[0]]->name() +
-           "' closes a loop: the joint-space formulation takes a forest only (loop closures are not done yet)";
+  // Joints that close loops are cut joints, constraints on the tree (loop_closure.h).
   return std::string();
 }
 

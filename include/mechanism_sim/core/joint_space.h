@@ -85,8 +85,8 @@ struct TreeLink {
 
 // Empty when the joint-space formulation can run the System; otherwise a sentence naming
 // the first thing it cannot run yet (a coupler, drive or limit, Coulomb friction, a joint
-// type without a tree model, a loop closure). Springs and joint damping pass: the caller
-// applies them as loads and efforts.
+// type without a tree model). Springs and joint damping pass: the caller applies them as
+// loads and efforts. Loops pass: their cut joints are closures (loop_closure.h).
 std::string jointSpaceUnsupported(const System& sys);
 
 struct TreeModel {

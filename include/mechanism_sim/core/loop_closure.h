@@ -1,0 +1,141 @@
+// Loop closures on the joint-space tree (joint_space.h): the joints the spanning tree does
+// not use (TreeModel::cut_joints) keep the seed lecture's constraint equations
+// Phi(x) = 0 (Joint::evaluate at the absolute poses forwardKinematics gives), and become
+// constraints on the tree coordinates q (Featherstone, "Rigid Body Dynamics Algorithms"
+// (RBDA), 2008, chapter 8, "Closed Loop Systems", 8.1-8.3):
+//
+//   G = Phi_x J(q)            (m x nv), J(q) mapping q_dot to the bodies' velocities
+//                             (v global, omega' body: the seed's [delta r, delta theta'])
+//   G q_ddot = gamma_q        gamma_q = gamma - Phi_x (J_dot q_dot): from the absolute
+//                             Phi_x a = gamma with a = J(q) q_ddot + J_dot q_dot
+//   M q_ddot + h = tau - G^T lambda                     (RBDA 8.1, eq. 8.3, with the seed's
+//                                                        sign: M a + Phi_q^T lambda = Q)
+//   q_ddot = q_ddot_free - M^-1 G^T lambda,  (G M^-1 G^T) lambda = G q_ddot_free - gamma_q
+//                                                       (RBDA 8.3, eqs. 8.12-8.13)
+// with M^-1 G^T from articulated-body passes on G's rows (zero velocity, zero gravity: the
+// "inverse mass" application, RBDA 8.3 / 7.3), no M or M^-1 formed. lambda per closure row
+// is then the absolute formulation's multiplier of that row (same sign), so reactions
+// compare. Dependent closure rows (a planar four-bar's cut revolute: 3 of its 5 rows) are
+// handled by a rank-revealing solve: rows whose G entries are all round-off against their
+// own terms are dropped (lambda 0), the rest Jacobi-scaled (row e by 1/sqrt(A_ee)) and
+// solved by a complete orthogonal decomposition with relative threshold
+// kClosureRankThreshold: the least-norm lambda of the scaled system.
+//
+// Only cut joints are closures now. Hook: couplers, drives and limits would be closures
+// of the same form (their rows' Phi_x through the same J(q)); LoopClosures::constraints
+// is the list to extend, and jointSpaceUnsupported() refuses them until then.
+#pragma once
+#include <vector>
+
+#include <Eigen/Core>
+#include <Eigen/QR>
+
+#include "mechanism_sim/core/joint_space.h"
+
+namespace mechanism_sim {
+
+// Relative pivot threshold of the Jacobi-scaled G M^-1 G^T (unit diagonal).
+constexpr double kClosureRankThreshold = 1e-10;
+// A G entry counts as round-off when below this fraction of the size of its terms.
+constexpr double kClosureZeroEntry = 1e-11;
+
+struct ClosureSolveInfo {
+  int rows = 0;       // closure rows m
+  int rank = 0;       // independent rows
+  int dependent = 0;  // m - rank (rows of G that are zero, or combinations of others)
+};
+
+struct ClosureProjectionReport {
+  bool converged = false;
+  int iterations = 0;
+  double residual = 0.0;  // relative, as closureResidual / closureVelocityResidual
+  int dependent = 0;      // at the last linear solve
+};
+
+// The closures of a tree and the scratch of their solves: sized once by the constructor.
+class LoopClosures {
+ public:
+  LoopClosures(const TreeModel& model, const System& sys);
+
+  // ---- description
+  std::vector<int> constraints;  // sys constraint index per closure (cut joints' constraints)
+  std::vector<int> row;          // first closure row per closure
+  int m = 0;                     // closure rows
+  int nv = 0;
+  // The context the closures' equations read: tracked angles per sys constraint (from
+  // initialState; track() keeps them), the time.
+  std::vector<Tracked> tracked;
+  double t = 0.0;
+  EvalContext context() const { return EvalContext{tracked.data(), nullptr, t, nullptr}; }
+
+  // ---- evaluate(): at the kinematics in a TreeWorkspace
+  Eigen::VectorXd Phi, gamma;  // the absolute formulation's, per closure row
+  Eigen::VectorXd scale;       // per row: the size of Phi's terms (as evaluation.cpp)
+  Eigen::MatrixXd G;           // Phi_x J(q), m x nv
+  Eigen::MatrixXd Gabs;        // |Phi_x| |J(q)|: the size of each entry's terms
+  Eigen::VectorXd gamma_q;     // G q_ddot = gamma_q
+  std::vector<Eigen::MatrixXd> Jc;  // per closure: Phi_x (size x 6 slots)
+
+  // ---- solves
+  Eigen::MatrixXd Y;       // M^-1 G^T (nv x m)
+  Eigen::VectorXd lambda;  // multipliers per closure row (absolute sign convention)
+  ClosureSolveInfo info;   // of the last solve
+
+  // Phi, Jc, G, Gabs, gamma_q at ws's kinematics (forwardKinematics or forwardDynamics at
+  // (q, q_dot): gamma_q needs q_dot).
+  void evaluate(const TreeModel& model, const System& sys, const TreeWorkspace& ws);
+  // max_e |Phi_e| / scale_e (0/0 = 0), after evaluate().
+  double positionResidual() const;
+  // max_e |(G q_dot)_e| / sum_k |G_ek| (|q_dot_k| + |reference_k|) (0/0 = 0), after
+  // evaluate(): reference, when given, holds rates the q_dot was computed from (the
+  // velocity projection passes its input, so a mechanism the closures lock, where q_dot
+  // ends at round-off, is judged against the rates that came in).
+  double velocityResidual(const Eigen::VectorXd& qdot, const Eigen::VectorXd* reference = nullptr) const;
+  // out = M^-1 tau by articulated-body passes with zero velocity and gravity on the
+  // articulated inertias in ws (forwardDynamics at the same q computed them).
+  void applyInverseMass(const TreeModel& model, const TreeWorkspace& ws, const double* tau, double* out);
+  // Y = M^-1 G^T and the factorization of G M^-1 G^T (after evaluate() and forwardDynamics).
+  void factor(const TreeModel& model, const TreeWorkspace& ws);
+  // x = (G M^-1 G^T)^+ b as above (after factor()); x and b of size m.
+  void solve(const Eigen::VectorXd& b, Eigen::VectorXd& x) const;
+  // The tracked angles moved to ws's kinematics (Constraint::track), after an accepted step.
+  void track(const TreeWorkspace& ws);
+
+ private:
+  void loadKin(const TreeWorkspace& ws);
+  std::vector<BodyKin> kin_;      // ground first
+  AlignedVector<Vector6d> pa_, a_;  // inverse-mass passes
+  AlignedVector<Vector6d> a0_;      // spatial accelerations at q_ddot = 0
+  Eigen::VectorXd d_;               // Jacobi scale per row (0: a dropped row)
+  Eigen::VectorXd rhs_, mu_, tau_;
+  Eigen::MatrixXd A_;               // scaled G M^-1 G^T
+  Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd> cod_;
+  const TreeModel* model_ = nullptr;
+  const System* sys_ = nullptr;
+};
+
+// Constrained forward dynamics: q_ddot and closures.lambda at (q, q_dot) with efforts tau
+// and optional loads (as forwardDynamics). Returns the solve's rank report.
+ClosureSolveInfo constrainedForwardDynamics(const TreeModel& model, const System& sys, LoopClosures& closures,
+                                            const Eigen::VectorXd& q, const Eigen::VectorXd& qdot,
+                                            const Eigen::VectorXd& tau, TreeWorkspace& ws, Eigen::VectorXd& qddot,
+                                            const Inputs* loads = nullptr);
+
+// q (+) dv: q moved by dv (velocity coordinates): q_k + dv_k, a spherical joint's
+// quaternion exp(dv/2) (x) q, a free body's r + dv and p (x) exp(dv'/2) (positionRates'
+// conventions), so a step along G's columns moves Phi by G dv to first order.
+void retract(const TreeModel& model, Eigen::VectorXd& q, const Eigen::VectorXd& dv);
+
+// Newton on Phi(q) = 0 with the M-weighted least-norm step dq = -M^-1 G^T (G M^-1 G^T)^+ Phi,
+// until closures.positionResidual() <= tol (at most max_iterations steps). ws ends at q's
+// kinematics (with zero velocity).
+ClosureProjectionReport projectClosurePositions(const TreeModel& model, const System& sys, LoopClosures& closures,
+                                                Eigen::VectorXd& q, TreeWorkspace& ws, double tol = 1e-13,
+                                                int max_iterations = 20);
+// q_dot -= M^-1 G^T (G M^-1 G^T)^+ G q_dot (the M-nearest q_dot with G q_dot = 0), repeated
+// while the relative residual exceeds tol (at most max_iterations).
+ClosureProjectionReport projectClosureVelocities(const TreeModel& model, const System& sys, LoopClosures& closures,
+                                                 const Eigen::VectorXd& q, Eigen::VectorXd& qdot, TreeWorkspace& ws,
+                                                 double tol = 1e-13, int max_iterations = 3);
+
+}  // namespace mechanism_sim

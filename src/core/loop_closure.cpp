@@ -1,0 +1,372 @@
+// Loop closures on the joint-space tree (loop_closure.h).
+//
+// References: Featherstone, "Rigid Body Dynamics Algorithms" (RBDA), Springer 2008,
+// chapter 8 "Closed Loop Systems": 8.1 (equations of motion with loop constraints, the
+// multipliers), 8.2 (the constraint equations of a cut joint, here the seed lecture's
+// Phi(x) with Jacobian Phi_x over [delta r (global), delta theta' (body)] and gamma with
+// Phi_x a = gamma), 8.3 (solving them: q_ddot = q_ddot_free + M^-1 G^T lambda with M^-1 G^T
+// from the articulated-body algorithm, "method 2"; position and velocity stabilisation).
+#include "mechanism_sim/core/loop_closure.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "mechanism_sim/core/errors.h"
+
+namespace mechanism_sim {
+namespace {
+
+// Plucker transform of motion vectors, as joint_space.cpp: X = [E 0; -E rho~ E].
+inline Vector6d transformMotion(const Matrix3d& E, const Vector3d& rho, const Vector6d& m) {
+  Vector6d out;
+  out.head<3>() = E * m.head<3>();
+  out.tail<3>() = E * (m.tail<3>() - rho.cross(m.head<3>()));
+  return out;
+}
+// X^T f (force back to the parent's coordinates).
+inline Vector6d transformForceBack(const Matrix3d& E, const Vector3d& rho, const Vector6d& f) {
+  Vector6d out;
+  out.tail<3>() = E.transpose() * f.tail<3>();
+  out.head<3>() = E.transpose() * f.head<3>() + rho.cross(out.tail<3>());
+  return out;
+}
+inline double relative(double r, double scale) {
+  r = std::fabs(r);
+  if (r == 0.0) return 0.0;
+  return scale > 0.0 ? r / scale : HUGE_VAL;
+}
+inline Eigen::Vector4d quatProduct(const Eigen::Vector4d& a, const Eigen::Vector4d& b) {
+  Eigen::Vector4d out;
+  out(0) = a(0) * b(0) - a.tail<3>().dot(b.tail<3>());
+  out.tail<3>() = a(0) * b.tail<3>() + b(0) * a.tail<3>() + a.tail<3>().cross(b.tail<3>());
+  return out;
+}
+// exp of a rotation vector as a quaternion (w x y z).
+inline Eigen::Vector4d quatExp(const Vector3d& phi) {
+  const double a = phi.norm();
+  Eigen::Vector4d out;
+  if (a < 1e-8) {
+    out << 1.0 - a * a / 8, 0.5 * phi;
+  } else {
+    out << std::cos(a / 2), std::sin(a / 2) / a * phi;
+  }
+  return out;
+}
+
+}  // namespace
+
+LoopClosures::LoopClosures(const TreeModel& model, const System& sys) : model_(&model), sys_(&sys) {
+  nv = model.nv;
+  for (int j : model.cut_joints) {
+    const int c = sys.joint_constraint[j];
+    constraints.push_back(c);
+    row.push_back(m);
+    m += sys.constraints[c]->size();
+  }
+  // (hook: couplers, drives and limits would be appended to `constraints` here)
+  tracked.resize(sys.numConstraints());
+  for (int c = 0; c < sys.numConstraints(); ++c) tracked[c] = sys.constraints[c]->initialTracked();
+  Phi.setZero(m), gamma.setZero(m), scale.setZero(m), gamma_q.setZero(m), lambda.setZero(m);
+  G.setZero(m, nv), Gabs.setZero(m, nv), Y.setZero(nv, m);
+  for (int c : constraints)
+    Jc.push_back(Eigen::MatrixXd::Zero(sys.constraints[c]->size(), 6 * static_cast<int>(sys.constraints[c]->bodies().size())));
+  kin_.assign(sys.numBodies(), BodyKin());
+  pa_.assign(model.nb, Vector6d::Zero());
+  a_ = a0_ = pa_;
+  d_.setZero(m), rhs_.setZero(m), mu_.setZero(m), tau_.setZero(nv);
+  A_.setZero(m, m);
+  cod_ = Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd>(m, m);
+  cod_.setThreshold(kClosureRankThreshold);
+  info.rows = m;
+}
+
+void LoopClosures::loadKin(const TreeWorkspace& ws) {
+  for (int b = 1; b < static_cast<int>(kin_.size()); ++b) {
+    const int k = b - 1;
+    kin_[b].r = ws.r[k];
+    kin_[b].A_Oi = ws.A[k];
+    kin_[b].v = ws.A[k] * ws.v[k].tail<3>();
+    kin_[b].w = ws.v[k].head<3>();
+  }
+}
+
+// G = Phi_x J(q): for a closure body b, every link a on its path to the root moves it with
+// q_dot_a through S_a: in global components the twist (omega_g; v_g) of a's centre, which
+// gives b's centre v_g + omega_g x (r_b - r_a) and b's omega' = A_b^T omega_g (RBDA 8.2:
+// the loop Jacobian as the difference of the two bodies' Jacobians, here through the
+// seed's Phi_x). gamma_q = gamma - Phi_x a0 with a0 the bodies' accelerations at
+// q_ddot = 0 (the velocity-product terms J_dot q_dot).
+void LoopClosures::evaluate(const TreeModel& model, const System& sys, const TreeWorkspace& ws) {
+  loadKin(ws);
+  // a0: spatial accelerations at q_ddot = 0 (RBDA table 7.1's a'_i without the S q_ddot)
+  for (int b : model.order) {
+    const int k = b - 1;
+    const TreeLink& L = model.links[k];
+    a0_[k] = ws.c[k];
+    if (L.parent != 0) a0_[k] += transformMotion(ws.E[k], ws.rho[k], a0_[L.parent - 1]);
+  }
+  const EvalContext ctx = context();
+  G.setZero();
+  Gabs.setZero();
+  const BodyKin* ptrs[kMaxConstraintBodies];
+  for (size_t i = 0; i < constraints.size(); ++i) {
+    const Constraint& C = *sys.constraints[constraints[i]];
+    const int n = C.size(), r0 = row[i];
+    const auto& bodies = C.bodies();
+    for (size_t s = 0; s < bodies.size(); ++s) ptrs[s] = &kin_[bodies[s]];
+    C.evaluate(ptrs, ctx, Phi.segment(r0, n), Jc[i], gamma.segment(r0, n));
+    for (int e = 0; e < n; ++e) {
+      double sc = 0;
+      for (size_t s = 0; s < bodies.size(); ++s) {
+        const double lever = kin_[bodies[s]].r.cwiseAbs().maxCoeff() + sys.length_scale;
+        sc += Jc[i].row(e).segment<3>(6 * s).cwiseAbs().sum() * lever + Jc[i].row(e).segment<3>(6 * s + 3).cwiseAbs().sum();
+      }
+      scale(r0 + e) = sc;
+    }
+    for (size_t s = 0; s < bodies.size(); ++s) {
+      const int b = bodies[s];
+      if (b == 0) continue;
+      const auto Jb = Jc[i].middleCols<6>(6 * s);
+      const Matrix3d& Ab = ws.A[b - 1];
+      const Vector3d& rb = ws.r[b - 1];
+      // velocity-product part: absolute acceleration of b at q_ddot = 0 (bodyAccelerations)
+      const Vector6d& a0 = a0_[b - 1];
+      Vector6d acc;
+      acc.head<3>() = Ab * (a0.tail<3>() + ws.v[b - 1].head<3>().cross(ws.v[b - 1].tail<3>()));
+      acc.tail<3>() = a0.head<3>();
+      gamma.segment(r0, n).noalias() -= Jb.topRows(n) * acc;  // (gamma_q assembled below)
+      for (int a = b; a != 0; a = model.links[a - 1].parent) {
+        const TreeLink& L = model.links[a - 1];
+        const Matrix3d& Aa = ws.A[a - 1];
+        const Vector3d lever = rb - ws.r[a - 1];
+        for (int col = 0; col < L.nv; ++col) {
+          const Vector3d wg = Aa * ws.S[a - 1].col(col).head<3>();
+          const Vector3d vg = Aa * ws.S[a - 1].col(col).tail<3>();
+          Vector6d u;
+          u.head<3>() = vg + wg.cross(lever);
+          u.tail<3>() = Ab.transpose() * wg;
+          Vector6d uabs;
+          uabs.head<3>() = vg.cwiseAbs() + (wg.cross(lever)).cwiseAbs();
+          uabs.tail<3>() = u.tail<3>().cwiseAbs();
+          G.col(L.iv + col).segment(r0, n).noalias() += Jb * u;
+          Gabs.col(L.iv + col).segment(r0, n).noalias() += Jb.cwiseAbs() * uabs;
+        }
+      }
+    }
+  }
+  // gamma now holds gamma - Phi_x a0 = gamma_q; restore the absolute gamma alongside
+  gamma_q = gamma;
+  for (size_t i = 0; i < constraints.size(); ++i) {
+    const Constraint& C = *sys.constraints[constraints[i]];
+    const int n = C.size(), r0 = row[i];
+    const auto& bodies = C.bodies();
+    for (size_t s = 0; s < bodies.size(); ++s) {
+      const int b = bodies[s];
+      if (b == 0) continue;
+      const Vector6d& a0 = a0_[b - 1];
+      Vector6d acc;
+      acc.head<3>() = ws.A[b - 1] * (a0.tail<3>() + ws.v[b - 1].head<3>().cross(ws.v[b - 1].tail<3>()));
+      acc.tail<3>() = a0.head<3>();
+      gamma.segment(r0, n).noalias() += Jc[i].middleCols<6>(6 * s) * acc;
+    }
+  }
+}
+
+double LoopClosures::positionResidual() const {
+  double worst = 0;
+  for (int e = 0; e < m; ++e) worst = std::max(worst, relative(Phi(e), scale(e)));
+  return worst;
+}
+
+double LoopClosures::velocityResidual(const Eigen::VectorXd& qdot, const Eigen::VectorXd* reference) const {
+  double worst = 0;
+  for (int e = 0; e < m; ++e) {
+    double s = 0, t = 0;
+    for (int k = 0; k < nv; ++k) {
+      s += G(e, k) * qdot(k);
+      t += Gabs(e, k) * (std::fabs(qdot(k)) + (reference ? std::fabs((*reference)(k)) : 0.0));
+    }
+    worst = std::max(worst, relative(s, t));
+  }
+  return worst;
+}
+
+// M^-1 tau: the articulated-body algorithm's passes 2 and 3 (RBDA table 7.1) with v = 0
+// (c = 0) and no external force, on the factors U, D^-1 of ws: the inverse-mass
+// application of RBDA 8.3.
+void LoopClosures::applyInverseMass(const TreeModel& model, const TreeWorkspace& ws, const double* tau, double* out) {
+  for (int k = 0; k < model.nb; ++k) pa_[k].setZero();
+  for (int n = model.nb - 1; n >= 0; --n) {
+    const int k = model.order[n] - 1;
+    const TreeLink& L = model.links[k];
+    Vector6d pa = pa_[k];
+    for (int i = 0; i < L.nv; ++i) out[L.iv + i] = tau[L.iv + i] - ws.S[k].col(i).dot(pa);  // u (kept in out)
+    if (L.parent == 0) continue;
+    if (L.nv == 1) {
+      pa += ws.U[k].col(0) * (ws.Dinv[k](0, 0) * out[L.iv]);
+    } else if (L.nv > 0) {
+      const SmallVector u = Eigen::Map<const SmallVector>(out + L.iv, L.nv);
+      pa += ws.U[k] * (ws.Dinv[k] * u);
+    }
+    pa_[L.parent - 1] += transformForceBack(ws.E[k], ws.rho[k], pa);
+  }
+  for (int b : model.order) {
+    const int k = b - 1;
+    const TreeLink& L = model.links[k];
+    Vector6d ap = Vector6d::Zero();
+    if (L.parent != 0) ap = transformMotion(ws.E[k], ws.rho[k], a_[L.parent - 1]);
+    if (L.nv == 1) {
+      const double qdd = ws.Dinv[k](0, 0) * (out[L.iv] - ws.U[k].col(0).dot(ap));
+      out[L.iv] = qdd;
+      a_[k] = ap + ws.S[k].col(0) * qdd;
+    } else if (L.nv > 0) {
+      const SmallVector u = Eigen::Map<const SmallVector>(out + L.iv, L.nv);
+      const SmallVector qdd = ws.Dinv[k] * (u - ws.U[k].transpose() * ap);
+      for (int i = 0; i < L.nv; ++i) out[L.iv + i] = qdd(i);
+      a_[k] = ap + ws.S[k] * qdd;
+    } else {
+      a_[k] = ap;
+    }
+  }
+}
+
+void LoopClosures::factor(const TreeModel& model, const TreeWorkspace& ws) {
+  info.rows = m;
+  if (m == 0) {
+    info.rank = info.dependent = 0;
+    return;
+  }
+  // Rows whose entries are all round-off against their terms are structurally zero (a
+  // planar loop's out-of-plane rows): dropped, with lambda 0 there.
+  int zero_rows = 0;
+  for (int e = 0; e < m; ++e) {
+    bool zero = true;
+    for (int k = 0; k < nv && zero; ++k)
+      if (std::fabs(G(e, k)) > kClosureZeroEntry * Gabs(e, k)) zero = false;
+    d_(e) = zero ? 0.0 : 1.0;
+    zero_rows += zero;
+  }
+  for (int e = 0; e < m; ++e) {
+    for (int k = 0; k < nv; ++k) tau_(k) = G(e, k);
+    applyInverseMass(model, ws, tau_.data(), Y.col(e).data());
+  }
+  A_.noalias() = G * Y;
+  for (int e = 0; e < m; ++e) d_(e) = (d_(e) > 0 && A_(e, e) > 0) ? 1.0 / std::sqrt(A_(e, e)) : 0.0;
+  for (int i = 0; i < m; ++i)
+    for (int j = 0; j < m; ++j) A_(i, j) *= d_(i) * d_(j);
+  for (int e = 0; e < m; ++e)
+    if (d_(e) == 0.0) A_(e, e) = 1.0;  // a dropped row: mu_e = 0 (its right-hand side is zeroed)
+  cod_.compute(A_);
+  info.rank = static_cast<int>(cod_.rank()) - zero_rows;
+  info.dependent = m - info.rank;
+}
+
+void LoopClosures::solve(const Eigen::VectorXd& b, Eigen::VectorXd& x) const {
+  if (m == 0) return;
+  Eigen::VectorXd& rhs = const_cast<Eigen::VectorXd&>(rhs_);
+  Eigen::VectorXd& mu = const_cast<Eigen::VectorXd&>(mu_);
+  rhs = d_.cwiseProduct(b);
+  mu = cod_.solve(rhs);
+  x = d_.cwiseProduct(mu);
+}
+
+void LoopClosures::track(const TreeWorkspace& ws) {
+  loadKin(ws);
+  const EvalContext ctx = context();
+  const BodyKin* ptrs[kMaxConstraintBodies];
+  for (int c : constraints) {
+    const Constraint& C = *sys_->constraints[c];
+    for (size_t s = 0; s < C.bodies().size(); ++s) ptrs[s] = &kin_[C.bodies()[s]];
+    Tracked t = tracked[c], rate;
+    C.track(ptrs, ctx, t, rate);
+    tracked[c] = t;
+  }
+}
+
+// RBDA 8.3: q_ddot = q_ddot_free - M^-1 G^T lambda with (G M^-1 G^T) lambda =
+// G q_ddot_free - gamma_q (the seed's sign: M a + Phi_q^T lambda = Q).
+ClosureSolveInfo constrainedForwardDynamics(const TreeModel& model, const System& sys, LoopClosures& cl,
+                                            const Eigen::VectorXd& q, const Eigen::VectorXd& qdot,
+                                            const Eigen::VectorXd& tau, TreeWorkspace& ws, Eigen::VectorXd& qddot,
+                                            const Inputs* loads) {
+  forwardDynamics(model, sys, q, qdot, tau, ws, qddot, loads);
+  if (cl.m == 0) return cl.info;
+  cl.evaluate(model, sys, ws);
+  cl.factor(model, ws);
+  cl.gamma_q.noalias() = cl.G * qddot - cl.gamma_q;  // (reused as the right-hand side)
+  cl.solve(cl.gamma_q, cl.lambda);
+  qddot.noalias() -= cl.Y * cl.lambda;
+  cl.gamma_q.noalias() = cl.G * qddot;  // G q_ddot = gamma_q for the result
+  return cl.info;
+}
+
+void retract(const TreeModel& model, Eigen::VectorXd& q, const Eigen::VectorXd& dv) {
+  for (const TreeLink& L : model.links) {
+    switch (L.kind) {
+      case TreeJointKind::kSpherical: {
+        const Eigen::Vector4d p = quatProduct(quatExp(dv.segment<3>(L.iv)), q.segment<4>(L.iq));
+        q.segment<4>(L.iq) = p.normalized();
+        break;
+      }
+      case TreeJointKind::kFree: {
+        q.segment<3>(L.iq) += dv.segment<3>(L.iv);
+        const Eigen::Vector4d p = quatProduct(q.segment<4>(L.iq + 3), quatExp(dv.segment<3>(L.iv + 3)));
+        q.segment<4>(L.iq + 3) = p.normalized();
+        break;
+      }
+      default:
+        for (int k = 0; k < L.nv; ++k) q(L.iq + k) += dv(L.iv + k);
+    }
+  }
+}
+
+ClosureProjectionReport projectClosurePositions(const TreeModel& model, const System& sys, LoopClosures& cl,
+                                                Eigen::VectorXd& q, TreeWorkspace& ws, double tol, int max_iterations) {
+  ClosureProjectionReport rep;
+  Eigen::VectorXd zero = Eigen::VectorXd::Zero(model.nv), qdd(model.nv), dv(model.nv), x(cl.m);
+  for (;;) {
+    forwardDynamics(model, sys, q, zero, zero, ws, qdd);  // kinematics and the articulated factors
+    cl.evaluate(model, sys, ws);
+    rep.residual = cl.positionResidual();
+    if (rep.residual <= tol) {
+      rep.converged = true;
+      break;
+    }
+    if (rep.iterations >= max_iterations) break;
+    cl.factor(model, ws);
+    rep.dependent = cl.info.dependent;
+    cl.solve(cl.Phi, x);
+    dv.noalias() = -cl.Y * x;
+    retract(model, q, dv);
+    ++rep.iterations;
+  }
+  return rep;
+}
+
+ClosureProjectionReport projectClosureVelocities(const TreeModel& model, const System& sys, LoopClosures& cl,
+                                                 const Eigen::VectorXd& q, Eigen::VectorXd& qdot, TreeWorkspace& ws,
+                                                 double tol, int max_iterations) {
+  ClosureProjectionReport rep;
+  Eigen::VectorXd zero = Eigen::VectorXd::Zero(model.nv), qdd(model.nv), r(cl.m), x(cl.m);
+  forwardDynamics(model, sys, q, zero, zero, ws, qdd);
+  cl.evaluate(model, sys, ws);  // G depends on q only
+  cl.factor(model, ws);
+  rep.dependent = cl.info.dependent;
+  const Eigen::VectorXd reference = qdot;
+  for (;;) {
+    rep.residual = cl.velocityResidual(qdot, &reference);
+    if (rep.residual <= tol) {
+      rep.converged = true;
+      break;
+    }
+    if (rep.iterations >= max_iterations) break;
+    r.noalias() = cl.G * qdot;
+    cl.solve(r, x);
+    qdot.noalias() -= cl.Y * x;
+    ++rep.iterations;
+  }
+  forwardKinematics(model, q, qdot, ws);
+  return rep;
+}
+
+}  // namespace mechanism_sim

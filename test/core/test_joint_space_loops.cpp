@@ -1,0 +1,445 @@
+// Loop closures on the joint-space tree (loop_closure.h) against the absolute-coordinate
+// solver: a planar four-bar, a spatial RSSR loop, random trees closed by one or two random
+// joints, in metres and millimetres. Every mechanism is built at a pose where each joint's
+// two frames coincide (joint coordinates zero), so the initial pose is assembled.
+#include <gtest/gtest.h>
+
+#include "bodies.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <memory>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "mechanism_sim/core/evaluation.h"
+#include "mechanism_sim/core/loop_closure.h"
+#include "mechanism_sim/core/stepper.h"
+
+namespace mechanism_sim {
+namespace {
+
+double uniform(std::mt19937& rng, double lo, double hi) { return std::uniform_real_distribution<double>(lo, hi)(rng); }
+Matrix3d randomRotation(std::mt19937& rng) {
+  std::normal_distribution<double> n(0.0, 1.0);
+  return Quaterniond(n(rng), n(rng), n(rng), n(rng)).normalized().toRotationMatrix();
+}
+
+// Bodies at given poses; joints at a global point with global axes (frames coincide now).
+struct Builder {
+  std::unique_ptr<System> sys = std::make_unique<System>();
+  double length = 1.0;
+  Builder(double L, double gravity_factor) : length(L) {
+    sys->gravity = Vector3d(0, 0, -9.81 * gravity_factor);
+    Body ground;
+    ground.name = "ground";
+    sys->bodies.push_back(ground);
+  }
+  int addBody(double m, const Vector3d& moments, const Vector3d& r, const Matrix3d& R) {
+    Body b = body("b" + std::to_string(sys->bodies.size()), m,
+                  R * (m * length * length * moments).asDiagonal() * R.transpose(), r);
+    b.p = Quaterniond(R);
+    sys->bodies.push_back(b);
+    return static_cast<int>(sys->bodies.size()) - 1;
+  }
+  JointFrame frameOn(int b, const Vector3d& P, const Matrix3d& axes) const {
+    JointFrame f;
+    const Matrix3d A = b == 0 ? Matrix3d::Identity() : sys->bodies[b].p.toRotationMatrix();
+    const Vector3d r = b == 0 ? Vector3d::Zero() : sys->bodies[b].r;
+    f.sp_B = A.transpose() * (P - r);
+    f.Rp = A.transpose() * axes;
+    return f;
+  }
+  void addJoint(const std::string& type, int bi, int bj, const Vector3d& P, const Matrix3d& axes) {
+    auto j = makeJoint(type, type + std::to_string(sys->joints.size()), bi, frameOn(bi, P, axes), bj, frameOn(bj, P, axes));
+    sys->joints.push_back(j.get());
+    sys->joint_constraint.push_back(sys->numConstraints());
+    sys->constraints.push_back(std::shared_ptr<Constraint>(std::move(j)));
+  }
+};
+
+Matrix3d axesWithZ(const Vector3d& z) {  // a right-handed frame with bz = z
+  const Vector3d zn = z.normalized();
+  const Vector3d x = (std::fabs(zn.x()) < 0.9 ? Vector3d::UnitX() : Vector3d::UnitY()).cross(zn).normalized();
+  Matrix3d R;
+  R << x, zn.cross(x), zn;
+  return R;
+}
+
+// The planar four-bar in x-z (axes along y): crank O-B, coupler B-C, rocker D-C; not a
+// parallelogram. The closing joint (coupler-rocker at C) is the last one.
+Builder fourBar(double L, double g) {
+  Builder b(L, g);
+  const double pi = 3.141592653589793;
+  const Vector3d O(0, 0, 0), D(1.0 * L, 0, 0);
+  const Vector3d B = O + 0.35 * L * Vector3d(std::cos(1.1), 0, std::sin(1.1));
+  const Vector3d C = D + 0.8 * L * Vector3d(std::cos(pi * 0.6), 0, std::sin(pi * 0.6));
+  const Matrix3d I = Matrix3d::Identity();
+  auto rod = [&](const Vector3d& a, const Vector3d& c, double m) {
+    const Vector3d x = (c - a).normalized();
+    Matrix3d R;
+    R << x, Vector3d::UnitY(), x.cross(Vector3d::UnitY());
+    const double l = (c - a).norm() / L;
+    return b.addBody(m, Vector3d(0.002, l * l / 12, l * l / 12 + 0.002), 0.5 * (a + c), R);
+  };
+  const int crank = rod(O, B, 0.7), coupler = rod(B, C, 1.3), rocker = rod(D, C, 1.0);
+  (void)I;
+  const Matrix3d Y = axesWithZ(Vector3d::UnitY());
+  b.addJoint("revolute", 0, crank, O, Y);
+  b.addJoint("revolute", crank, coupler, B, Y);
+  b.addJoint("revolute", 0, rocker, D, Y);
+  b.addJoint("revolute", coupler, rocker, C, Y);
+  return b;
+}
+
+// RSSR: crank about z at O, coupler by spheres at B and C, rocker about x at D.
+Builder rssr(double L, double g) {
+  Builder b(L, g);
+  const Vector3d O(0, 0, 0), B(0.3 * L, 0.1 * L, 0), C(0.9 * L, 0.4 * L, 0.5 * L), D(1.0 * L, 0.2 * L, 0.1 * L);
+  std::mt19937 rng(7);
+  const int crank = b.addBody(0.8, Vector3d(0.05, 0.06, 0.07), 0.5 * (O + B), randomRotation(rng));
+  const int coupler = b.addBody(1.2, Vector3d(0.08, 0.06, 0.09), 0.5 * (B + C), randomRotation(rng));
+  const int rocker = b.addBody(1.0, Vector3d(0.05, 0.07, 0.06), 0.5 * (C + D), randomRotation(rng));
+  b.addJoint("revolute", 0, crank, O, axesWithZ(Vector3d::UnitZ()));
+  b.addJoint("spherical", crank, coupler, B, axesWithZ(Vector3d(1, 1, 0)));
+  b.addJoint("revolute", 0, rocker, D, axesWithZ(Vector3d::UnitX()));
+  b.addJoint("spherical", coupler, rocker, C, axesWithZ(Vector3d(0, 1, 1)));
+  return b;
+}
+
+// A random tree of n bodies (random poses, joints of random types at random points) closed
+// by `loops` random joints between two random bodies (or a body and ground).
+Builder randomLoops(unsigned seed, int n, int loops, double L, double g) {
+  static const char* const kTree[] = {"revolute", "prismatic", "cylindrical", "universal", "spherical", "planar", "screw"};
+  static const char* const kClose[] = {"spherical", "revolute", "universal", "cylindrical"};
+  std::mt19937 rng(seed);
+  Builder b(L, g);
+  std::vector<int> parent(n + 1, 0);
+  for (int k = 1; k <= n; ++k) {
+    const Vector3d r = L * Vector3d(uniform(rng, -1, 1), uniform(rng, -1, 1), uniform(rng, -1, 1));
+    b.addBody(uniform(rng, 0.5, 2.0), Vector3d(uniform(rng, 0.05, 0.1), uniform(rng, 0.05, 0.1), uniform(rng, 0.05, 0.1)), r,
+              randomRotation(rng));
+  }
+  for (int k = 1; k <= n; ++k) {
+    parent[k] = static_cast<int>(rng() % k);
+    const Vector3d P = L * Vector3d(uniform(rng, -1, 1), uniform(rng, -1, 1), uniform(rng, -1, 1));
+    const std::string type = kTree[rng() % 7];
+    if (rng() % 2) b.addJoint(type, parent[k], k, P, randomRotation(rng));
+    else b.addJoint(type, k, parent[k], P, randomRotation(rng));
+  }
+  for (int l = 0; l < loops; ++l) {
+    int a = 0, c = 0;
+    while (a == c || parent[c] == a || parent[a] == c) a = static_cast<int>(rng() % (n + 1)), c = static_cast<int>(rng() % (n + 1));
+    const Vector3d P = L * Vector3d(uniform(rng, -1, 1), uniform(rng, -1, 1), uniform(rng, -1, 1));
+    b.addJoint(kClose[rng() % 4], a, c, P, randomRotation(rng));
+  }
+  return b;
+}
+
+// The absolute State of a joint state (tree joints' tracked angles at their coordinates).
+State absoluteFromJoint(const System& sys, const TreeModel& model, TreeWorkspace& ws, const Eigen::VectorXd& q,
+                        const Eigen::VectorXd& qd) {
+  forwardKinematics(model, q, qd, ws);
+  State s = initialState(sys);
+  absoluteState(model, ws, s.x, s.u);
+  for (int j = 0; j < sys.numJoints(); ++j) {
+    if (model.joint_link[j] < 0) continue;
+    const Joint& J = *sys.joints[j];
+    const TreeLink& L = model.links[model.joint_link[j]];
+    for (int k = 0; k < J.dof(); ++k)
+      if (J.trackedSlot(k) >= 0) s.tracked[sys.joint_constraint[j]][J.trackedSlot(k)] = q(L.iq + k);
+  }
+  return s;
+}
+
+// Relative to the largest acceleration, and at least to |g| (a mechanism its closures lock
+// has accelerations of round-off size).
+double accelerationDifference(const Eigen::VectorXd& acc1, const Eigen::VectorXd& acc2, int nb, double length,
+                              double g) {
+  double lin = 0, ang = 0, dlin = 0, dang = 0;
+  for (int k = 0; k < nb; ++k) {
+    lin = std::max(lin, acc2.segment<3>(6 * k).norm());
+    ang = std::max(ang, acc2.segment<3>(6 * k + 3).norm());
+    dlin = std::max(dlin, (acc1.segment<3>(6 * k) - acc2.segment<3>(6 * k)).norm());
+    dang = std::max(dang, (acc1.segment<3>(6 * k + 3) - acc2.segment<3>(6 * k + 3)).norm());
+  }
+  const double A = std::max({lin, ang * length, g});
+  return std::max(dlin / A, dang * length / A);
+}
+
+struct LoopComparison {
+  bool ok = false;
+  double acc = 0, lambda = 0, Gtlambda = 0, fd = 0, pos = 0, vel = 0;
+  int dependent = 0, rows = 0, pos_iterations = 0;
+};
+
+// At the assembled pose (q neutral) with random rates projected onto G q_dot = 0 and random
+// loads: joint-space constrained dynamics against Stepper::settle; G against finite
+// differences of Phi; the projections from a perturbed state.
+LoopComparison compare(Builder& b, unsigned seed, const char* label) {
+  System& sys = *b.sys;
+  const double L = b.length;
+  sys.finalize();
+  LoopComparison out;
+  const std::string why = jointSpaceUnsupported(sys);
+  EXPECT_EQ(why, "") << label;
+  TreeModel model(sys);
+  if (model.cut_joints.empty()) return out;
+  TreeWorkspace ws(model);
+  LoopClosures cl(model, sys);
+  std::mt19937 rng(seed);
+  Eigen::VectorXd q = model.neutralPositions(sys), qd(model.nv);
+  for (const TreeLink& Lk : model.links)
+    for (int k = 0; k < Lk.nv; ++k) {
+      const bool translation = Lk.kind == TreeJointKind::kPrismatic || (Lk.kind == TreeJointKind::kCylindrical && k == 1) ||
+                               (Lk.kind == TreeJointKind::kPlanar && k < 2);
+      qd(Lk.iv + k) = uniform(rng, -2, 2) * (translation ? L : 1.0);
+    }
+  forwardKinematics(model, q, qd, ws);
+  cl.evaluate(model, sys, ws);
+  EXPECT_LT(cl.positionResidual(), 1e-14) << label << ": the built pose is not assembled";
+  const ClosureProjectionReport vr = projectClosureVelocities(model, sys, cl, q, qd, ws);
+  EXPECT_TRUE(vr.converged) << label << " velocity projection: " << vr.residual;
+
+  // ---- dynamics against the absolute solver
+  State s = absoluteFromJoint(sys, model, ws, q, qd);
+  Inputs in = zeroInputs(sys);
+  const double effort = 9.81 * std::fabs(sys.gravity.z()) / 9.81 * L;
+  for (int j = 0; j < sys.numJoints(); ++j) {
+    if (model.joint_link[j] < 0) continue;  // (efforts on cut joints: not modelled)
+    for (int k = 0; k < sys.joints[j]->dof(); ++k) in.effort[j][k] = uniform(rng, -1, 1) * effort;
+  }
+  for (int bb = 1; bb <= sys.nb; ++bb) {
+    in.force[bb] = std::fabs(sys.gravity.z()) * Vector3d(uniform(rng, -1, 1), uniform(rng, -1, 1), uniform(rng, -1, 1));
+    in.torque[bb] = effort * Vector3d(uniform(rng, -1, 1), uniform(rng, -1, 1), uniform(rng, -1, 1));
+  }
+  // prismatic and the like take efforts in force units: scale those by 1/L
+  for (int j = 0; j < sys.numJoints(); ++j) {
+    const std::string t = sys.joints[j]->type();
+    for (int k = 0; k < sys.joints[j]->dof(); ++k)
+      if ((t == "prismatic" && k == 0) || (t == "cylindrical" && k == 1) || (t == "planar" && k < 2)) in.effort[j][k] /= L;
+  }
+  Eigen::VectorXd tau, qdd, acc;
+  jointEfforts(model, in, tau);
+  const ClosureSolveInfo info = constrainedForwardDynamics(model, sys, cl, q, qd, tau, ws, qdd, &in);
+  bodyAccelerations(model, ws, qdd, acc);
+  out.dependent = info.dependent;
+  out.rows = info.rows;
+
+  Stepper stepper(sys);
+  stepper.analyzeDependencies(sys, s);
+  stepper.settle(sys, s, in);
+  out.acc = accelerationDifference(acc, s.acc, sys.nb, L, sys.gravity.norm());
+  Eigen::VectorXd lam_abs(cl.m);
+  for (size_t i = 0; i < cl.constraints.size(); ++i) {
+    const ConstraintLayout& lay = sys.layout[cl.constraints[i]];
+    lam_abs.segment(cl.row[i], lay.size) = s.lambda.segment(lay.row, lay.size);
+  }
+  // G^T lambda is unique even with dependent rows; lambda itself when G has full rank
+  const Eigen::VectorXd f1 = cl.G.transpose() * cl.lambda, f2 = cl.G.transpose() * lam_abs;
+  Eigen::VectorXd fs = (cl.Gabs.transpose() * lam_abs.cwiseAbs()).cwiseMax(1e-300);
+  out.Gtlambda = ((f1 - f2).cwiseAbs().cwiseQuotient(fs)).maxCoeff();
+  // per row of the same units: against the largest of that closure's multipliers in its
+  // rows of the same kind (forces and moments kept apart by the closure's sizes)
+  out.lambda = (cl.lambda - lam_abs).cwiseAbs().maxCoeff() / std::max(lam_abs.cwiseAbs().maxCoeff(), 1e-300);
+  (void)f1;
+
+  // ---- G against central differences of Phi along a random direction
+  Eigen::VectorXd dv(model.nv);
+  for (int k = 0; k < model.nv; ++k) dv(k) = uniform(rng, -1, 1);
+  forwardKinematics(model, q, qd, ws);
+  cl.evaluate(model, sys, ws);
+  const Eigen::VectorXd Gdv = cl.G * dv;
+  const double eps = 1e-5;
+  Eigen::VectorXd qp = q, qm = q;
+  retract(model, qp, eps * dv);
+  retract(model, qm, -eps * dv);
+  forwardKinematics(model, qp, qd, ws);
+  cl.evaluate(model, sys, ws);
+  const Eigen::VectorXd Pp = cl.Phi;
+  forwardKinematics(model, qm, qd, ws);
+  cl.evaluate(model, sys, ws);
+  const Eigen::VectorXd fd = (Pp - cl.Phi) / (2 * eps);
+  out.fd = (fd - Gdv).cwiseAbs().maxCoeff() / std::max(Gdv.cwiseAbs().maxCoeff(), 1e-300);
+
+  // ---- projections from a perturbed state
+  Eigen::VectorXd qx = q;
+  retract(model, qx, 1e-2 * dv);
+  const ClosureProjectionReport pr = projectClosurePositions(model, sys, cl, qx, ws, 1e-13);
+  out.pos = pr.residual;
+  out.pos_iterations = pr.iterations;
+  Eigen::VectorXd qdx = qd + 0.1 * dv;
+  const ClosureProjectionReport vr2 = projectClosureVelocities(model, sys, cl, qx, qdx, ws);
+  out.vel = vr2.residual;
+  out.ok = true;
+  return out;
+}
+
+void report(const char* label, const LoopComparison& c) {
+  std::printf("[%s] rows %d (dependent %d): acc %.2e, lambda %.2e, G^T lambda %.2e, FD(G) %.2e, "
+              "position projection %.2e (%d its), velocity projection %.2e\n",
+              label, c.rows, c.dependent, c.acc, c.lambda, c.Gtlambda, c.fd, c.pos, c.pos_iterations, c.vel);
+}
+
+void checkLoop(const LoopComparison& c, const char* label, bool unique_lambda) {
+  ASSERT_TRUE(c.ok) << label;
+  EXPECT_LT(c.acc, 1e-10) << label;
+  EXPECT_LT(c.Gtlambda, 1e-10) << label;
+  if (unique_lambda) EXPECT_LT(c.lambda, 1e-10) << label;
+  EXPECT_LT(c.fd, 1e-7) << label;
+  EXPECT_LT(c.pos, 1e-12) << label;
+  EXPECT_LT(c.vel, 1e-12) << label;
+}
+
+TEST(JointSpaceLoops, FourBarAgreesWithTheAbsoluteSolver) {
+  for (double L : {1.0, 1e3}) {
+    Builder b = fourBar(L, L);
+    const char* label = L == 1.0 ? "four-bar, m" : "four-bar, mm";
+    const LoopComparison c = compare(b, 11, label);
+    report(label, c);
+    EXPECT_EQ(c.dependent, 3) << label;  // the cut revolute's out-of-plane rows
+    checkLoop(c, label, true);
+  }
+}
+
+TEST(JointSpaceLoops, RssrAgreesWithTheAbsoluteSolver) {
+  for (double L : {1.0, 1e3}) {
+    Builder b = rssr(L, L);
+    const char* label = L == 1.0 ? "RSSR, m" : "RSSR, mm";
+    const LoopComparison c = compare(b, 12, label);
+    report(label, c);
+    EXPECT_EQ(c.dependent, 0) << label;
+    checkLoop(c, label, true);
+  }
+}
+
+TEST(JointSpaceLoops, RandomTreesWithRandomClosuresAgreeWithTheAbsoluteSolver) {
+  int checked = 0, with_dependent = 0;
+  double worst_acc = 0, worst_lambda = 0, worst_gt = 0, worst_fd = 0, worst_pos = 0, worst_vel = 0;
+  for (double L : {1.0, 1e3})
+    for (unsigned seed = 1; seed <= 24; ++seed) {
+      const int n = 3 + static_cast<int>(seed % 6), loops = 1 + static_cast<int>(seed % 2);
+      Builder b = randomLoops(seed, n, loops, L, L);
+      const std::string label = std::string(L == 1.0 ? "m" : "mm") + " tree " + std::to_string(seed);
+      b.sys->finalize();
+      TreeModel probe(*b.sys);
+      if (probe.cut_joints.size() != static_cast<size_t>(loops)) continue;
+      const LoopComparison c = compare(b, 100 + seed, label.c_str());
+      checkLoop(c, label.c_str(), c.dependent == 0);
+      ++checked;
+      with_dependent += c.dependent > 0;
+      worst_acc = std::max(worst_acc, c.acc);
+      if (c.dependent == 0) worst_lambda = std::max(worst_lambda, c.lambda);
+      worst_gt = std::max(worst_gt, c.Gtlambda);
+      worst_fd = std::max(worst_fd, c.fd);
+      worst_pos = std::max(worst_pos, c.pos);
+      worst_vel = std::max(worst_vel, c.vel);
+    }
+  std::printf("[random loops] %d trees (%d with dependent closure rows): acc %.2e, lambda (full rank) %.2e, "
+              "G^T lambda %.2e, FD(G) %.2e, position projection %.2e, velocity projection %.2e\n",
+              checked, with_dependent, worst_acc, worst_lambda, worst_gt, worst_fd, worst_pos, worst_vel);
+  EXPECT_GE(checked, 20);
+}
+
+// RK4 over (q, q_dot) with the constrained dynamics, projections after each step.
+void rk4Step(const TreeModel& model, const System& sys, LoopClosures& cl, TreeWorkspace& ws, Eigen::VectorXd& q,
+             Eigen::VectorXd& qd, const Eigen::VectorXd& tau, double h) {
+  Eigen::VectorXd k1q, k1v, k2q, k2v, k3q, k3v, k4q, k4v, qs, vs;
+  auto rates = [&](const Eigen::VectorXd& qq, const Eigen::VectorXd& vv, Eigen::VectorXd& rq, Eigen::VectorXd& rv) {
+    constrainedForwardDynamics(model, sys, cl, qq, vv, tau, ws, rv);
+    positionRates(model, qq, vv, rq);
+  };
+  rates(q, qd, k1q, k1v);
+  qs = q + 0.5 * h * k1q, vs = qd + 0.5 * h * k1v;
+  normalizeQuaternions(model, qs);
+  rates(qs, vs, k2q, k2v);
+  qs = q + 0.5 * h * k2q, vs = qd + 0.5 * h * k2v;
+  normalizeQuaternions(model, qs);
+  rates(qs, vs, k3q, k3v);
+  qs = q + h * k3q, vs = qd + h * k3v;
+  normalizeQuaternions(model, qs);
+  rates(qs, vs, k4q, k4v);
+  q += h / 6 * (k1q + 2 * k2q + 2 * k3q + k4q);
+  qd += h / 6 * (k1v + 2 * k2v + 2 * k3v + k4v);
+  normalizeQuaternions(model, q);
+  projectClosurePositions(model, sys, cl, q, ws);
+  projectClosureVelocities(model, sys, cl, q, qd, ws);
+}
+
+TEST(JointSpaceLoops, FourBarIntegratedOneSecondTracksTheAbsoluteFormulation) {
+  Builder b = fourBar(1.0, 1.0);
+  System& sys = *b.sys;
+  sys.finalize();
+  TreeModel model(sys);
+  TreeWorkspace ws(model);
+  LoopClosures cl(model, sys);
+  Eigen::VectorXd q = model.neutralPositions(sys), qd = Eigen::VectorXd::Zero(model.nv), tau = Eigen::VectorXd::Zero(model.nv);
+  qd(0) = 1.5;
+  projectClosureVelocities(model, sys, cl, q, qd, ws);
+  State s = absoluteFromJoint(sys, model, ws, q, qd);
+  Stepper stepper(sys);
+  stepper.analyzeDependencies(sys, s);
+  const Inputs in = zeroInputs(sys);
+  const double h = 1e-3;
+  const int crank = model.joint_link[0];
+  ASSERT_EQ(model.links[crank].body, 1);
+  double worst = 0;
+  for (int n = 0; n < 1000; ++n) {
+    rk4Step(model, sys, cl, ws, q, qd, tau, h);
+    stepper.step(sys, s, in, h);
+    Evaluation ev(sys);
+    loadKinematics(sys, s.x.data(), s.u.data(), ev);
+    Row rows[kMaxJointDofs];
+    jointRows(sys, ev, s, 0, rows);
+    worst = std::max(worst, std::fabs(rows[0].Phi - q(model.links[crank].iq)));
+  }
+  std::printf("[four-bar 1 s] crank angle %.12f rad (joint space), largest difference to the absolute run %.2e rad\n",
+              q(model.links[crank].iq), worst);
+  EXPECT_LT(worst, 1e-8);
+}
+
+// Cost of one constrained dynamics evaluation: the four-bar and a 10-link planar chain
+// whose last link is pinned back to ground.
+TEST(JointSpaceLoops, TimingConstrainedDynamics) {
+  for (int n : {3, 10}) {
+    Builder b = n == 3 ? fourBar(1.0, 1.0) : Builder(1.0, 1.0);
+    if (n == 10) {
+      const Matrix3d Y = axesWithZ(Vector3d::UnitY());
+      Vector3d p(0, 0, 0);
+      int prev = 0;
+      for (int k = 0; k < n; ++k) {
+        const Vector3d next = p + 0.3 * Vector3d(std::cos(0.7 * k), 0, std::sin(0.7 * k));
+        const int bb = b.addBody(1.0, Vector3d(0.01, 0.02, 0.02), 0.5 * (p + next), Matrix3d::Identity());
+        b.addJoint("revolute", prev, bb, p, Y);
+        prev = bb, p = next;
+      }
+      b.addJoint("revolute", prev, 0, p, Y);
+    }
+    System& sys = *b.sys;
+    sys.finalize();
+    TreeModel model(sys);
+    TreeWorkspace ws(model);
+    LoopClosures cl(model, sys);
+    Eigen::VectorXd q = model.neutralPositions(sys), qd = Eigen::VectorXd::Constant(model.nv, 0.3), tau = Eigen::VectorXd::Zero(model.nv), qdd(model.nv);
+    projectClosureVelocities(model, sys, cl, q, qd, ws);
+    const int reps = 20000;
+    double best = 1e300;
+    for (int round = 0; round < 5; ++round) {
+      const auto start = std::chrono::steady_clock::now();
+      for (int r = 0; r < reps; ++r) {
+        q(0) += 1e-12;
+        constrainedForwardDynamics(model, sys, cl, q, qd, tau, ws, qdd);
+      }
+      best = std::min(best, std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - start).count() / reps);
+    }
+    std::printf("[timing] constrainedForwardDynamics, %s (%d closure rows, %d dependent): %.2f us per call\n",
+                n == 3 ? "four-bar" : "10-link chain with one loop", cl.m, cl.info.dependent, best);
+    EXPECT_LT(best, 1000.0);
+  }
+}
+
+}  // namespace
+}  // namespace mechanism_sim
