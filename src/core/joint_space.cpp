@@ -128,7 +128,7 @@ void setSizes(TreeLink& L) {
 
 // ---- the tree
 
-std::string jointSpaceUnsupported(const System& sys) {
+std::string jointSpaceUnsupported(const System& sys, bool loops_as_closures) {
   if (sys.nb != sys.numBodies() - 1 || sys.nb < 1) return "the System is not finalized or has no moving body";
   std::vector<char> is_joint(sys.numConstraints(), 0);
   for (int c : sys.joint_constraint)
@@ -146,7 +146,14 @@ std::string jointSpaceUnsupported(const System& sys) {
     for (int k = 0; k < 3; ++k)
       if (j < static_cast<int>(sys.friction.size()) && sys.friction[j][k] != 0)
         return "joint '" + sys.joints[j]->name() + "': the joint-space formulation has no Coulomb friction yet";
-  // Joints that close loops are cut joints, constraints on the tree (loop_closure.h).
+  // Joints that close loops are cut joints, constraints on the tree (loop_closure.h), for
+  // a caller that integrates them as such.
+  if (!loops_as_closures) {
+    const TreeModel model(sys);
+    if (!model.cut_joints.empty())
+      return "joint '" + sys.joints[model.cut_joints[0]]->name() +
+             "' closes a loop: the caller does not take loop closures (loop_closure.h)";
+  }
   return std::string();
 }
 

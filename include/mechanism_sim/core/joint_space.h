@@ -85,9 +85,11 @@ struct TreeLink {
 
 // Empty when the joint-space formulation can run the System; otherwise a sentence naming
 // the first thing it cannot run yet (a coupler, drive or limit, Coulomb friction, a joint
-// type without a tree model). Springs and joint damping pass: the caller applies them as
-// loads and efforts. Loops pass: their cut joints are closures (loop_closure.h).
-std::string jointSpaceUnsupported(const System& sys);
+// type without a tree model, a loop). Springs and joint damping pass: the caller applies
+// them as loads and efforts. Loops pass only with loops_as_closures: a caller that
+// integrates the cut joints as closures (loop_closure.h) says so; the default refuses them,
+// because a stepper that ignored the cut joints would run a different mechanism.
+std::string jointSpaceUnsupported(const System& sys, bool loops_as_closures = false);
 
 struct TreeModel {
   // Throws UsageError for a System that is not finalized, ModelError for a tree joint of a
