@@ -10,6 +10,7 @@
 // Then the linear-cost check of issue 7: chains of 50 and 400 links, ratio of their costs.
 //
 //   bench_harness [--cases pendulum,chain,fourbar,screw,linear] [--dt S] [--integrator rk4|rk3|rk2]
+//                 [--formulation absolute|joint|auto]
 //                 [--repeats N] [--budget S] [--chain-n 10,50,200] [--fourbar-n 1,10,50] [--quick]
 //   bench_harness --steps CASE N K   loads one case and takes K steps of 1 ms, untimed, then
 //                 prints the solver's work per step: for an instruction count, run it under
@@ -40,6 +41,7 @@ struct Options {
   std::set<std::string> cases{"pendulum", "chain", "fourbar", "screw", "linear"};
   double dt = 1e-3;
   std::string integrator = "rk4";
+  std::string formulation;  // empty: the default (absolute)
   int repeats = 5;
   double budget = 10.0;  // seconds for the timed repeats of one case
   std::vector<int> chain_n{10, 50, 200}, fourbar_n{1, 10, 50};
@@ -131,7 +133,7 @@ Row runCase(const Options& opt, const std::string& name, int N, const Monitor& m
   r.name = name, r.N = N;
   r.steps = std::lround(mon.T / opt.dt);
   try {
-    auto model = harness::loadCase(name, N, opt.integrator);
+    auto model = harness::loadCase(name, N, opt.integrator, opt.formulation);
     // probe: the cost of a step, to fit the timed repeats into the budget
     model->reset();
     const Clock::time_point t0 = Clock::now();
@@ -143,7 +145,7 @@ Row runCase(const Options& opt, const std::string& name, int N, const Monitor& m
       timed = std::max<long>(3, static_cast<long>(opt.budget / (opt.repeats * probe_s)));
 
     // monitored run from a fresh model (its stats then count this run and the assembly)
-    auto run = harness::loadCase(name, N, opt.integrator);
+    auto run = harness::loadCase(name, N, opt.integrator, opt.formulation);
     const SolverStats before = run->mechanism().solverStats();
     const double e0 = energy(*run);
     double viol = 0, phi = run->positionViolation();
@@ -221,7 +223,7 @@ Row chain(const Options& opt, int N) {
   mon.finish = [&](MechanismModel& m, Row& r) {
     // the harness's reference: the same simulator at a finer step (here dt / 10)
     const double ref_dt = opt.dt / 10;
-    auto ref = harness::loadCase("chain", N, opt.integrator);
+    auto ref = harness::loadCase("chain", N, opt.integrator, opt.formulation);
     for (long k = std::lround(mon.T / ref_dt); k > 0; --k) ref->mechanism().step(ref_dt);
     r.metric = "tip error vs dt " + num(ref_dt) + " [m]";
     r.value = (chainTip(m, N) - chainTip(*ref, N)).head<2>().norm();
@@ -237,7 +239,7 @@ Row fourBar(const Options& opt, int N) {
   const Eigen::Vector3d tip(0, F::L, 0), end(F::L, 0, 0);
   std::vector<int> crank, coupler;
   {  // link indices, and the assembled rates against the harness's start (stderr)
-    auto m = harness::loadCase("fourbar", N, opt.integrator);
+    auto m = harness::loadCase("fourbar", N, opt.integrator, opt.formulation);
     double worst = 0;
     for (int i = 0; i <= N; ++i) {
       crank.push_back(link(*m, "crank" + std::to_string(i)));
@@ -286,7 +288,7 @@ void linearCost(const Options& opt) {
   const int sizes[2] = {50, 400};
   for (int i = 0; i < 2; ++i) {
     Row r;
-    auto m = harness::loadCase("chain", sizes[i], opt.integrator);
+    auto m = harness::loadCase("chain", sizes[i], opt.integrator, opt.formulation);
     timeSteps(*m, opt.dt, k, opt.repeats, r);
     wall[i] = r.med, cpu[i] = r.cpu;
     std::printf("linear cost: chain N = %d: %.4g µs/step wall [%.4g–%.4g], %.4g CPU (median of %d x %ld steps)\n",
@@ -306,7 +308,7 @@ std::string cpuModel() {
 
 int usage(const char* prog) {
   std::fprintf(stderr,
-               "usage: %s [--cases pendulum,chain,fourbar,screw,linear] [--dt S] [--integrator rk4|rk3|rk2]\n"
+               "usage: %s [--cases pendulum,chain,fourbar,screw,linear] [--dt S] [--integrator rk4|rk3|rk2] [--formulation absolute|joint|auto]\n"
                "          [--repeats N] [--budget S] [--chain-n 10,50,200] [--fourbar-n 1,10,50] [--quick]\n"
                "       %s --steps pendulum|chain|fourbar|screw N K\n",
                prog, prog);
@@ -347,6 +349,7 @@ int main(int argc, char** argv) {
       }
     } else if (a == "--dt" && has) opt.dt = std::atof(argv[++i]);
     else if (a == "--integrator" && has) opt.integrator = argv[++i];
+    else if (a == "--formulation" && has) opt.formulation = argv[++i];
     else if (a == "--repeats" && has) opt.repeats = std::atoi(argv[++i]), repeats_given = true;
     else if (a == "--budget" && has) opt.budget = std::atof(argv[++i]);
     else if (a == "--chain-n" && has) opt.chain_n = parseInts(argv[++i]);
@@ -356,8 +359,8 @@ int main(int argc, char** argv) {
   if (opt.quick && !repeats_given) opt.repeats = 1;
   if (!(opt.dt > 0) || opt.repeats < 1 || (opt.integrator != "rk4" && opt.integrator != "rk2" && opt.integrator != "rk3")) return usage(argv[0]);
 
-  std::printf("bench_harness: %s; dt %g s, %s, median of %d repeats, timing budget %g s per case%s\n\n",
-              cpuModel().c_str(), opt.dt, opt.integrator.c_str(), opt.repeats, opt.budget,
+  std::printf("bench_harness: %s; dt %g s, %s, formulation %s, median of %d repeats, timing budget %g s per case%s\n\n",
+              cpuModel().c_str(), opt.dt, opt.integrator.c_str(), opt.formulation.empty() ? "absolute (default)" : opt.formulation.c_str(), opt.repeats, opt.budget,
               opt.quick ? "; QUICK: horizons cut to 0.2 s" : "");
   printHeader();
   if (opt.cases.count("pendulum")) printRow(opt, pendulum(opt));

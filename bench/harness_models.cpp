@@ -115,9 +115,11 @@ mechanism_sim::LoadOptions fourBarOptions() {
 }
 
 std::unique_ptr<mechanism_sim::MechanismModel> loadCase(const std::string& name, int N,
-                                                        const std::string& integrator) {
+                                                        const std::string& integrator,
+                                                        const std::string& formulation) {
   mechanism_sim::LoadOptions o = name == "fourbar" ? fourBarOptions() : mechanism_sim::LoadOptions();
   o.integrator = integrator;
+  o.formulation = formulation;
   if (name == "pendulum") return mechanism_sim::loadModelString(pendulumUrdf(), "pendulum.urdf", o);
   if (name == "chain") return mechanism_sim::loadModelString(chainUrdf(N), "chain.urdf", o);
   if (name == "fourbar") return mechanism_sim::loadModelString(fourBarUrdf(N), "fourbar.urdf", o);

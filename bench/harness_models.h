@@ -51,7 +51,8 @@ mechanism_sim::LoadOptions fourBarOptions();  // crank_joint0 at -omega0 (clockw
 
 // Loads one of the above by case name ("pendulum", "chain", "fourbar", "screw").
 std::unique_ptr<mechanism_sim::MechanismModel> loadCase(const std::string& name, int N,
-                                                        const std::string& integrator = "");
+                                                        const std::string& integrator = "",
+                                                        const std::string& formulation = "");
 
 // ---- reference solutions (classical RK4 with h = 1e-5 on the exact 1-dof equations)
 // Pendulum centre of mass at time T: (mL^2 + Ic) q'' = m g L cos q, COM = -L (cos q, sin q).

@@ -20,7 +20,7 @@ import time
 KINDS = ("arg", "set", "velocity", "effort", "drive")
 # simulate's options a sweep passes on (SIMULATE_OPTIONS); the rest of simulate's are about
 # its own output
-_VALUE_FLAGS = {"--duration", "--dt", "--output-every", "--integrator", "--closures"}
+_VALUE_FLAGS = {"--duration", "--dt", "--output-every", "--integrator", "--closures", "--formulation"}
 _ASSIGN_FLAGS = {"--set": "set", "--velocity": "velocity", "--effort": "effort", "--drive": "drive"}
 _IGNORED_FLAGS = {"--reactions", "--quiet", "--poses"}
 _REFUSED_FLAGS = {"--csv", "--bag", "--plot", "--plot-columns"}
@@ -68,7 +68,7 @@ def parse_vary(text):
 
 def parse_simulate_options(argv):
     """SIMULATE_OPTIONS -> (settings, fixed {KEY: value}) with KEY as --vary names them."""
-    settings = {"duration": 10.0, "dt": 1e-3, "output_every": 10, "integrator": "", "closures": None}
+    settings = {"duration": 10.0, "dt": 1e-3, "output_every": 10, "integrator": "", "closures": None, "formulation": ""}
     fixed = {}
     i = 0
     while i < len(argv):
@@ -85,6 +85,8 @@ def parse_simulate_options(argv):
                 fixed[f"{_ASSIGN_FLAGS[a]}:{name}"] = value
             elif a == "--integrator":
                 settings["integrator"] = v
+            elif a == "--formulation":
+                settings["formulation"] = v
             elif a == "--closures":
                 settings["closures"] = os.path.abspath(v)
             else:
@@ -134,6 +136,7 @@ def run(model, values, settings):
     m = None
     try:
         m = mechanism_sim.load(model, integrator=settings["integrator"], closures=settings["closures"],
+                               formulation=settings["formulation"],
                                **load_kwargs(values))
         peak = {}
 
@@ -170,6 +173,7 @@ def result_columns(model, values, settings):
 
     try:
         m = mechanism_sim.load(model, integrator=settings["integrator"], closures=settings["closures"],
+                               formulation=settings["formulation"],
                                **load_kwargs(values))
     except mechanism_sim.Error:
         return list(RESULT_PREFIX) + ["message"]

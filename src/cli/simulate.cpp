@@ -29,6 +29,7 @@ const char* kUsage =
     "usage: simulate MODEL.urdf|MODEL.urdf.xacro [name:=value]... (xacro arguments)\n"
     "                [--duration S] [--dt S] [--output-every N]\n"
     "                [--csv FILE] [--poses] [--integrator rk4|rk3|rk2]\n"
+    "                [--formulation absolute|joint|auto]\n"
     "                [--set JOINT=POSITION]... [--velocity JOINT=VALUE]...\n"
     "                [--effort JOINT=VALUE]... [--drive JOINT=VELOCITY]...\n"
     "                [--reactions] [--bag FILE.bag] [--plot FILE.png] [--plot-columns LIST]\n"
@@ -87,6 +88,7 @@ Args parse(int argc, char** argv) {
     else if (arg == "--csv") a.csv = value();
     else if (arg == "--poses") a.poses = true;
     else if (arg == "--integrator") a.load.integrator = value();
+    else if (arg == "--formulation") a.load.formulation = value();
     else if (arg == "--set") a.load.positions.push_back(parseAssignment(value(), arg));
     else if (arg == "--velocity") a.load.velocities.push_back(parseAssignment(value(), arg));
     else if (arg == "--effort") a.efforts.push_back(parseAssignment(value(), arg));
@@ -255,21 +257,9 @@ int main(int argc, char** argv) {
   if (file.is_open()) file.close();
   const double wall = elapsed();
   if (bar && last_bar > 0) progress(1.0, wall), std::fputc('\n', stderr);
-  std::string drives;
-  for (const DrivePeak& p : loop.drivePeaks()) {
-    char buf[256];
-    std::snprintf(buf, sizeof buf, "; drive '%s': peak effort %.4g at t = %.4g s", model->dofs()[p.dof].name.c_str(),
-                  p.effort, p.time);
-    drives += buf;
-  }
-  char summary[1024];
-  std::snprintf(summary, sizeof summary,
-                "assembled to %.1e; %ld steps of %g s in %.3f s wall (real-time factor %.1f); largest "
-                "violation %.2e (position), %.2e (velocity); %s%s; solver: %s",
-                model->assembly().position_residual, steps, args.dt, wall, wall > 0 ? steps * args.dt / wall : 0.0,
-                loop.worstPositionViolation(), loop.worstVelocityViolation(),
-                model->dependencies().describe().c_str(), drives.c_str(), model->solverStats().describe().c_str());
-  if (!args.quiet) std::fprintf(stderr, "%s: %s\n", args.model.c_str(), summary);
+  const std::string summary = runSummary(*model, steps, args.dt, wall, loop.worstPositionViolation(),
+                                         loop.worstVelocityViolation(), loop.drivePeaks());
+  if (!args.quiet) std::fprintf(stderr, "%s: %s\n", args.model.c_str(), summary.c_str());
   for (const std::string& note : model->notes())
     if (!args.quiet) std::fprintf(stderr, "%s: %s\n", args.model.c_str(), note.c_str());
   if (!args.plot.empty()) {

@@ -11,6 +11,13 @@ namespace mechanism_sim {
 std::string jointFormulationUnsupported(const System& sys) {
   std::string why = jointSpaceUnsupported(sys);
   if (!why.empty()) return why;
+  // Loop closures (cut joints of the spanning tree) are constraints on the tree that this
+  // stepper does not integrate yet (loop_closure.h has their equations): refused here
+  // whatever jointSpaceUnsupported lets through.
+  const TreeModel tree(sys);
+  if (!tree.cut_joints.empty())
+    return "joint '" + sys.joints[tree.cut_joints[0]]->name() +
+           "' closes a loop: the joint formulation does not integrate loop closures yet";
   // Viscous joint damping can be too stiff for explicit stages (a light link on a damped
   // joint): the absolute formulation integrates such coordinates implicitly
   // (stiff_damping.cpp); the joint formulation does not yet.

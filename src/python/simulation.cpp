@@ -130,24 +130,10 @@ void Simulation::reset() {
   restartRecord();
 }
 
-// The format of simulate's summary (src/cli/simulate.cpp, main); test_python.py compares
-// the two line by line.
+// simulate's summary (runSummary, run_loop.h) and the notes; test_python.py compares the two
+// line by line.
 std::string Simulation::summary() const {
-  std::string drives;
-  for (const DrivePeak& p : peaks_) {
-    char buf[256];
-    std::snprintf(buf, sizeof buf, "; drive '%s': peak effort %.4g at t = %.4g s", model_->dofs()[p.dof].name.c_str(),
-                  p.effort, p.time);
-    drives += buf;
-  }
-  const double simulated = steps_ * last_h_;
-  char line[1024];
-  std::snprintf(line, sizeof line,
-                "assembled to %.1e; %ld steps of %g s in %.3f s wall (real-time factor %.1f); largest "
-                "violation %.2e (position), %.2e (velocity); %s%s; solver: %s",
-                model_->assembly().position_residual, steps_, last_h_, wall_, wall_ > 0 ? simulated / wall_ : 0.0,
-                worst_position_, worst_velocity_, model_->dependencies().describe().c_str(), drives.c_str(),
-                model_->solverStats().describe().c_str());
+  const std::string line = runSummary(*model_, steps_, last_h_, wall_, worst_position_, worst_velocity_, peaks_);
   std::string out = path_ + ": " + line + "\n";
   for (const std::string& note : model_->notes()) out += path_ + ": " + note + "\n";
   return out;

@@ -578,9 +578,10 @@ class ModelBuilder {
 
   void setGravityAndIntegrator(const Extension& ext) {
     if (ext.gravity) mech().setGravity(*ext.gravity);
-    if (options_.integrator.empty()) return;
+    if (options_.integrator.empty() && options_.formulation.empty()) return;
     IntegratorOptions io = mech().integrator();
-    io.method = options_.integrator;
+    if (!options_.integrator.empty()) io.method = options_.integrator;
+    if (!options_.formulation.empty()) io.formulation = options_.formulation;
     try {
       mech().setIntegrator(io);
     } catch (const ModelError& e) {

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 
 namespace mechanism_sim {
 
@@ -75,6 +76,25 @@ void RunLoop::takeSample() {
   sample_.velocity_violation = model_.velocityViolation();
   if (reactions_) sample_.reactions = model_.jointReactions();
   else sample_.reactions.clear();
+}
+
+std::string runSummary(const MechanismModel& model, long steps, double h, double wall, double worst_position,
+                       double worst_velocity, const std::vector<DrivePeak>& peaks) {
+  std::string drives;
+  for (const DrivePeak& p : peaks) {
+    char buf[256];
+    std::snprintf(buf, sizeof buf, "; drive '%s': peak effort %.4g at t = %.4g s", model.dofs()[p.dof].name.c_str(),
+                  p.effort, p.time);
+    drives += buf;
+  }
+  char line[1024];
+  std::snprintf(line, sizeof line,
+                "assembled to %.1e; %ld steps of %g s in %.3f s wall (real-time factor %.1f); largest "
+                "violation %.2e (position), %.2e (velocity); %s%s; formulation: %s; solver: %s",
+                model.assembly().position_residual, steps, h, wall, wall > 0 ? steps * h / wall : 0.0, worst_position,
+                worst_velocity, model.dependencies().describe().c_str(), drives.c_str(),
+                model.mechanism().formulationReason().c_str(), model.solverStats().describe().c_str());
+  return line;
 }
 
 }  // namespace mechanism_sim

@@ -134,10 +134,11 @@ RUNS = [
     (FOUR_BAR_DRIVEN, ["--drive", "crank_joint=5", "--integrator", "rk3"],
      dict(drives={"crank_joint": 5}, integrator="rk3")),
     (XACRO, ["length:=0.45", "tip_mass:=0.8"], dict(args={"length": 0.45, "tip_mass": "0.8"})),
+    (PENDULUM, ["--formulation", "joint"], dict(formulation="joint")),
 ]
 
 
-@pytest.mark.parametrize("path,options,kwargs", RUNS, ids=["set-velocity-effort", "drive-rk3", "xacro-args"])
+@pytest.mark.parametrize("path,options,kwargs", RUNS, ids=["set-velocity-effort", "drive-rk3", "xacro-args", "joint-formulation"])
 def test_a_run_prints_what_simulate_prints(tmp_path, path, options, kwargs):
     out = tmp_path / "run.csv"
     simulate(path, *options, "--duration", "0.4", "--dt", "1e-3", "--reactions", "--csv", str(out))
@@ -285,3 +286,12 @@ def test_the_model_answers_its_description():
     m.command_drive("crank_joint", 0.0)
     m.advance(0.01, 1e-3)
     assert m.velocities()[0] == pytest.approx(0.0, abs=1e-12)
+
+
+def test_the_formulation_is_reported():
+    assert mechanism_sim.load(PENDULUM, formulation="joint").formulation() == "joint"
+    assert mechanism_sim.load(PENDULUM).formulation() == "absolute"
+    m = mechanism_sim.load(FOUR_BAR, formulation="auto")
+    assert m.formulation() == "absolute" and "closes a loop" in m.formulation_reason()
+    with pytest.raises(mechanism_sim.LoadError, match="closes a loop"):
+        mechanism_sim.load(FOUR_BAR, formulation="joint")

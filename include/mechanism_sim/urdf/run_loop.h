@@ -5,6 +5,7 @@
 // ROS-free.
 #pragma once
 #include <functional>
+#include <string>
 #include <vector>
 
 #include <Eigen/Geometry>
@@ -27,6 +28,12 @@ struct DrivePeak {
   int dof = -1;
   double effort = 0.0, time = 0.0;
 };
+
+// The one-line summary of a run that simulate prints and the Python module's summary()
+// returns (without the file name and the notes): assembly, steps, wall time, the largest
+// violations, dependent equations, drives' peak efforts, the formulation and the solver.
+std::string runSummary(const MechanismModel& model, long steps, double h, double wall, double worst_position,
+                       double worst_velocity, const std::vector<DrivePeak>& peaks);
 
 class RunLoop {
  public:
