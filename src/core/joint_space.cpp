@@ -133,10 +133,19 @@ std::string jointSpaceUnsupported(const System& sys, bool loops_as_closures) {
   std::vector<char> is_joint(sys.numConstraints(), 0);
   for (int c : sys.joint_constraint)
     if (c >= 0 && c < sys.numConstraints()) is_joint[c] = 1;
-  for (int c = 0; c < sys.numConstraints(); ++c)
-    if (!is_joint[c])
-      return "constraint '" + sys.constraints[c]->name() + "' (" + sys.constraints[c]->type() +
-             "): the joint-space formulation takes joints only (no couplers, drives or limits yet)";
+  // Couplers, drives and limits are closures (loop_closure.h) for a caller that takes them;
+  // other constraint types are not known to the formulation.
+  for (int c = 0; c < sys.numConstraints(); ++c) {
+    if (is_joint[c]) continue;
+    const std::string type = sys.constraints[c]->type();
+    const bool closure_type = type == "coupler" || type == "drive" || type == "limit";
+    if (!closure_type)
+      return "constraint '" + sys.constraints[c]->name() + "' (" + type +
+             "): the joint-space formulation has no model of this constraint type";
+    if (!loops_as_closures)
+      return "constraint '" + sys.constraints[c]->name() + "' (" + type +
+             "): the caller does not take closures (couplers, drives and limits are closures, loop_closure.h)";
+  }
   for (const Joint* J : sys.joints) {
     if (!treeJointKnown(*J))
       return "joint '" + J->name() + "': the joint-space tree has no model of joint type '" + J->type() + "'";

@@ -57,27 +57,81 @@ inline Eigen::Vector4d quatExp(const Vector3d& phi) {
 
 LoopClosures::LoopClosures(const TreeModel& model, const System& sys) : model_(&model), sys_(&sys) {
   nv = model.nv;
-  for (int j : model.cut_joints) {
-    const int c = sys.joint_constraint[j];
+  // Every constraint the tree does not hold, in System order: cut joints, couplers, drives,
+  // limits (the layout's order, so sys_row ascends).
+  std::vector<char> tree_joint(sys.numConstraints(), 0);
+  for (int j = 0; j < sys.numJoints(); ++j)
+    if (model.joint_link[j] >= 0) tree_joint[sys.joint_constraint[j]] = 1;
+  for (int c = 0; c < sys.numConstraints(); ++c) {
+    if (tree_joint[c]) continue;
     constraints.push_back(c);
     row.push_back(m);
-    m += sys.constraints[c]->size();
+    const int n = sys.constraints[c]->size();
+    for (int e = 0; e < n; ++e)
+      sys_row.push_back(c < static_cast<int>(sys.layout.size()) ? sys.layout[c].row + e : -1);
+    m += n;
   }
-  // (hook: couplers, drives and limits would be appended to `constraints` here)
-  tracked.resize(sys.numConstraints());
-  for (int c = 0; c < sys.numConstraints(); ++c) tracked[c] = sys.constraints[c]->initialTracked();
-  Phi.setZero(m), gamma.setZero(m), scale.setZero(m), gamma_q.setZero(m), lambda.setZero(m);
+  {
+    const State s0 = initialState(sys);
+    tracked = s0.tracked;
+    limit_side = s0.limit_side;
+    drive = s0.drive;
+    t = s0.t;
+  }
+  Phi.setZero(m), gamma.setZero(m), scale.setZero(m), gamma_q.setZero(m), nu.setZero(m), lambda.setZero(m);
   G.setZero(m, nv), Gabs.setZero(m, nv), Y.setZero(nv, m);
   for (int c : constraints)
     Jc.push_back(Eigen::MatrixXd::Zero(sys.constraints[c]->size(), 6 * static_cast<int>(sys.constraints[c]->bodies().size())));
   kin_.assign(sys.numBodies(), BodyKin());
   pa_.assign(model.nb, Vector6d::Zero());
   a_ = a0_ = pa_;
-  d_.setZero(m), rhs_.setZero(m), mu_.setZero(m), tau_.setZero(nv);
+  d_.setZero(m), rhs_.setZero(m), mu_.setZero(m), tau_.setZero(nv), qdd_cut_.setZero(nv);
   A_.setZero(m, m);
   cod_ = Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd>(m, m);
   cod_.setThreshold(kClosureRankThreshold);
   info.rows = m;
+}
+
+// The twist a unit rate of column `col` of link a gives body b (centre r_b, rotation A_b),
+// in the seed's absolute velocity coordinates [v (global), omega' (body)] (RBDA 8.2).
+static inline Vector6d columnTwist(const TreeWorkspace& ws, int a, int col, const Matrix3d& Ab, const Vector3d& rb) {
+  const Matrix3d& Aa = ws.A[a - 1];
+  const Vector3d wg = Aa * ws.S[a - 1].col(col).head<3>();
+  const Vector3d vg = Aa * ws.S[a - 1].col(col).tail<3>();
+  Vector6d u;
+  u.head<3>() = vg + wg.cross(rb - ws.r[a - 1]);
+  u.tail<3>() = Ab.transpose() * wg;
+  return u;
+}
+
+bool LoopClosures::addCutJointEfforts(const TreeModel& model, const System& sys, const TreeWorkspace& ws,
+                                      const Inputs& in, Eigen::VectorXd& tau) {
+  bool any = false;
+  const EvalContext ctx = context();
+  loadKin(ws);
+  for (int j : model.cut_joints) {
+    if (j >= static_cast<int>(in.effort.size())) continue;
+    const Joint& J = *sys.joints[j];
+    bool nonzero = false;
+    for (int k = 0; k < J.dof(); ++k) nonzero = nonzero || in.effort[j][k] != 0.0;
+    if (!nonzero) continue;
+    any = true;
+    Row rows[kMaxJointDofs];
+    J.coordinates(kin_[J.bodyI()], kin_[J.bodyJ()], ctx.tracked[sys.joint_constraint[j]], rows);
+    const int bodies[2] = {J.bodyI(), J.bodyJ()};
+    for (int s = 0; s < 2; ++s) {
+      const int b = bodies[s];
+      if (b == 0) continue;
+      // the joint's generalized force on b's absolute coordinates: sum_k G_k^T tau_k
+      Vector6d f = Vector6d::Zero();
+      for (int k = 0; k < J.dof(); ++k) f += rows[k].J.segment<6>(6 * s).transpose() * in.effort[j][k];
+      for (int a = b; a != 0; a = model.links[a - 1].parent) {
+        const TreeLink& L = model.links[a - 1];
+        for (int col = 0; col < L.nv; ++col) tau(L.iv + col) += f.dot(columnTwist(ws, a, col, ws.A[b - 1], ws.r[b - 1]));
+      }
+    }
+  }
+  return any;
 }
 
 void LoopClosures::loadKin(const TreeWorkspace& ws) {
@@ -115,6 +169,7 @@ void LoopClosures::evaluate(const TreeModel& model, const System& sys, const Tre
     const auto& bodies = C.bodies();
     for (size_t s = 0; s < bodies.size(); ++s) ptrs[s] = &kin_[bodies[s]];
     C.evaluate(ptrs, ctx, Phi.segment(r0, n), Jc[i], gamma.segment(r0, n));
+    if (C.rheonomic()) C.velocityTerm(ctx, nu.data() + r0);  // (nu stays 0 elsewhere)
     for (int e = 0; e < n; ++e) {
       double sc = 0;
       for (size_t s = 0; s < bodies.size(); ++s) {
@@ -181,7 +236,7 @@ double LoopClosures::positionResidual() const {
 double LoopClosures::velocityResidual(const Eigen::VectorXd& qdot, const Eigen::VectorXd* reference) const {
   double worst = 0;
   for (int e = 0; e < m; ++e) {
-    double s = 0, t = 0;
+    double s = -nu(e), t = std::fabs(nu(e));
     for (int k = 0; k < nv; ++k) {
       s += G(e, k) * qdot(k);
       t += Gabs(e, k) * (std::fabs(qdot(k)) + (reference ? std::fabs((*reference)(k)) : 0.0));
@@ -274,12 +329,12 @@ void LoopClosures::track(const TreeWorkspace& ws) {
   loadKin(ws);
   const EvalContext ctx = context();
   const BodyKin* ptrs[kMaxConstraintBodies];
-  for (int c : constraints) {
+  for (int c = 0; c < sys_->numConstraints(); ++c) {
     const Constraint& C = *sys_->constraints[c];
     for (size_t s = 0; s < C.bodies().size(); ++s) ptrs[s] = &kin_[C.bodies()[s]];
-    Tracked t = tracked[c], rate;
-    C.track(ptrs, ctx, t, rate);
-    tracked[c] = t;
+    Tracked tr = tracked[c], rate;
+    C.track(ptrs, ctx, tr, rate);
+    tracked[c] = tr;
   }
 }
 
@@ -290,11 +345,20 @@ ClosureSolveInfo constrainedForwardDynamics(const TreeModel& model, const System
                                             const Eigen::VectorXd& tau, TreeWorkspace& ws, Eigen::VectorXd& qddot,
                                             const Inputs* loads) {
   forwardDynamics(model, sys, q, qdot, tau, ws, qddot, loads);
+  // efforts on cut joints: q_ddot += M^-1 (G_k J)^T tau_k (the recursion is linear in tau)
+  if (loads && !model.cut_joints.empty()) {
+    cl.tau_.setZero();
+    if (cl.addCutJointEfforts(model, sys, ws, *loads, cl.tau_)) {
+      cl.applyInverseMass(model, ws, cl.tau_.data(), cl.qdd_cut_.data());
+      qddot += cl.qdd_cut_;
+    }
+  }
   if (cl.m == 0) return cl.info;
   cl.evaluate(model, sys, ws);
   cl.factor(model, ws);
-  cl.gamma_q.noalias() = cl.G * qddot - cl.gamma_q;  // (reused as the right-hand side)
-  cl.solve(cl.gamma_q, cl.lambda);
+  cl.rhs_.noalias() = cl.G * qddot;
+  cl.rhs_ -= cl.gamma_q;
+  cl.solve(cl.rhs_, cl.lambda);
   qddot.noalias() -= cl.Y * cl.lambda;
   cl.gamma_q.noalias() = cl.G * qddot;  // G q_ddot = gamma_q for the result
   return cl.info;
@@ -361,6 +425,7 @@ ClosureProjectionReport projectClosureVelocities(const TreeModel& model, const S
     }
     if (rep.iterations >= max_iterations) break;
     r.noalias() = cl.G * qdot;
+    r -= cl.nu;
     cl.solve(r, x);
     qdot.noalias() -= cl.Y * x;
     ++rep.iterations;

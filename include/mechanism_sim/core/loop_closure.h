@@ -21,9 +21,18 @@
 // solved by a complete orthogonal decomposition with relative threshold
 // kClosureRankThreshold: the least-norm lambda of the scaled system.
 //
-// Only cut joints are closures now. Hook: couplers, drives and limits would be closures
-// of the same form (their rows' Phi_x through the same J(q)); LoopClosures::constraints
-// is the list to extend, and jointSpaceUnsupported() refuses them until then.
+// Closures are every constraint of the System the tree does not hold: cut joints, and
+// couplers (URDF mimic), drives (rheonomic: Phi_q v = nu, gamma with the prescribed
+// acceleration) and position limits (a zero row while the limit's side in the context is
+// 0, dropped by the solve with lambda 0). All of them go through the same G = Phi_x J(q):
+// their absolute equations (Constraint::evaluate with the caller's EvalContext) are the
+// reference, and mapping Phi_x through J(q) reproduces them to round-off whatever the
+// joint type, the link's direction (reversed) or the coordinate's branch (tracked angles).
+// Rows directly on q (e_k^T for a drive or limit on tree coordinate k, e_a - r e_b for a
+// coupler) would save that mapping but need the per-type conventions (spherical rotation
+// vector against quaternion, a cut joint's coordinates); a later optimisation.
+// Closures are listed in System order, so closure row e is System row sys_row[e] and
+// lambda(e) is State::lambda(sys_row[e]) of the absolute formulation.
 #pragma once
 #include <vector>
 
@@ -58,15 +67,29 @@ class LoopClosures {
   LoopClosures(const TreeModel& model, const System& sys);
 
   // ---- description
-  std::vector<int> constraints;  // sys constraint index per closure (cut joints' constraints)
+  // sys constraint index per closure, ascending: every constraint that is not a tree
+  // joint's (cut joints, couplers, drives, limits)
+  std::vector<int> constraints;
   std::vector<int> row;          // first closure row per closure
+  std::vector<int> sys_row;      // per closure row: its System row (sys.layout[c].row + e)
   int m = 0;                     // closure rows
   int nv = 0;
-  // The context the closures' equations read: tracked angles per sys constraint (from
-  // initialState; track() keeps them), the time.
+  // The context the closures' equations read. By default the closure's own copies (from
+  // initialState(sys): tracked angles per sys constraint, limit sides all 0 (free), drive
+  // ramps, t; track() keeps the tracked angles; set them freely). setContext(ctx) makes
+  // every later evaluation read the caller's context instead (State::context(): its
+  // pointers must stay valid while used; call it again after the State's vectors are
+  // reallocated, or per evaluation through evaluate(model, sys, ws, ctx)); clearContext()
+  // goes back to the copies.
   std::vector<Tracked> tracked;
+  std::vector<signed char> limit_side;
+  std::vector<DriveRamp> drive;
   double t = 0.0;
-  EvalContext context() const { return EvalContext{tracked.data(), nullptr, t, nullptr}; }
+  void setContext(const EvalContext& ctx) { external_ = ctx, has_external_ = true; }
+  void clearContext() { has_external_ = false; }
+  EvalContext context() const {
+    return has_external_ ? external_ : EvalContext{tracked.data(), limit_side.data(), t, drive.data()};
+  }
 
   // ---- evaluate(): at the kinematics in a TreeWorkspace
   Eigen::VectorXd Phi, gamma;  // the absolute formulation's, per closure row
@@ -74,6 +97,7 @@ class LoopClosures {
   Eigen::MatrixXd G;           // Phi_x J(q), m x nv
   Eigen::MatrixXd Gabs;        // |Phi_x| |J(q)|: the size of each entry's terms
   Eigen::VectorXd gamma_q;     // G q_ddot = gamma_q
+  Eigen::VectorXd nu;          // G q_dot = nu (drives' velocity terms; 0 for the rest)
   std::vector<Eigen::MatrixXd> Jc;  // per closure: Phi_x (size x 6 slots)
 
   // ---- solves
@@ -84,9 +108,24 @@ class LoopClosures {
   // Phi, Jc, G, Gabs, gamma_q at ws's kinematics (forwardKinematics or forwardDynamics at
   // (q, q_dot): gamma_q needs q_dot).
   void evaluate(const TreeModel& model, const System& sys, const TreeWorkspace& ws);
+  // The same with the caller's context (setContext(ctx), then evaluate).
+  void evaluate(const TreeModel& model, const System& sys, const TreeWorkspace& ws, const EvalContext& ctx) {
+    setContext(ctx);
+    evaluate(model, sys, ws);
+  }
+  // lambda into a vector over the System's rows (State::lambda's layout, size sys.m):
+  // out(sys_row[e]) = lambda(e); the tree joints' rows are left as they are.
+  void systemMultipliers(Eigen::VectorXd& out) const {
+    for (int e = 0; e < m; ++e) out(sys_row[e]) = lambda(e);
+  }
+  // tau += (G_k J(q))^T tau_k for every cut joint's coordinate k with effort tau_k in `in`
+  // (its rows G_k from Joint::coordinates over its two bodies, mapped as G), at ws's
+  // kinematics; returns whether any such effort is nonzero.
+  bool addCutJointEfforts(const TreeModel& model, const System& sys, const TreeWorkspace& ws, const Inputs& in,
+                          Eigen::VectorXd& tau);
   // max_e |Phi_e| / scale_e (0/0 = 0), after evaluate().
   double positionResidual() const;
-  // max_e |(G q_dot)_e| / sum_k |G_ek| (|q_dot_k| + |reference_k|) (0/0 = 0), after
+  // max_e |(G q_dot - nu)_e| / (sum_k |G_ek| (|q_dot_k| + |reference_k|) + |nu_e|) (0/0 = 0), after
   // evaluate(): reference, when given, holds rates the q_dot was computed from (the
   // velocity projection passes its input, so a mechanism the closures lock, where q_dot
   // ends at round-off, is judged against the rates that came in).
@@ -98,7 +137,10 @@ class LoopClosures {
   void factor(const TreeModel& model, const TreeWorkspace& ws);
   // x = (G M^-1 G^T)^+ b as above (after factor()); x and b of size m.
   void solve(const Eigen::VectorXd& b, Eigen::VectorXd& x) const;
-  // The tracked angles moved to ws's kinematics (Constraint::track), after an accepted step.
+  // The closure's own tracked angles (of every constraint, tree joints' included, as they
+  // are the branch references of couplers, drives and limits on those joints) moved to
+  // ws's kinematics (Constraint::track), after an accepted step. With setContext() the
+  // caller tracks its State instead.
   void track(const TreeWorkspace& ws);
 
  private:
@@ -107,15 +149,23 @@ class LoopClosures {
   AlignedVector<Vector6d> pa_, a_;  // inverse-mass passes
   AlignedVector<Vector6d> a0_;      // spatial accelerations at q_ddot = 0
   Eigen::VectorXd d_;               // Jacobi scale per row (0: a dropped row)
-  Eigen::VectorXd rhs_, mu_, tau_;
+  Eigen::VectorXd rhs_, mu_, tau_, qdd_cut_;
   Eigen::MatrixXd A_;               // scaled G M^-1 G^T
   Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd> cod_;
   const TreeModel* model_ = nullptr;
   const System* sys_ = nullptr;
+  EvalContext external_;
+  bool has_external_ = false;
+  friend ClosureSolveInfo constrainedForwardDynamics(const TreeModel&, const System&, LoopClosures&,
+                                                     const Eigen::VectorXd&, const Eigen::VectorXd&,
+                                                     const Eigen::VectorXd&, TreeWorkspace&, Eigen::VectorXd&,
+                                                     const Inputs*);
 };
 
 // Constrained forward dynamics: q_ddot and closures.lambda at (q, q_dot) with efforts tau
-// and optional loads (as forwardDynamics). Returns the solve's rank report.
+// and optional loads (as forwardDynamics; loads->effort of cut joints acts through
+// addCutJointEfforts, the tree joints' efforts are read from tau only), at closures.context().
+// Returns the solve's rank report.
 ClosureSolveInfo constrainedForwardDynamics(const TreeModel& model, const System& sys, LoopClosures& closures,
                                             const Eigen::VectorXd& q, const Eigen::VectorXd& qdot,
                                             const Eigen::VectorXd& tau, TreeWorkspace& ws, Eigen::VectorXd& qddot,
@@ -132,7 +182,7 @@ void retract(const TreeModel& model, Eigen::VectorXd& q, const Eigen::VectorXd& 
 ClosureProjectionReport projectClosurePositions(const TreeModel& model, const System& sys, LoopClosures& closures,
                                                 Eigen::VectorXd& q, TreeWorkspace& ws, double tol = 1e-13,
                                                 int max_iterations = 20);
-// q_dot -= M^-1 G^T (G M^-1 G^T)^+ G q_dot (the M-nearest q_dot with G q_dot = 0), repeated
+// q_dot -= M^-1 G^T (G M^-1 G^T)^+ (G q_dot - nu) (the M-nearest q_dot with G q_dot = nu), repeated
 // while the relative residual exceeds tol (at most max_iterations).
 ClosureProjectionReport projectClosureVelocities(const TreeModel& model, const System& sys, LoopClosures& closures,
                                                  const Eigen::VectorXd& q, Eigen::VectorXd& qdot, TreeWorkspace& ws,
