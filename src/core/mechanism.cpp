@@ -335,7 +335,15 @@ Reaction Mechanism::reaction(int ci) const {
 
 SolverStats Mechanism::solverStats() const {
   SolverStats s = stepper_->stats();
-  if (joint_) s.solves += joint_->stats().solves;  // (its stages: the articulated-body passes)
+  if (joint_) {  // (its solves: the articulated-body passes of its stages)
+    const SolverStats& j = joint_->stats();
+    s.solves += j.solves, s.solve_shortfalls += j.solve_shortfalls;
+    s.position_projections += j.position_projections, s.position_shortfalls += j.position_shortfalls;
+    s.velocity_projections += j.velocity_projections, s.velocity_shortfalls += j.velocity_shortfalls;
+    s.worst_solve = std::max(s.worst_solve, j.worst_solve);
+    s.worst_position = std::max(s.worst_position, j.worst_position);
+    s.worst_velocity = std::max(s.worst_velocity, j.worst_velocity);
+  }
   if (reactions_) {
     const SolverStats& r = reactions_->stats;
     s.solves += r.solves;
