@@ -216,6 +216,23 @@ TEST(Allocation, StepAllocatesNothing) {
   Mechanism loops;
   buildLoops(loops);
   EXPECT_EQ(allocationsIn(loops, 200), 0);
+
+  // the joint formulation (joint_stepper.h) on a chain with an effort and a spring
+  Mechanism joint;
+  models::pendulumChain(joint, 20, 0.5, 1.0, 0.3);
+  SpringDamper spring;
+  spring.name = "tie";
+  spring.body_i = 2, spring.body_j = 7, spring.k = 50.0, spring.c = 0.2;
+  joint.addSpring(spring);
+  IntegratorOptions io;
+  io.formulation = "joint";
+  joint.setIntegrator(io);
+  joint.build();
+  joint.assemble();
+  joint.setJointEffort(4, 0, 0.5);
+  ASSERT_STREQ(joint.formulation(), "joint");
+  joint.step(1e-3);  // (the first step after an input changed computes its stage 1)
+  EXPECT_EQ(allocationsIn(joint, 200), 0);
 }
 
 }  // namespace
