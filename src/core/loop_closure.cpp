@@ -85,7 +85,8 @@ LoopClosures::LoopClosures(const TreeModel& model, const System& sys) : model_(&
   kin_.assign(sys.numBodies(), BodyKin());
   pa_.assign(model.nb, Vector6d::Zero());
   a_ = a0_ = pa_;
-  d_.setZero(m), rhs_.setZero(m), mu_.setZero(m), tau_.setZero(nv), qdd_cut_.setZero(nv);
+  d_.setZero(m), rhs_.setZero(m), mu_.setZero(m), tau_.setZero(nv), qdd_cut_.setZero(nv), work_.setZero(std::max(m, 1));
+  zero_v_.setZero(nv), qdd_v_.setZero(nv), dv_v_.setZero(nv), ref_v_.setZero(nv), r_m_.setZero(m), x_m_.setZero(m);
   A_.setZero(m, m);
   cod_ = Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd>(m, m);
   cod_.setThreshold(kClosureRankThreshold);
@@ -316,13 +317,42 @@ void LoopClosures::factor(const TreeModel& model, const TreeWorkspace& ws) {
   info.dependent = m - info.rank;
 }
 
+// The least-norm solution of the scaled system by the complete orthogonal decomposition
+// A P = Q [T 0; 0 0] Z: x = P Z^T [T^-1 (Q^T b)_1..r; 0], written out on the decomposition's
+// factors (as Eigen's CompleteOrthogonalDecomposition::solve does, whose temporaries
+// allocate: 5 heap allocations a call) with preallocated vectors: no allocation.
 void LoopClosures::solve(const Eigen::VectorXd& b, Eigen::VectorXd& x) const {
   if (m == 0) return;
-  Eigen::VectorXd& rhs = const_cast<Eigen::VectorXd&>(rhs_);
-  Eigen::VectorXd& mu = const_cast<Eigen::VectorXd&>(mu_);
-  rhs = d_.cwiseProduct(b);
-  mu = cod_.solve(rhs);
-  x = d_.cwiseProduct(mu);
+  auto& self = const_cast<LoopClosures&>(*this);
+  Eigen::VectorXd& c = self.rhs_;
+  Eigen::VectorXd& y = self.mu_;
+  double* work = self.work_.data();
+  c = d_.cwiseProduct(b);
+  const Eigen::Index r = cod_.rank();
+  const Eigen::MatrixXd& QTZ = cod_.matrixQTZ();
+  if (r == 0) {
+    x.setZero();
+    return;
+  }
+  // c = Q^T c: the first r reflectors H_0 ... H_{r-1} (H_k = I - h_k v_k v_k^T, v_k = (1, QTZ(k+1:, k)))
+  for (Eigen::Index k = 0; k < r; ++k)
+    c.tail(m - k).applyHouseholderOnTheLeft(QTZ.col(k).tail(m - k - 1), cod_.hCoeffs().coeff(k), work);
+  // T z = c(0:r)
+  y.head(r) = c.head(r);
+  QTZ.topLeftCorner(r, r).triangularView<Eigen::Upper>().solveInPlace(y.head(r));
+  if (r < m) {  // y = Z^T [z; 0]
+    y.tail(m - r).setZero();
+    for (Eigen::Index k = 0; k < r; ++k) {
+      if (k != r - 1) std::swap(y(k), y(r - 1));
+      y.segment(r - 1, m - r + 1)
+          .applyHouseholderOnTheLeft(QTZ.row(k).tail(m - r).transpose(), cod_.zCoeffs().coeff(k), work);
+      if (k != r - 1) std::swap(y(k), y(r - 1));
+    }
+  }
+  // x = D P y
+  const auto& P = cod_.colsPermutation().indices();
+  for (int e = 0; e < m; ++e) x(P(e)) = y(e);
+  x = d_.cwiseProduct(x);
 }
 
 void LoopClosures::track(const TreeWorkspace& ws) {
@@ -356,9 +386,9 @@ ClosureSolveInfo constrainedForwardDynamics(const TreeModel& model, const System
   if (cl.m == 0) return cl.info;
   cl.evaluate(model, sys, ws);
   cl.factor(model, ws);
-  cl.rhs_.noalias() = cl.G * qddot;
-  cl.rhs_ -= cl.gamma_q;
-  cl.solve(cl.rhs_, cl.lambda);
+  cl.lambda.noalias() = cl.G * qddot;  // (the right-hand side, solved in place)
+  cl.lambda -= cl.gamma_q;
+  cl.solve(cl.lambda, cl.lambda);
   qddot.noalias() -= cl.Y * cl.lambda;
   cl.gamma_q.noalias() = cl.G * qddot;  // G q_ddot = gamma_q for the result
   return cl.info;
@@ -387,7 +417,8 @@ void retract(const TreeModel& model, Eigen::VectorXd& q, const Eigen::VectorXd& 
 ClosureProjectionReport projectClosurePositions(const TreeModel& model, const System& sys, LoopClosures& cl,
                                                 Eigen::VectorXd& q, TreeWorkspace& ws, double tol, int max_iterations) {
   ClosureProjectionReport rep;
-  Eigen::VectorXd zero = Eigen::VectorXd::Zero(model.nv), qdd(model.nv), dv(model.nv), x(cl.m);
+  const Eigen::VectorXd& zero = cl.zero_v_;
+  Eigen::VectorXd &qdd = cl.qdd_v_, &dv = cl.dv_v_, &x = cl.x_m_;
   for (;;) {
     forwardDynamics(model, sys, q, zero, zero, ws, qdd);  // kinematics and the articulated factors
     cl.evaluate(model, sys, ws);
@@ -411,12 +442,14 @@ ClosureProjectionReport projectClosureVelocities(const TreeModel& model, const S
                                                  const Eigen::VectorXd& q, Eigen::VectorXd& qdot, TreeWorkspace& ws,
                                                  double tol, int max_iterations) {
   ClosureProjectionReport rep;
-  Eigen::VectorXd zero = Eigen::VectorXd::Zero(model.nv), qdd(model.nv), r(cl.m), x(cl.m);
+  const Eigen::VectorXd& zero = cl.zero_v_;
+  Eigen::VectorXd &qdd = cl.qdd_v_, &r = cl.r_m_, &x = cl.x_m_;
   forwardDynamics(model, sys, q, zero, zero, ws, qdd);
   cl.evaluate(model, sys, ws);  // G depends on q only
   cl.factor(model, ws);
   rep.dependent = cl.info.dependent;
-  const Eigen::VectorXd reference = qdot;
+  Eigen::VectorXd& reference = cl.ref_v_;
+  reference = qdot;
   for (;;) {
     rep.residual = cl.velocityResidual(qdot, &reference);
     if (rep.residual <= tol) {

@@ -157,7 +157,7 @@ double accelerationDifference(const Eigen::VectorXd& acc1, const Eigen::VectorXd
 }
 
 struct Comparison {
-  double acc = 0, lambda = 0, lambda_row = 0, fd = 0, fd_t = 0, pos = 0, vel = 0, lam_max = 0;
+  double solve = 0, acc = 0, lambda = 0, lambda_row = 0, fd = 0, fd_t = 0, pos = 0, vel = 0, lam_max = 0;
   int rows = 0, dependent = 0, released = 0;
 };
 
@@ -260,6 +260,28 @@ Comparison compare(Builder& b, const State& base0, unsigned seed, bool cut_effor
     if (std::fabs(a) > 1e-3 * big) worst_row = std::max(worst_row, d / std::fabs(a));
   }
   out.lambda = worst, out.lambda_row = worst_row, out.lam_max = big;
+  {  // the allocation-free least-norm solve against Eigen's CompleteOrthogonalDecomposition::solve
+    const Eigen::MatrixXd A = cl.G * cl.Y;
+    Eigen::VectorXd d = Eigen::VectorXd::Zero(cl.m), b = cl.G * qdd;  // G q_ddot_free - gamma_q = b + G Y lambda - G q_ddot
+    for (int e = 0; e < cl.m; ++e) {
+      bool zero = true;
+      for (int k = 0; k < cl.nv; ++k) zero = zero && !(std::fabs(cl.G(e, k)) > kClosureZeroEntry * cl.Gabs(e, k));
+      d(e) = (!zero && A(e, e) > 0) ? 1.0 / std::sqrt(A(e, e)) : 0.0;
+    }
+    Eigen::MatrixXd As = d.asDiagonal() * A * d.asDiagonal();
+    for (int e = 0; e < cl.m; ++e)
+      if (d(e) == 0.0) As(e, e) = 1.0;
+    b = A * cl.lambda;  // the right-hand side the solve saw (G q_ddot = gamma_q after it)
+    Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd> cod(cl.m, cl.m);
+    cod.setThreshold(kClosureRankThreshold);
+    cod.compute(As);
+    const Eigen::VectorXd ref = d.asDiagonal() * cod.solve(Eigen::VectorXd(d.asDiagonal() * b));
+    Eigen::VectorXd mine(cl.m);
+    cl.solve(b, mine);
+    const double diff = (mine - ref).cwiseAbs().maxCoeff() / std::max(ref.cwiseAbs().maxCoeff(), 1e-300);
+    EXPECT_LT(diff, 1e-12) << label << ": solve() against Eigen's COD";
+    out.solve = diff;
+  }
   EXPECT_LT(out.acc, 1e-10) << label;
   if (unique_lambda) {
     EXPECT_LT(out.lambda, 1e-10) << label;
@@ -306,9 +328,9 @@ Comparison compare(Builder& b, const State& base0, unsigned seed, bool cut_effor
   EXPECT_LT(out.fd, 1e-7) << label;
   EXPECT_LT(out.fd_t, 1e-7) << label;
   std::printf("[%s] rows %d (dependent %d): acc %.2e, lambda %.2e (of max %.3g; per row %.2e), FD(G) %.2e, "
-              "FD(nu) %.2e, position %.2e (%d its), velocity %.2e\n",
+              "FD(nu) %.2e, position %.2e (%d its), velocity %.2e, solve vs Eigen COD %.1e\n",
               label.c_str(), out.rows, out.dependent, out.acc, out.lambda, out.lam_max, out.lambda_row, out.fd,
-              out.fd_t, out.pos, pr.iterations, out.vel);
+              out.fd_t, out.pos, pr.iterations, out.vel, out.solve);
   return out;
 }
 

@@ -135,7 +135,8 @@ class LoopClosures {
   void applyInverseMass(const TreeModel& model, const TreeWorkspace& ws, const double* tau, double* out);
   // Y = M^-1 G^T and the factorization of G M^-1 G^T (after evaluate() and forwardDynamics).
   void factor(const TreeModel& model, const TreeWorkspace& ws);
-  // x = (G M^-1 G^T)^+ b as above (after factor()); x and b of size m.
+  // x = (G M^-1 G^T)^+ b as above (after factor()); x and b of size m (x may be b).
+  // No allocation.
   void solve(const Eigen::VectorXd& b, Eigen::VectorXd& x) const;
   // The closure's own tracked angles (of every constraint, tree joints' included, as they
   // are the branch references of couplers, drives and limits on those joints) moved to
@@ -149,7 +150,8 @@ class LoopClosures {
   AlignedVector<Vector6d> pa_, a_;  // inverse-mass passes
   AlignedVector<Vector6d> a0_;      // spatial accelerations at q_ddot = 0
   Eigen::VectorXd d_;               // Jacobi scale per row (0: a dropped row)
-  Eigen::VectorXd rhs_, mu_, tau_, qdd_cut_;
+  Eigen::VectorXd rhs_, mu_, tau_, qdd_cut_, work_;
+  Eigen::VectorXd zero_v_, qdd_v_, dv_v_, ref_v_, r_m_, x_m_;  // the projections' scratch
   Eigen::MatrixXd A_;               // scaled G M^-1 G^T
   Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd> cod_;
   const TreeModel* model_ = nullptr;
@@ -160,6 +162,11 @@ class LoopClosures {
                                                      const Eigen::VectorXd&, const Eigen::VectorXd&,
                                                      const Eigen::VectorXd&, TreeWorkspace&, Eigen::VectorXd&,
                                                      const Inputs*);
+  friend ClosureProjectionReport projectClosurePositions(const TreeModel&, const System&, LoopClosures&,
+                                                         Eigen::VectorXd&, TreeWorkspace&, double, int);
+  friend ClosureProjectionReport projectClosureVelocities(const TreeModel&, const System&, LoopClosures&,
+                                                          const Eigen::VectorXd&, Eigen::VectorXd&, TreeWorkspace&,
+                                                          double, int);
 };
 
 // Constrained forward dynamics: q_ddot and closures.lambda at (q, q_dot) with efforts tau
@@ -178,7 +185,7 @@ void retract(const TreeModel& model, Eigen::VectorXd& q, const Eigen::VectorXd& 
 
 // Newton on Phi(q) = 0 with the M-weighted least-norm step dq = -M^-1 G^T (G M^-1 G^T)^+ Phi,
 // until closures.positionResidual() <= tol (at most max_iterations steps). ws ends at q's
-// kinematics (with zero velocity).
+// kinematics (with zero velocity). Both projections allocate nothing (the closures' scratch).
 ClosureProjectionReport projectClosurePositions(const TreeModel& model, const System& sys, LoopClosures& closures,
                                                 Eigen::VectorXd& q, TreeWorkspace& ws, double tol = 1e-13,
                                                 int max_iterations = 20);
