@@ -71,7 +71,6 @@ JointStepper::JointStepper(const System& sys) : model_(sys), ws_(model_) {
   zeros(sum_q_, model_.nq), zeros(sum_v_, model_.nv);
   loads_ = zeroInputs(sys);
   kin_.assign(sys.bodies.size(), BodyKin());
-  rate_.assign(sys.constraints.size(), Tracked{});
 }
 
 void JointStepper::accelerations(const System& sys, const Inputs& in, const Eigen::VectorXd& q,
@@ -109,23 +108,15 @@ void JointStepper::writeAbsolute(const System& sys, State& s) {
   // (ws_ holds the kinematics of s.q, s.qdot: accelerations() ran there last)
   absoluteState(model_, ws_, s.x, s.u);
   bodyAccelerations(model_, ws_, s.qddot, s.acc);
-  loadKinematics(sys, s.x.data(), s.u.data(), kin_);
   // Tracked angles: a tree joint's are its coordinates themselves (so an angle may advance
-  // by any amount in a step: a wheel at 4000 rad/s turns 4 rad a millisecond); track()
-  // then takes each from the pose on that branch.
+  // by any amount in a step: a wheel at 4000 rad/s turns 4 rad a millisecond). Every
+  // constraint of a System this stepper runs is a tree joint (jointFormulationUnsupported).
   for (const TreeLink& L : model_.links) {
     if (L.joint < 0 || L.kind == TreeJointKind::kSpherical) continue;
     for (int k = 0; k < L.ptr->dof(); ++k) {
       const int slot = L.ptr->trackedSlot(k);
       if (slot >= 0) s.tracked[L.ptr->id()][slot] = s.q[L.iq + k];
     }
-  }
-  const EvalContext ctx = s.context();
-  const BodyKin* ptrs[kMaxConstraintBodies];
-  for (int ci = 0; ci < sys.numConstraints(); ++ci) {
-    const Constraint& c = *sys.constraints[ci];
-    for (size_t k = 0; k < c.bodies().size(); ++k) ptrs[k] = &kin_[c.bodies()[k]];
-    c.track(ptrs, ctx, s.tracked[ci], rate_[ci]);
   }
   q_end_ = s.q;
   v_end_ = s.qdot;

@@ -71,7 +71,6 @@ class JointStepper {
   Eigen::VectorXd q_end_, v_end_;
   std::vector<BodyKin> kin_;
   Eigen::VectorXd spring_x_, spring_u_;
-  std::vector<Tracked> rate_;
 };
 
 }  // namespace mechanism_sim
