@@ -135,6 +135,39 @@ bool LoopClosures::addCutJointEfforts(const TreeModel& model, const System& sys,
   return any;
 }
 
+int LoopClosures::activateReachedLimits(const System& sys, const TreeWorkspace& ws, signed char* limit_side) {
+  int changed = 0;
+  const EvalContext ctx = context();
+  loadKin(ws);
+  Row rows[kMaxJointDofs];
+  for (size_t l = 0; l < sys.limits.size(); ++l) {
+    if (limit_side[l]) continue;
+    const LimitSpec& L = sys.limits[l];
+    const Joint& J = *sys.joints[L.joint];
+    J.coordinates(kin_[J.bodyI()], kin_[J.bodyJ()], ctx.tracked[sys.joint_constraint[L.joint]], rows);
+    const double q = rows[L.k].Phi;
+    const int side = q < L.lower ? -1 : q > L.upper ? 1 : 0;
+    if (!side) continue;
+    limit_side[l] = static_cast<signed char>(side);
+    ++changed;
+  }
+  return changed;
+}
+
+int LoopClosures::releasePullingLimits(const System& sys, signed char* limit_side) const {
+  int changed = 0;
+  for (size_t i = 0; i < constraints.size(); ++i) {
+    const int l = sys.constraints[constraints[i]]->limit();
+    if (l < 0 || !limit_side[l]) continue;
+    const double lam = lambda(row[i]);
+    if ((limit_side[l] < 0 && lam > 0) || (limit_side[l] > 0 && lam < 0)) {
+      limit_side[l] = 0;
+      ++changed;
+    }
+  }
+  return changed;
+}
+
 void LoopClosures::loadKin(const TreeWorkspace& ws) {
   for (int b = 1; b < static_cast<int>(kin_.size()); ++b) {
     const int k = b - 1;

@@ -224,7 +224,10 @@ Comparison compare(Builder& b, const State& base0, unsigned seed, bool cut_effor
   Stepper stepper(sys);
   stepper.analyzeDependencies(sys, s);
   const std::vector<signed char> sides = s.limit_side;
+  std::vector<signed char> mine = sides;  // the closures' release rule on their first solve
+  cl.releasePullingLimits(sys, mine.data());
   stepper.settle(sys, s, in);
+  EXPECT_EQ(mine, s.limit_side) << label << ": the limits released";
   int released = 0;
   for (size_t l = 0; l < sides.size(); ++l) released += sides[l] != s.limit_side[l];
   if (released) {
@@ -357,6 +360,50 @@ TEST(JointSpaceClosures, ChainWithActiveLimitsOnBothSides) {
       kept_active += c.released == 0;
     }
   EXPECT_EQ(kept_active, 4);  // the pressed limits all stayed active
+}
+
+// Not pressed: settle lets go of limits that would pull, and so does releasePullingLimits.
+TEST(JointSpaceClosures, PullingLimitsAreReleasedAsTheAbsoluteSolverDoes) {
+  int released = 0;
+  for (double L : {1.0, 1e3})
+    for (int side : {-1, 1}) {
+      Builder b = chain(L);
+      b.addLimit(0, 0, -0.2, 0.15);
+      b.addLimit(2, 0, -0.05 * L, 0.04 * L);
+      b.sys->finalize();
+      State base = initialState(*b.sys);
+      base.limit_side[0] = static_cast<signed char>(side);
+      base.limit_side[1] = static_cast<signed char>(-side);
+      const Comparison c = compare(b, base, 21, false, std::string("chain, limits not pressed, side ") + std::to_string(side) + (L == 1 ? ", m" : ", mm"));
+      released += c.released;
+    }
+  EXPECT_GT(released, 0);
+}
+
+TEST(JointSpaceClosures, LimitsPastTheirBoundsAreActivated) {
+  Builder b = chain(1.0);
+  b.addLimit(0, 0, -0.2, 0.15);
+  b.addLimit(2, 0, -0.05, 0.04);
+  b.addLimit(3, 0, -1.0, 1.0);
+  b.sys->finalize();
+  const System& sys = *b.sys;
+  TreeModel model(sys);
+  TreeWorkspace ws(model);
+  LoopClosures cl(model, sys);
+  Eigen::VectorXd q = model.neutralPositions(sys), qd = Eigen::VectorXd::Zero(model.nv);
+  q(model.links[model.joint_link[0]].iq) = 0.3;    // past upper
+  q(model.links[model.joint_link[2]].iq) = -0.06;  // past lower
+  q(model.links[model.joint_link[3]].iq) = 0.5;    // inside
+  forwardKinematics(model, q, qd, ws);
+  // the tracked angles of the tree joints at q (the caller's State would hold them)
+  for (int j = 0; j < sys.numJoints(); ++j) {
+    const Joint& J = *sys.joints[j];
+    for (int k = 0; k < J.dof(); ++k)
+      if (J.trackedSlot(k) >= 0) cl.tracked[sys.joint_constraint[j]][J.trackedSlot(k)] = q(model.links[model.joint_link[j]].iq + k);
+  }
+  std::vector<signed char> side(sys.limits.size(), 0);
+  EXPECT_EQ(cl.activateReachedLimits(sys, ws, side.data()), 2);
+  EXPECT_EQ(side, (std::vector<signed char>{1, -1, 0}));
 }
 
 TEST(JointSpaceClosures, VelocityAndHarmonicDrivesAtNonzeroTime) {

@@ -138,6 +138,15 @@ class LoopClosures {
   // x = (G M^-1 G^T)^+ b as above (after factor()); x and b of size m (x may be b).
   // No allocation.
   void solve(const Eigen::VectorXd& b, Eigen::VectorXd& x) const;
+  // Limits' activation, the caller's (the absolute Stepper's rules, on limit_side: size
+  // sys.limits.size(), e.g. State::limit_side.data()):
+  //   activateReachedLimits: a free limit whose coordinate (Joint::coordinates at ws's
+  //     kinematics, tracked angles of context()) is past a bound gets side -1 / +1;
+  //   releasePullingLimits: after a solve (lambda), an active limit whose multiplier would
+  //     pull (side -1 with lambda > 0, side +1 with lambda < 0) gets side 0.
+  // Both return how many sides they changed; the caller then evaluates and solves again.
+  int activateReachedLimits(const System& sys, const TreeWorkspace& ws, signed char* limit_side);
+  int releasePullingLimits(const System& sys, signed char* limit_side) const;
   // The closure's own tracked angles (of every constraint, tree joints' included, as they
   // are the branch references of couplers, drives and limits on those joints) moved to
   // ws's kinematics (Constraint::track), after an accepted step. With setContext() the
