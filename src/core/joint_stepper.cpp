@@ -5,29 +5,21 @@
 #include <sstream>
 
 #include "mechanism_sim/core/evaluation.h"
+#include "mechanism_sim/core/projection.h"
 
 namespace mechanism_sim {
+namespace {
+constexpr int kMaxVelocityPasses = 8;  // (as the absolute formulation's velocity projection)
+}  // namespace
 
 std::string jointFormulationUnsupported(const System& sys) {
-  std::string why = jointSpaceUnsupported(sys);
+  // Couplers, drives and limits are closures on the tree (loop_closure.h); Coulomb
+  // friction is not (jointSpaceUnsupported says so).
+  std::string why = jointSpaceUnsupported(sys, true);
   if (!why.empty()) return why;
-  // Limits, drives and couplers are constraints this stepper does not integrate yet,
-  // whatever jointSpaceUnsupported lets through.
-  if (!sys.limits.empty())
-    return "joint '" + sys.joints[sys.limits[0].joint]->name() + "': the joint formulation has no joint limits yet";
-  if (!sys.drives.empty())
-    return "joint '" + sys.joints[sys.drives[0].joint]->name() + "': the joint formulation has no drives yet";
-  std::vector<char> is_joint(sys.numConstraints(), 0);
-  for (int c : sys.joint_constraint) is_joint[c] = 1;
-  for (int c = 0; c < sys.numConstraints(); ++c)
-    if (!is_joint[c])
-      return "constraint '" + sys.constraints[c]->name() + "' (" + sys.constraints[c]->type() +
-             "): the joint formulation has no couplers yet";
-  // Loop closures (cut joints of the spanning tree) are constraints on the tree that this
-  // stepper does not integrate yet (loop_closure.h has their equations): refused here
-  // whatever jointSpaceUnsupported lets through. (Integrated with loop_closure.h as of
-  // 1a0caf8, the parallelogram four-bar was right at 1 ms, 1.7e-12 m, but 4e-3 m off at
-  // 0.1 ms: the closures' rank decision near its flat passage; not released.)
+  // Loop closures (the spanning tree's cut joints) are not released: integrated, the
+  // parallelogram four-bar was 1.7e-12 m from exact at 1 ms but 4e-3 m at 0.1 ms (the
+  // closures' rank decision at its flat passage).
   const TreeModel tree(sys);
   if (!tree.cut_joints.empty())
     return "joint '" + sys.joints[tree.cut_joints[0]]->name() +
@@ -53,15 +45,28 @@ Formulation chooseFormulation(const System& sys, Formulation asked, std::string*
     if (why) *why = "joint coordinates, as asked";
     return Formulation::kJoint;
   }
-  if (unsupported.empty()) {
-    if (why) *why = "joint coordinates (auto: a tree, O(n) a stage)";
+  // The cost model: on a tree with no equations besides its joints' the joint formulation
+  // costs 3 to 5 times less a step (bench/RESULTS.md: pendulum 0.84 against 3.41 us, the
+  // 50-link chain 68 against 203); limits, drives and couplers are dense closures on the tree
+  // today (every row through J(q) and M^-1 each stage), which made it slower on the arms of
+  // ../shared/robots (panda: real-time factor 10 against 19; nao 1.1 against 3.1).
+  int closure_rows = 0;
+  for (int c = 0; c < sys.numConstraints(); ++c) closure_rows += sys.layout[c].size;
+  for (int c : sys.joint_constraint) closure_rows -= sys.layout[c].size;
+  if (unsupported.empty() && closure_rows == 0) {
+    if (why) *why = "joint coordinates (auto: a tree with no other equations, O(n) a stage)";
     return Formulation::kJoint;
+  }
+  if (unsupported.empty()) {
+    if (why)
+      *why = "absolute coordinates (auto: limits, drives or couplers cost more as joint-space closures today)";
+    return Formulation::kAbsolute;
   }
   if (why) *why = "absolute coordinates (auto: " + unsupported + ")";
   return Formulation::kAbsolute;
 }
 
-JointStepper::JointStepper(const System& sys) : model_(sys), ws_(model_) {
+JointStepper::JointStepper(const System& sys) : model_(sys), ws_(model_), closures_(model_, sys) {
   const std::string unsupported = jointFormulationUnsupported(sys);
   if (!unsupported.empty()) throw ModelError("the joint formulation cannot run this mechanism: " + unsupported);
   tableau_ = &tableau(parseMethod(sys.options.method));
@@ -73,8 +78,8 @@ JointStepper::JointStepper(const System& sys) : model_(sys), ws_(model_) {
   kin_.assign(sys.bodies.size(), BodyKin());
 }
 
-void JointStepper::accelerations(const System& sys, const Inputs& in, const Eigen::VectorXd& q,
-                                 const Eigen::VectorXd& qdot, Eigen::VectorXd& qddot) {
+void JointStepper::accelerations(const System& sys, const State& s, const Inputs& in, double t,
+                                 const Eigen::VectorXd& q, const Eigen::VectorXd& qdot, Eigen::VectorXd& qddot) {
   jointEfforts(model_, in, tau_);  // efforts along the joint coordinates
   const Inputs* loads = &in;
   if (!sys.springs.empty()) {
@@ -101,12 +106,28 @@ void JointStepper::accelerations(const System& sys, const Inputs& in, const Eige
     }
     loads = &loads_;
   }
-  forwardDynamics(model_, sys, q, qdot, tau_, ws_, qddot, loads);
+  if (closures_.m == 0) {
+    forwardDynamics(model_, sys, q, qdot, tau_, ws_, qddot, loads);
+    return;
+  }
+  // the closures (drives, limits, couplers) read the State's context at the stage's time
+  EvalContext ctx = s.context();
+  ctx.t = t;
+  closures_.setContext(ctx);
+  constrainedForwardDynamics(model_, sys, closures_, q, qdot, tau_, ws_, qddot, loads);
 }
 
 void JointStepper::writeAbsolute(const System& sys, State& s) {
   // (ws_ holds the kinematics of s.q, s.qdot: accelerations() ran there last)
   absoluteState(model_, ws_, s.x, s.u);
+  // the closures' multipliers (drives, limits, couplers) in their System rows; a free
+  // limit's is 0. The tree joints' rows have none: Mechanism::multipliers() gives the
+  // least-norm ones for reactions.
+  if (closures_.m > 0) {
+    closures_.systemMultipliers(s.lambda);
+    for (size_t l = 0; l < sys.limits.size(); ++l)
+      if (s.limit_side[l] == 0) s.lambda[sys.layout[sys.limits[l].constraint].row] = 0.0;
+  }
   bodyAccelerations(model_, ws_, s.qddot, s.acc);
   // Tracked angles: a tree joint's are its coordinates themselves (so an angle may advance
   // by any amount in a step: a wheel at 4000 rad/s turns 4 rad a millisecond). Every
@@ -121,6 +142,65 @@ void JointStepper::writeAbsolute(const System& sys, State& s) {
   q_end_ = s.q;
   v_end_ = s.qdot;
   fresh_ = true;
+}
+
+// After the stages (or at a new state): limits that were passed become active (an
+// inelastic stop: the projections bring the coordinate to its bound and its rate to 0),
+// positions and velocities are projected onto the closures, the accelerations solved, and
+// limits that would pull let go (solved again), as the absolute formulation's finishStep.
+void JointStepper::finish(const System& sys, State& s, const Inputs& in) {
+  if (closures_.m > 0) {
+    closures_.setContext(s.context());
+    forwardKinematics(model_, s.q, s.qdot, ws_);
+    if (!sys.limits.empty() && closures_.activateReachedLimits(sys, ws_, s.limit_side.data()) > 0)
+      for (size_t l = 0; l < sys.limits.size(); ++l)
+        if (s.limit_side[l] != 0)
+          for (const DriveSpec& D : sys.drives)
+            if (D.joint == sys.limits[l].joint && D.k == sys.limits[l].k) {
+              std::ostringstream os;
+              os << "at t = " << s.t << " s: the drive of joint '" << sys.joints[D.joint]->name()
+                 << "' moves it past its limits [" << fmt(sys.limits[l].lower) << ", " << fmt(sys.limits[l].upper)
+                 << "]; change the drive or the limits";
+              throw SimulationError(os.str());
+            }
+    project(sys, s);
+  }
+  accelerations(sys, s, in, s.t, s.q, s.qdot, s.qddot);
+  for (size_t pass = 0; pass < sys.limits.size() && closures_.releasePullingLimits(sys, s.limit_side.data()) > 0;
+       ++pass)
+    accelerations(sys, s, in, s.t, s.q, s.qdot, s.qddot);
+  writeAbsolute(sys, s);
+}
+
+// Positions and velocities onto the closures (loop_closure.h), to the System's relative
+// tolerances; a shortfall is counted, beyond kFailureResidual the step fails.
+void JointStepper::project(const System& sys, State& s) {
+  closures_.setContext(s.context());
+  const ClosureProjectionReport p = projectClosurePositions(model_, sys, closures_, s.q, ws_, sys.options.position_tol);
+  ++stats_.position_projections;
+  if (!p.converged) {
+    ++stats_.position_shortfalls;
+    stats_.worst_position = std::max(stats_.worst_position, p.residual);
+    if (p.residual > kFailureResidual) {
+      std::ostringstream os;
+      os << "at t = " << s.t << " s: the step left the constraints on the joint coordinates (relative residual "
+         << fmt(p.residual) << "); try a smaller step";
+      throw StepFailure(os.str());
+    }
+  }
+  const ClosureProjectionReport v =
+      projectClosureVelocities(model_, sys, closures_, s.q, s.qdot, ws_, sys.options.velocity_tol, kMaxVelocityPasses);
+  ++stats_.velocity_projections;
+  if (!v.converged) {
+    ++stats_.velocity_shortfalls;
+    stats_.worst_velocity = std::max(stats_.worst_velocity, v.residual);
+    if (v.residual > kFailureResidual) {
+      std::ostringstream os;
+      os << "at t = " << s.t << " s: the velocities cannot be brought onto the constraints (relative residual "
+         << fmt(v.residual) << ")";
+      throw StepFailure(os.str());
+    }
+  }
 }
 
 void JointStepper::settle(const System& sys, State& s, const Inputs& in) {
@@ -151,8 +231,7 @@ void JointStepper::settle(const System& sys, State& s, const Inputs& in) {
     }
   }
   normalizeQuaternions(model_, s.q);
-  accelerations(sys, in, s.q, s.qdot, s.qddot);
-  writeAbsolute(sys, s);
+  finish(sys, s, in);
 }
 
 void JointStepper::step(const System& sys, State& s, const Inputs& in, double h) {
@@ -164,7 +243,7 @@ void JointStepper::step(const System& sys, State& s, const Inputs& in, double h)
   v0_ = s.qdot;
   // stage 1: the accelerations the last step (or settle) left, when they are of this state
   // under these inputs; else computed here
-  if (!(fresh_ && q_end_ == s.q && v_end_ == s.qdot)) accelerations(sys, in, q0_, v0_, s.qddot);
+  if (!(fresh_ && q_end_ == s.q && v_end_ == s.qdot)) accelerations(sys, s, in, s.t, q0_, v0_, s.qddot);
   positionRates(model_, q0_, v0_, kq_[0]);
   kv_[0] = s.qddot;
   auto combine = [h](const double* w, int n, double den, const Eigen::VectorXd& y0, const Eigen::VectorXd* k,
@@ -181,16 +260,25 @@ void JointStepper::step(const System& sys, State& s, const Inputs& in, double h)
   for (int k = 1; k < T.stages; ++k) {
     combine(T.a[k], k, T.a_den[k], q0_, kq_, sum_q_, qs_);
     combine(T.a[k], k, T.a_den[k], v0_, kv_, sum_v_, vs_);
-    accelerations(sys, in, qs_, vs_, kv_[k]);
+    accelerations(sys, s, in, s.t + T.c[k] * h, qs_, vs_, kv_[k]);
     positionRates(model_, qs_, vs_, kq_[k]);
   }
   combine(T.b, T.stages, T.b_den, q0_, kq_, sum_q_, s.q);
   combine(T.b, T.stages, T.b_den, v0_, kv_, sum_v_, s.qdot);
   normalizeQuaternions(model_, s.q);
+  const double t0 = s.t;
   s.t += h;
   ++s.steps;
-  accelerations(sys, in, s.q, s.qdot, s.qddot);
-  writeAbsolute(sys, s);
+  limit_side0_ = s.limit_side;
+  try {
+    finish(sys, s, in);
+  } catch (...) {  // the State as it was (the last accepted step)
+    s.t = t0, --s.steps;
+    s.q = q0_, s.qdot = v0_;
+    s.limit_side = limit_side0_;
+    fresh_ = false;
+    throw;
+  }
   stats_.solves += T.stages;
 }
 

@@ -336,6 +336,10 @@ void LoopClosures::factor(const TreeModel& model, const TreeWorkspace& ws) {
     zero_rows += zero;
   }
   for (int e = 0; e < m; ++e) {
+    if (d_(e) == 0.0) {  // (an inactive limit's row, a structurally zero one: no pass)
+      Y.col(e).setZero();
+      continue;
+    }
     for (int k = 0; k < nv; ++k) tau_(k) = G(e, k);
     applyInverseMass(model, ws, tau_.data(), Y.col(e).data());
   }

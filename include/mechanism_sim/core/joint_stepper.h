@@ -11,15 +11,18 @@
 // snapshot restores it bit for bit.
 //
 // What it runs today (jointFormulationUnsupported says what it does not): trees of every
-// joint type and free bodies, with gravity, applied efforts, body wrenches and springs
-// (body loads at the tree's poses). Not yet: loop closures, couplers, drives, limits, joint
-// damping (the absolute formulation integrates stiff damping implicitly), Coulomb friction.
+// joint type and free bodies, with gravity, applied efforts, body wrenches, springs (body
+// loads at the tree's poses), and joint limits, drives and mimic couplers as equations on
+// the tree (loop_closure.h: their absolute equations through G = Phi_x J(q)). Not yet: loop
+// closures, joint damping (the absolute formulation integrates stiff damping implicitly),
+// Coulomb friction.
 #pragma once
 #include <string>
 
 #include <Eigen/Core>
 
 #include "mechanism_sim/core/joint_space.h"
+#include "mechanism_sim/core/loop_closure.h"
 #include "mechanism_sim/core/solver.h"
 #include "mechanism_sim/core/system.h"
 #include "mechanism_sim/core/tableau.h"
@@ -31,8 +34,10 @@ std::string jointFormulationUnsupported(const System& sys);
 
 // The formulation that runs sys when `asked` is requested, and why (one sentence). kJoint
 // for a System the joint formulation cannot run throws ModelError with the reason; kAuto
-// takes the joint formulation wherever it runs the System (on a tree it costs O(n) a stage
-// where the absolute KKT form costs several times more: bench/RESULTS.md), else absolute.
+// takes the joint formulation for a tree with no equations besides its joints' (O(n) a
+// stage, 3 to 5 times cheaper than the absolute KKT form: bench/RESULTS.md), else absolute
+// (limits, drives and couplers run as dense closures in joint space today, slower than the
+// absolute form on real arms).
 Formulation chooseFormulation(const System& sys, Formulation asked, std::string* why);
 
 class JointStepper {
@@ -54,14 +59,19 @@ class JointStepper {
   const TreeModel& model() const { return model_; }
 
  private:
-  // q_ddot at (q, q_dot) under the inputs and springs.
-  void accelerations(const System& sys, const Inputs& in, const Eigen::VectorXd& q, const Eigen::VectorXd& qdot,
-                     Eigen::VectorXd& qddot);
+  // q_ddot at (q, q_dot) and time t under the inputs and springs, with the closures
+  // (drives, limits, couplers) read in s's context.
+  void accelerations(const System& sys, const State& s, const Inputs& in, double t, const Eigen::VectorXd& q,
+                     const Eigen::VectorXd& qdot, Eigen::VectorXd& qddot);
+  void finish(const System& sys, State& s, const Inputs& in);
+  void project(const System& sys, State& s);
   // s.x, s.u, s.acc and the tracked angles from s.q, s.qdot, s.qddot.
   void writeAbsolute(const System& sys, State& s);
 
   TreeModel model_;
   TreeWorkspace ws_;
+  LoopClosures closures_;  // drives, limits and couplers: equations on the tree
+  std::vector<signed char> limit_side0_;
   const Tableau* tableau_ = &kRk4;
   SolverStats stats_;
   Eigen::VectorXd tau_, q0_, v0_, qs_, vs_, kq_[Tableau::kMaxStages], kv_[Tableau::kMaxStages], sum_q_, sum_v_;
