@@ -32,12 +32,6 @@ inline Eigen::Matrix<double, Rows::RowsAtCompileTime, 1> inverseMassTerms(const 
 // A row's weight 1 / (j M~^-1 j^T), or 0 for a row that moves no mass.
 inline double weightOf(double s) { return (s > 0 && std::isfinite(s)) ? 1.0 / s : 0.0; }
 
-// |r| / scale, where scale is the size of the terms r was computed from; 0/0 = 0.
-inline double relative(double r, double scale) {
-  r = std::fabs(r);
-  if (r == 0.0) return 0.0;
-  return scale > 0.0 ? r / scale : HUGE_VAL;
-}
 
 }  // namespace
 

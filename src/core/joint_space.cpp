@@ -35,24 +35,6 @@ inline Vector6d crossForce(const Vector6d& m, const Vector6d& f) {
   return out;
 }
 
-// The Plucker transform X = B_X_A of motion vectors from frame A to frame B, given by E (A
-// components -> B components) and rho (B's origin relative to A's, A components):
-// X = [E 0; -E rho~ E] (RBDA ch. 2, with r = rho).
-inline Vector6d transformMotion(const Matrix3d& E, const Vector3d& rho, const Vector6d& m) {
-  Vector6d out;
-  out.head<3>() = E * m.head<3>();
-  out.tail<3>() = E * (m.tail<3>() - rho.cross(m.head<3>()));
-  return out;
-}
-
-// X^T f: a force in B coordinates back to A coordinates (B_X_A^* inverse = X^T).
-inline Vector6d transformForceBack(const Matrix3d& E, const Vector3d& rho, const Vector6d& f) {
-  Vector6d out;
-  out.tail<3>() = E.transpose() * f.tail<3>();
-  out.head<3>() = E.transpose() * f.head<3>() + rho.cross(out.tail<3>());
-  return out;
-}
-
 // X^T I X: an inertia in B coordinates back to A coordinates (table 7.1's X^T I^a X), with
 // the blocks of X = [E 0; -E rho~ E] written out: with I = [I11 I12; I12^T I22] in A-rotated
 // components (E^T I E), X^T I X = [I11 + rho~ I12^T - I12 rho~ - rho~ I22 rho~, I12 + rho~ I22;

@@ -246,25 +246,14 @@ void JointStepper::step(const System& sys, State& s, const Inputs& in, double h)
   if (!(fresh_ && q_end_ == s.q && v_end_ == s.qdot)) accelerations(sys, s, in, s.t, q0_, v0_, s.qddot);
   positionRates(model_, q0_, v0_, kq_[0]);
   kv_[0] = s.qddot;
-  auto combine = [h](const double* w, int n, double den, const Eigen::VectorXd& y0, const Eigen::VectorXd* k,
-                     Eigen::VectorXd& sum, Eigen::VectorXd& y) {
-    bool first = true;
-    for (int j = 0; j < n; ++j) {
-      if (w[j] == 0.0) continue;
-      if (first) sum = w[j] * k[j];
-      else sum += w[j] * k[j];
-      first = false;
-    }
-    y = y0 + (h / den) * sum;
-  };
   for (int k = 1; k < T.stages; ++k) {
-    combine(T.a[k], k, T.a_den[k], q0_, kq_, sum_q_, qs_);
-    combine(T.a[k], k, T.a_den[k], v0_, kv_, sum_v_, vs_);
+    combineStages(h, T.a[k], k, T.a_den[k], q0_, kq_, sum_q_, qs_);
+    combineStages(h, T.a[k], k, T.a_den[k], v0_, kv_, sum_v_, vs_);
     accelerations(sys, s, in, s.t + T.c[k] * h, qs_, vs_, kv_[k]);
     positionRates(model_, qs_, vs_, kq_[k]);
   }
-  combine(T.b, T.stages, T.b_den, q0_, kq_, sum_q_, s.q);
-  combine(T.b, T.stages, T.b_den, v0_, kv_, sum_v_, s.qdot);
+  combineStages(h, T.b, T.stages, T.b_den, q0_, kq_, sum_q_, s.q);
+  combineStages(h, T.b, T.stages, T.b_den, v0_, kv_, sum_v_, s.qdot);
   normalizeQuaternions(model_, s.q);
   const double t0 = s.t;
   s.t += h;

@@ -12,29 +12,11 @@
 #include <cmath>
 
 #include "mechanism_sim/core/errors.h"
+#include "mechanism_sim/core/evaluation.h"
 
 namespace mechanism_sim {
 namespace {
 
-// Plucker transform of motion vectors, as joint_space.cpp: X = [E 0; -E rho~ E].
-inline Vector6d transformMotion(const Matrix3d& E, const Vector3d& rho, const Vector6d& m) {
-  Vector6d out;
-  out.head<3>() = E * m.head<3>();
-  out.tail<3>() = E * (m.tail<3>() - rho.cross(m.head<3>()));
-  return out;
-}
-// X^T f (force back to the parent's coordinates).
-inline Vector6d transformForceBack(const Matrix3d& E, const Vector3d& rho, const Vector6d& f) {
-  Vector6d out;
-  out.tail<3>() = E.transpose() * f.tail<3>();
-  out.head<3>() = E.transpose() * f.head<3>() + rho.cross(out.tail<3>());
-  return out;
-}
-inline double relative(double r, double scale) {
-  r = std::fabs(r);
-  if (r == 0.0) return 0.0;
-  return scale > 0.0 ? r / scale : HUGE_VAL;
-}
 inline Eigen::Vector4d quatProduct(const Eigen::Vector4d& a, const Eigen::Vector4d& b) {
   Eigen::Vector4d out;
   out(0) = a(0) * b(0) - a.tail<3>().dot(b.tail<3>());

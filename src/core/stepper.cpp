@@ -252,31 +252,18 @@ void Stepper::stepOnce(const System& sys, State& s, const Inputs& in, double h) 
       for (int k = 0; k < 2; ++k) s.tracked[ci][k] = tracked0_[ci][k] + tracked_rate_[ci][k] * dt;
   };
   const double t0 = s.t;
-  // y = y0 + (h / den) (sum_j w_j k_j) over the first n rates k (tableau.h: the sum in
-  // order of j, zero weights skipped, into sum, preallocated).
-  auto combine = [h](const double* w, int n, double den, const Eigen::VectorXd& y0, const Eigen::VectorXd* k,
-                     Eigen::VectorXd& sum, Eigen::VectorXd& y) {
-    bool first = true;
-    for (int j = 0; j < n; ++j) {
-      if (w[j] == 0.0) continue;
-      if (first) sum = w[j] * k[j];
-      else sum += w[j] * k[j];
-      first = false;
-    }
-    y = y0 + (h / den) * sum;
-  };
   const Tableau& T = *tableau_;
   for (int k = 1; k < T.stages; ++k) {
-    combine(T.a[k], k, T.a_den[k], x0_, kx_, sum_x_, xs_);
-    combine(T.a[k], k, T.a_den[k], u0_, ku_, sum_u_, us_);
+    combineStages(h, T.a[k], k, T.a_den[k], x0_, kx_, sum_x_, xs_);
+    combineStages(h, T.a[k], k, T.a_den[k], u0_, ku_, sum_u_, us_);
     const double dt = T.c[k] * h;
     predictTracked(dt);
     s.t = t0 + dt;  // rheonomic equations (drives) are evaluated at the stage's time
     // the row weights only precondition: computed at the first stage, kept for the step
     rates(sys, s, in, s.friction, xs_.data(), us_.data(), kx_[k].data(), ku_[k].data(), k == 1);
   }
-  combine(T.b, T.stages, T.b_den, x0_, kx_, sum_x_, s.x);
-  combine(T.b, T.stages, T.b_den, u0_, ku_, sum_u_, s.u);
+  combineStages(h, T.b, T.stages, T.b_den, x0_, kx_, sum_x_, s.x);
+  combineStages(h, T.b, T.stages, T.b_den, u0_, ku_, sum_u_, s.u);
   for (int b = 0; b < sys.nb; ++b) s.x.segment<4>(BodyCoordinates::x(b) + 3).normalize();
   predictTracked(h);  // references near the new angles; finishStep tracks them exactly
   s.t = t0 + h;

@@ -12,6 +12,7 @@
 //     Phi_q v, Phi_q^T y, row weights, residuals.
 #pragma once
 #include <array>
+#include <cmath>
 #include <vector>
 
 #include <Eigen/Core>
@@ -150,6 +151,13 @@ double velocityResidual(const System& sys, const Evaluation& ev, const Eigen::Ve
                         std::vector<std::array<double, 2>>& scales);
 double velocityResidualAtScales(const System& sys, const Evaluation& ev, const Eigen::VectorXd& u,
                                 const std::vector<std::array<double, 2>>& scales);
+// |r| / scale, where scale is the size of the terms r was computed from; 0/0 = 0 (the
+// residuals above, and the joint formulation's closures).
+inline double relative(double r, double scale) {
+  r = std::fabs(r);
+  if (r == 0.0) return 0.0;
+  return scale > 0.0 ? r / scale : HUGE_VAL;
+}
 // Residual floors: kFloor times the system's largest motion (force).
 constexpr double kFloor = 1e-6;
 

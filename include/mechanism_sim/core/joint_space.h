@@ -54,6 +54,25 @@ namespace mechanism_sim {
 
 using Vector6d = Eigen::Matrix<double, 6, 1>;
 using Matrix6d = Eigen::Matrix<double, 6, 6>;
+
+// The Plucker transform X = B_X_A of motion vectors from frame A to frame B, given by E (A
+// components -> B components) and rho (B's origin relative to A's, A components):
+// X = [E 0; -E rho~ E] (RBDA ch. 2, with r = rho).
+inline Vector6d transformMotion(const Matrix3d& E, const Vector3d& rho, const Vector6d& m) {
+  Vector6d out;
+  out.head<3>() = E * m.head<3>();
+  out.tail<3>() = E * (m.tail<3>() - rho.cross(m.head<3>()));
+  return out;
+}
+
+// X^T f: a force in B coordinates back to A coordinates (B_X_A^* inverse = X^T).
+inline Vector6d transformForceBack(const Matrix3d& E, const Vector3d& rho, const Vector6d& f) {
+  Vector6d out;
+  out.tail<3>() = E.transpose() * f.tail<3>();
+  out.head<3>() = E.transpose() * f.head<3>() + rho.cross(out.tail<3>());
+  return out;
+}
+
 // At most 6 columns (a free body), stored in place: no heap.
 using MotionSubspace = Eigen::Matrix<double, 6, Eigen::Dynamic, 0, 6, 6>;
 using SmallMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 6, 6>;

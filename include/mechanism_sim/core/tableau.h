@@ -9,6 +9,8 @@
 #pragma once
 #include <string>
 
+#include <Eigen/Core>
+
 namespace mechanism_sim {
 
 // The integrators IntegratorOptions::method names ("rk4", "rk3", "rk2").
@@ -45,5 +47,19 @@ constexpr const Tableau& tableau(Method m) {
 
 // The method IntegratorOptions::method names; throws ModelError for an unknown name.
 Method parseMethod(const std::string& name);
+
+// y = y0 + (h / den) (sum_j w_j k_j) over the first n rates k: the sum in order of j,
+// zero weights skipped, into sum (preallocated: no allocation). Both steppers' stage loop.
+inline void combineStages(double h, const double* w, int n, double den, const Eigen::VectorXd& y0,
+                          const Eigen::VectorXd* k, Eigen::VectorXd& sum, Eigen::VectorXd& y) {
+  bool first = true;
+  for (int j = 0; j < n; ++j) {
+    if (w[j] == 0.0) continue;
+    if (first) sum = w[j] * k[j];
+    else sum += w[j] * k[j];
+    first = false;
+  }
+  y = y0 + (h / den) * sum;
+}
 
 }  // namespace mechanism_sim
