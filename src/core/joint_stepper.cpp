@@ -18,8 +18,10 @@ std::string jointFormulationUnsupported(const System& sys) {
   std::string why = jointSpaceUnsupported(sys, true);
   if (!why.empty()) return why;
   // Loop closures (the spanning tree's cut joints) are not released: integrated, the
-  // parallelogram four-bar was 1.7e-12 m from exact at 1 ms but 4e-3 m at 0.1 ms (the
-  // closures' rank decision at its flat passage).
+  // parallelogram four-bar was 1.7e-12 m from exact at 1 ms but 4e-3 m at 0.1 ms. Not the
+  // closures' rank threshold (1e-10 to 1e-15 gave the same figures): near its flat passage,
+  // where two branches cross, the equations determine the tangent only to eps / x^2 at a
+  // distance x, and stages of smaller steps land closer (doc/limitations.md).
   const TreeModel tree(sys);
   if (!tree.cut_joints.empty())
     return "joint '" + sys.joints[tree.cut_joints[0]]->name() +
