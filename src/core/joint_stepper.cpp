@@ -47,21 +47,33 @@ Formulation chooseFormulation(const System& sys, Formulation asked, std::string*
     if (why) *why = "joint coordinates, as asked";
     return Formulation::kJoint;
   }
-  // The cost model: on a tree with no equations besides its joints' the joint formulation
-  // costs 3 to 5 times less a step (bench/RESULTS.md: pendulum 0.84 against 3.41 us, the
-  // 50-link chain 68 against 203); limits, drives and couplers are dense closures on the tree
-  // today (every row through J(q) and M^-1 each stage), which made it slower on the arms of
-  // ../shared/robots (panda: real-time factor 10 against 19; nao 1.1 against 3.1).
-  int closure_rows = 0;
-  for (int c = 0; c < sys.numConstraints(); ++c) closure_rows += sys.layout[c].size;
-  for (int c : sys.joint_constraint) closure_rows -= sys.layout[c].size;
-  if (unsupported.empty() && closure_rows == 0) {
-    if (why) *why = "joint coordinates (auto: a tree with no other equations, O(n) a stage)";
+  // The cost model (bench/RESULTS.md). On a tree with no equations besides its joints'
+  // the joint formulation costs 3 to 5 times less a step (pendulum 0.84 against 3.41 us,
+  // the 50-link chain 68 against 203). A free limit costs it nothing (a zero row, not
+  // evaluated); each equation that is always on (a coupler, a drive) costs an O(n)
+  // inverse-mass pass a stage and a dense solve: with one coupler on 9 coordinates (the
+  // panda of ../shared/robots) it was still the faster (real-time factor 19.9 against
+  // 18.5), with 34 on 42 (nao) it was not (1.6 against 2.9). auto takes joint coordinates
+  // while such equations are at most one per 8 coordinates.
+  int always_on = 0;
+  {
+    std::vector<char> tree_joint(sys.numConstraints(), 0);
+    for (int c : sys.joint_constraint) tree_joint[c] = 1;
+    for (int c = 0; c < sys.numConstraints(); ++c)
+      if (!tree_joint[c] && sys.constraints[c]->limit() < 0) always_on += sys.constraints[c]->size();
+  }
+  int nv = 0;
+  if (unsupported.empty()) nv = TreeModel(sys).nv;
+  if (unsupported.empty() && 8 * always_on <= nv) {
+    if (why)
+      *why = always_on == 0 ? "joint coordinates (auto: a tree whose other equations are limits at most, O(n) a stage)"
+                            : "joint coordinates (auto: a tree with few couplers or drives, at most one per 8 coordinates)";
     return Formulation::kJoint;
   }
   if (unsupported.empty()) {
     if (why)
-      *why = "absolute coordinates (auto: limits, drives or couplers cost more as joint-space closures today)";
+      *why = "absolute coordinates (auto: more than one coupler or drive per 8 coordinates cost more as joint-space "
+             "closures today)";
     return Formulation::kAbsolute;
   }
   if (why) *why = "absolute coordinates (auto: " + unsupported + ")";

@@ -11,6 +11,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "mechanism_sim/core/couplers.h"
 #include "mechanism_sim/core/errors.h"
 #include "mechanism_sim/core/evaluation.h"
 
@@ -35,6 +36,12 @@ inline Eigen::Vector4d quatExp(const Vector3d& phi) {
   return out;
 }
 
+// A limit whose side in the context is 0 (free): its row is zero (LimitConstraint).
+inline bool inactiveLimit(const Constraint& C, const EvalContext& ctx) {
+  const int l = C.limit();
+  return l >= 0 && ctx.limit_side && ctx.limit_side[l] == 0;
+}
+
 }  // namespace
 
 LoopClosures::LoopClosures(const TreeModel& model, const System& sys) : model_(&model), sys_(&sys) {
@@ -52,6 +59,43 @@ LoopClosures::LoopClosures(const TreeModel& model, const System& sys) : model_(&
     for (int e = 0; e < n; ++e)
       sys_row.push_back(c < static_cast<int>(sys.layout.size()) ? sys.layout[c].row + e : -1);
     m += n;
+  }
+  // per velocity coordinate: the length that makes its rate a speed (the length scale for
+  // an angle, 1 for a length), for the direct rows' residual floor
+  unit_.setOnes(nv);
+  for (const TreeLink& L : model.links) {
+    for (int k = 0; k < L.nv; ++k) {
+      bool angle = false;
+      if (L.kind == TreeJointKind::kFree) angle = k >= 3;
+      else if (L.kind == TreeJointKind::kSpherical) angle = true;
+      else if (L.ptr) angle = L.ptr->trackedSlot(k) >= 0;
+      if (angle) unit_(L.iv + k) = sys.length_scale;
+    }
+  }
+  // limits and couplers on tree coordinates: rows directly on q
+  direct_.assign(constraints.size(), DirectRow());
+  auto coordinate = [&](const Joint& J, int k, int* col) {
+    int link = -1;
+    for (int j = 0; j < sys.numJoints(); ++j)
+      if (&*sys.joints[j] == &J) link = model.joint_link[j];
+    if (link < 0) return false;
+    const TreeLink& L = model.links[link];
+    if (L.kind == TreeJointKind::kSpherical || L.kind == TreeJointKind::kFree || L.ptr != &J) return false;
+    *col = L.iv + k;
+    return true;
+  };
+  for (size_t i = 0; i < constraints.size(); ++i) {
+    const Constraint& C = *sys.constraints[constraints[i]];
+    DirectRow d;
+    if (C.limit() >= 0) {
+      const LimitSpec& spec = sys.limits[C.limit()];
+      if (coordinate(*sys.joints[spec.joint], spec.k, &d.col[0])) d.n = 1, d.coef[0] = 1.0;
+    } else if (const auto* cc = dynamic_cast<const CoordinateCoupler*>(&C)) {
+      if (coordinate(cc->jointA(), cc->coordinateA(), &d.col[0]) &&
+          coordinate(cc->jointB(), cc->coordinateB(), &d.col[1]))
+        d.n = 2, d.coef[0] = 1.0, d.coef[1] = -cc->multiplier();
+    }
+    direct_[i] = d;
   }
   {
     const State s0 = initialState(sys);
@@ -182,6 +226,11 @@ void LoopClosures::evaluate(const TreeModel& model, const System& sys, const Tre
   for (size_t i = 0; i < constraints.size(); ++i) {
     const Constraint& C = *sys.constraints[constraints[i]];
     const int n = C.size(), r0 = row[i];
+    if (inactiveLimit(C, ctx)) {  // a free limit: a zero row (as Constraint::evaluate gives it), no mapping
+      Phi.segment(r0, n).setZero(), gamma.segment(r0, n).setZero(), scale.segment(r0, n).setZero();
+      Jc[i].setZero();
+      continue;
+    }
     const auto& bodies = C.bodies();
     for (size_t s = 0; s < bodies.size(); ++s) ptrs[s] = &kin_[bodies[s]];
     C.evaluate(ptrs, ctx, Phi.segment(r0, n), Jc[i], gamma.segment(r0, n));
@@ -193,6 +242,13 @@ void LoopClosures::evaluate(const TreeModel& model, const System& sys, const Tre
         sc += Jc[i].row(e).segment<3>(6 * s).cwiseAbs().sum() * lever + Jc[i].row(e).segment<3>(6 * s + 3).cwiseAbs().sum();
       }
       scale(r0 + e) = sc;
+    }
+    if (direct_[i].n > 0) {  // a coordinate row: G = its coefficients, gamma_q = 0 (set below)
+      for (int k = 0; k < direct_[i].n; ++k) {
+        G(r0, direct_[i].col[k]) += direct_[i].coef[k];
+        Gabs(r0, direct_[i].col[k]) += std::fabs(direct_[i].coef[k]);
+      }
+      continue;
     }
     for (size_t s = 0; s < bodies.size(); ++s) {
       const int b = bodies[s];
@@ -229,7 +285,12 @@ void LoopClosures::evaluate(const TreeModel& model, const System& sys, const Tre
   gamma_q = gamma;
   for (size_t i = 0; i < constraints.size(); ++i) {
     const Constraint& C = *sys.constraints[constraints[i]];
+    if (inactiveLimit(C, ctx)) continue;
     const int n = C.size(), r0 = row[i];
+    if (direct_[i].n > 0) {  // gamma stayed the absolute one; a coordinate's rate is q_ddot's own
+      gamma_q.segment(r0, n).setZero();
+      continue;
+    }
     const auto& bodies = C.bodies();
     for (size_t s = 0; s < bodies.size(); ++s) {
       const int b = bodies[s];
@@ -250,14 +311,24 @@ double LoopClosures::positionResidual() const {
 }
 
 double LoopClosures::velocityResidual(const Eigen::VectorXd& qdot, const Eigen::VectorXd* reference) const {
+  // A direct row's terms are its own coordinates only: a coordinate the closures lock ends
+  // at round-off, judged against the speed of the whole motion (as speeds: rates times
+  // unit_), or the loads' velocity scale, whichever is larger.
+  double V = sys_->velocity_scale;
+  for (int k = 0; k < nv; ++k)
+    V = std::max({V, std::fabs(qdot(k)) * unit_(k), reference ? std::fabs((*reference)(k)) * unit_(k) : 0.0});
   double worst = 0;
-  for (int e = 0; e < m; ++e) {
-    double s = -nu(e), t = std::fabs(nu(e));
-    for (int k = 0; k < nv; ++k) {
-      s += G(e, k) * qdot(k);
-      t += Gabs(e, k) * (std::fabs(qdot(k)) + (reference ? std::fabs((*reference)(k)) : 0.0));
+  for (size_t i = 0; i < constraints.size(); ++i) {
+    for (int e = row[i]; e < row[i] + sys_->constraints[constraints[i]]->size(); ++e) {
+      double s = -nu(e), t = std::fabs(nu(e));
+      for (int k = 0; k < nv; ++k) {
+        s += G(e, k) * qdot(k);
+        t += Gabs(e, k) * (std::fabs(qdot(k)) + (reference ? std::fabs((*reference)(k)) : 0.0));
+      }
+      if (direct_[i].n > 0 && s != 0.0)
+        for (int k = 0; k < direct_[i].n; ++k) t += std::fabs(direct_[i].coef[k]) * V / unit_(direct_[i].col[k]);
+      worst = std::max(worst, relative(s, t));
     }
-    worst = std::max(worst, relative(s, t));
   }
   return worst;
 }

@@ -28,9 +28,11 @@
 // their absolute equations (Constraint::evaluate with the caller's EvalContext) are the
 // reference, and mapping Phi_x through J(q) reproduces them to round-off whatever the
 // joint type, the link's direction (reversed) or the coordinate's branch (tracked angles).
-// Rows directly on q (e_k^T for a drive or limit on tree coordinate k, e_a - r e_b for a
-// coupler) would save that mapping but need the per-type conventions (spherical rotation
-// vector against quaternion, a cut joint's coordinates); a later optimisation.
+// Limits and couplers on coordinates of tree links other than spherical ones (whose q
+// are the joints' own coordinates, Joint::coordinates) skip that mapping: their rows are
+// e_k^T and e_a^T - r e_b^T, gamma_q 0 (DirectRow); Phi still comes from their absolute
+// equations. A free limit (side 0) is a zero row and is not evaluated at all. Drives, and
+// rows on spherical coordinates or cut joints, go through the mapping.
 // Closures are listed in System order, so closure row e is System row sys_row[e] and
 // lambda(e) is State::lambda(sys_row[e]) of the absolute formulation.
 #pragma once
@@ -155,6 +157,16 @@ class LoopClosures {
 
  private:
   void loadKin(const TreeWorkspace& ws);
+  // A limit or a coupler on coordinates of tree joints whose coordinates are q's own
+  // (every link but a spherical one): its row of G is e_k (limit) or e_a - r e_b (coupler)
+  // and gamma_q is 0, without the mapping through J(q).
+  struct DirectRow {
+    int n = 0;           // entries (0: not direct)
+    int col[2] = {0, 0};  // velocity coordinates
+    double coef[2] = {0.0, 0.0};
+  };
+  std::vector<DirectRow> direct_;  // per closure
+  Eigen::VectorXd unit_;           // per velocity coordinate: length scale (an angle) or 1
   std::vector<BodyKin> kin_;      // ground first
   AlignedVector<Vector6d> pa_, a_;  // inverse-mass passes
   AlignedVector<Vector6d> a0_;      // spatial accelerations at q_ddot = 0
