@@ -26,13 +26,13 @@ std::string jointFormulationUnsupported(const System& sys) {
   if (!tree.cut_joints.empty())
     return "joint '" + sys.joints[tree.cut_joints[0]]->name() +
            "' closes a loop: the joint formulation does not integrate loop closures yet";
-  // Viscous joint damping can be too stiff for explicit stages (a light link on a damped
-  // joint): the absolute formulation integrates such coordinates implicitly
-  // (stiff_damping.cpp); the joint formulation does not yet.
+  // Joint damping acts along the joint coordinates (the stages' efforts, or implicit Euler
+  // where stiff); a spherical joint's rates are not its coordinates' (a rotation vector
+  // against the quaternion's rates): not yet.
   for (int j = 0; j < sys.numJoints(); ++j)
     for (int k = 0; k < sys.joints[j]->dof(); ++k)
-      if (sys.damping[j][k] != 0.0)
-        return "joint '" + sys.joints[j]->name() + "': the joint formulation has no implicit joint damping yet";
+      if (sys.damping[j][k] != 0.0 && sys.joints[j]->type() == "spherical")
+        return "joint '" + sys.joints[j]->name() + "': the joint formulation has no damping on spherical joints yet";
   return why;
 }
 
@@ -90,11 +90,28 @@ JointStepper::JointStepper(const System& sys) : model_(sys), ws_(model_), closur
   zeros(sum_q_, model_.nq), zeros(sum_v_, model_.nv);
   loads_ = zeroInputs(sys);
   kin_.assign(sys.bodies.size(), BodyKin());
+  for (const TreeLink& L : model_.links) {
+    if (L.joint < 0) continue;
+    for (int k = 0; k < L.nv; ++k)
+      if (sys.damping[L.joint][k] > 0.0) damped_.push_back({L.joint, k, L.iv + k, sys.damping[L.joint][k]});
+  }
+  const int nd = static_cast<int>(damped_.size());
+  stiff_.assign(nd, 0);
+  stiff_list_.reserve(nd);
+  damp_Y_.setZero(model_.nv, nd);
+  damp_K_.setZero(nd, nd);
+  damp_e_.setZero(model_.nv), damp_z_.setZero(nd), damp_du_.setZero(model_.nv);
+  damp_zero_.setZero(model_.nv), damp_qdd_.setZero(model_.nv), damp_tau_.setZero(model_.nv);
+  damp_v_.assign(model_.nb, Vector6d::Zero());
+  damp_f_.assign(model_.nb, Vector6d::Zero());
+  damp_rows_.assign(kMaxJointDofs, Row());
 }
 
 void JointStepper::accelerations(const System& sys, const State& s, const Inputs& in, double t,
                                  const Eigen::VectorXd& q, const Eigen::VectorXd& qdot, Eigen::VectorXd& qddot) {
   jointEfforts(model_, in, tau_);  // efforts along the joint coordinates
+  for (size_t i = 0; i < damped_.size(); ++i)  // damping that is not stiff: an effort
+    if (!stiff_[i]) tau_(damped_[i].iv) -= damped_[i].c * qdot(damped_[i].iv);
   const Inputs* loads = &in;
   if (!sys.springs.empty()) {
     // springs act between points of bodies: body loads at the tree's poses (appliedForces)
@@ -258,6 +275,8 @@ void JointStepper::step(const System& sys, State& s, const Inputs& in, double h)
   // stage 1: the accelerations the last step (or settle) left, when they are of this state
   // under these inputs; else computed here
   if (!(fresh_ && q_end_ == s.q && v_end_ == s.qdot)) accelerations(sys, s, in, s.t, q0_, v0_, s.qddot);
+  // (ws_ holds q0's articulated factors now); stage 1 again if the stiff set changed
+  if (!damped_.empty() && classifyDamping(sys, s, h)) accelerations(sys, s, in, s.t, q0_, v0_, s.qddot);
   positionRates(model_, q0_, v0_, kq_[0]);
   kv_[0] = s.qddot;
   for (int k = 1; k < T.stages; ++k) {
@@ -269,6 +288,7 @@ void JointStepper::step(const System& sys, State& s, const Inputs& in, double h)
   combineStages(h, T.b, T.stages, T.b_den, q0_, kq_, sum_q_, s.q);
   combineStages(h, T.b, T.stages, T.b_den, v0_, kv_, sum_v_, s.qdot);
   normalizeQuaternions(model_, s.q);
+  if (!stiff_list_.empty()) implicitDamping(sys, s, h);
   const double t0 = s.t;
   s.t += h;
   ++s.steps;
@@ -283,6 +303,128 @@ void JointStepper::step(const System& sys, State& s, const Inputs& in, double h)
     throw;
   }
   stats_.solves += T.stages;
+}
+
+// Which damped coordinates are stiff at this step, by stiff_damping.cpp's rule (see there):
+// s_k = h sum_l sqrt(c_k c_l) |(M^-1)_lk| over the damped coordinates l (Gershgorin on
+// h C^1/2 M^-1 C^1/2, the damped modes' decay rates), stiff above the tableau's
+// stiff_bound. First the absolute formulation's bound, with the joints' rows on their two
+// bodies and the bodies' own inverse masses: (M^-1)_kk in joint coordinates is the same
+// G_k P G_k^T as there, P <= the block-diagonal inverse mass. Only where that bound
+// exceeds stiff_bound, (M^-1) e_k itself (one articulated-body pass at q0).
+bool JointStepper::classifyDamping(const System& sys, const State& s, double h) {
+  const double bound = tableau_->stiff_bound;
+  loadKinematics(sys, s.x.data(), s.u.data(), kin_);
+  bool changed = false;
+  stiff_list_.clear();
+  for (size_t i = 0; i < damped_.size(); ++i) {
+    const Damped& d = damped_[i];
+    const Joint& J = *sys.joints[d.j];
+    J.coordinates(kin_[J.bodyI()], kin_[J.bodyJ()], s.tracked[J.id()], damp_rows_.data());
+    double sum = 0.0;  // the bound: sum over the damped coordinates of the same joint
+    for (const Damped& o : damped_) {
+      if (o.j != d.j) continue;
+      for (int slot = 0; slot < 2; ++slot) {
+        const int b = slot == 0 ? J.bodyI() : J.bodyJ();
+        if (b == System::kGround) continue;
+        const auto& Mi = sys.Minv[b - 1];
+        const Vector6d gk = damp_rows_[d.k].J.segment<6>(6 * slot).transpose();
+        const Vector6d gl = damp_rows_[o.k].J.segment<6>(6 * slot).transpose();
+        sum += std::sqrt(d.c * o.c) * std::fabs(Mi(0, 0) * gk.head<3>().dot(gl.head<3>()) +
+                                                gk.tail<3>().dot(Mi.bottomRightCorner<3, 3>() * gl.tail<3>()));
+      }
+    }
+    // (other joints' damped coordinates on the same bodies add to the bound; the exact
+    // column below counts every damped coordinate)
+    bool stiff = false;
+    if (h * sum > bound / 4) {
+      damp_e_.setZero();
+      damp_e_(d.iv) = 1.0;
+      closures_.applyInverseMass(model_, ws_, damp_e_.data(), damp_Y_.col(i).data());
+      double exact = 0.0;
+      for (const Damped& o : damped_) exact += std::sqrt(d.c * o.c) * std::fabs(damp_Y_(o.iv, i));
+      stiff = !(h * exact <= bound);
+    }
+    if (stiff != static_cast<bool>(stiff_[i])) changed = true;
+    stiff_[i] = stiff;
+    if (stiff) stiff_list_.push_back(static_cast<int>(i));
+  }
+  return changed;
+}
+
+// u' = argmin 1/2 |u' - u|_M^2 + 1/2 h sum_stiff c_k u'_k^2, i.e. (M + h E C E^T) u' = M u
+// (E the stiff coordinates), by Woodbury with Y = M^-1 E (at q0, classifyDamping's
+// columns) and B = E^T Y:  u' - u = -Y (C^-1 / h + B)^-1 E^T u, a small SPD solve. The
+// impulse held over the step moves the positions by h (u' - u) / 2 (stiff_damping.cpp,
+// items 3-4). It never adds energy: |u'|_M <= |u|_M.
+void JointStepper::implicitDamping(const System& sys, State& s, double h) {
+  const int ns = static_cast<int>(stiff_list_.size());
+  // Y at the positions the stages reached (the metric the kinetic energy is measured in
+  // there): articulated factors at s.q, one inverse-mass pass per stiff coordinate
+  forwardDynamics(model_, sys, s.q, damp_zero_, damp_zero_, ws_, damp_qdd_);
+  for (int a = 0; a < ns; ++a) {
+    damp_e_.setZero();
+    damp_e_(damped_[stiff_list_[a]].iv) = 1.0;
+    closures_.applyInverseMass(model_, ws_, damp_e_.data(), damp_Y_.col(stiff_list_[a]).data());
+  }
+  for (int a = 0; a < ns; ++a) {
+    const int ia = stiff_list_[a];
+    for (int b = 0; b < ns; ++b) damp_K_(a, b) = damp_Y_(damped_[ia].iv, stiff_list_[b]);
+    damp_K_(a, a) += 1.0 / (h * damped_[ia].c);
+    damp_z_(a) = s.qdot(damped_[ia].iv);
+  }
+  // Cholesky in place on the leading ns x ns block (SPD: a positive diagonal plus E^T M^-1 E)
+  for (int j = 0; j < ns; ++j) {
+    double d = damp_K_(j, j);
+    for (int k = 0; k < j; ++k) d -= damp_K_(j, k) * damp_K_(j, k);
+    d = std::sqrt(d);
+    damp_K_(j, j) = d;
+    for (int i = j + 1; i < ns; ++i) {
+      double v = damp_K_(i, j);
+      for (int k = 0; k < j; ++k) v -= damp_K_(i, k) * damp_K_(j, k);
+      damp_K_(i, j) = v / d;
+    }
+  }
+  for (int i = 0; i < ns; ++i) {  // L y = u_s
+    double v = damp_z_(i);
+    for (int k = 0; k < i; ++k) v -= damp_K_(i, k) * damp_z_(k);
+    damp_z_(i) = v / damp_K_(i, i);
+  }
+  for (int i = ns - 1; i >= 0; --i) {  // L^T z = y
+    double v = damp_z_(i);
+    for (int k = i + 1; k < ns; ++k) v -= damp_K_(k, i) * damp_z_(k);
+    damp_z_(i) = v / damp_K_(i, i);
+  }
+  damp_du_.setZero();
+  for (int a = 0; a < ns; ++a) damp_du_ -= damp_Y_.col(stiff_list_[a]) * damp_z_(a);
+  s.qdot += damp_du_;
+  damp_du_ *= 0.5 * h;
+  // The positions move by h (u' - u) / 2 with each body keeping its absolute velocity (v
+  // global, omega' body: the absolute formulation's u, which the move leaves as they are):
+  // in joint coordinates the rates are then the M-nearest to those body velocities at the
+  // new positions, u'' = M(q')^-1 J(q')^T M_b V (V the bodies' velocities at (q, u'), M_b
+  // their own inertias). That is a projection: the kinetic energy does not rise (keeping
+  // u' itself raised it by 6e-11 a step on a light chain of a tumbling base).
+  forwardKinematics(model_, s.q, s.qdot, ws_);
+  for (int k = 0; k < model_.nb; ++k) {
+    damp_v_[k].head<3>() = ws_.v[k].head<3>();              // omega' (body)
+    damp_v_[k].tail<3>() = ws_.A[k] * ws_.v[k].tail<3>();   // v (global)
+  }
+  retract(model_, s.q, damp_du_);
+  forwardDynamics(model_, sys, s.q, damp_zero_, damp_zero_, ws_, damp_qdd_);  // factors at q'
+  for (int k = 0; k < model_.nb; ++k) {  // momenta at the centres, body components
+    const Body& B = sys.bodies[k + 1];
+    damp_f_[k].head<3>() = B.Jp * damp_v_[k].head<3>();
+    damp_f_[k].tail<3>() = B.m * (ws_.A[k].transpose() * damp_v_[k].tail<3>());
+  }
+  damp_tau_.setZero();
+  for (auto it = model_.order.rbegin(); it != model_.order.rend(); ++it) {  // J^T f, leaves first
+    const int k = *it - 1;
+    const TreeLink& L = model_.links[k];
+    damp_tau_.segment(L.iv, L.nv) = ws_.S[k].transpose() * damp_f_[k];
+    if (L.parent != 0) damp_f_[L.parent - 1] += transformForceBack(ws_.E[k], ws_.rho[k], damp_f_[k]);
+  }
+  closures_.applyInverseMass(model_, ws_, damp_tau_.data(), s.qdot.data());
 }
 
 }  // namespace mechanism_sim

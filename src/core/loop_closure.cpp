@@ -388,6 +388,14 @@ void LoopClosures::factor(const TreeModel& model, const TreeWorkspace& ws) {
     d_(e) = zero ? 0.0 : 1.0;
     zero_rows += zero;
   }
+  if (zero_rows == m) {  // every row zero (free limits): nothing to solve, lambda = 0
+    Y.setZero();
+    info.rank = 0;
+    info.dependent = m;
+    all_zero_ = true;
+    return;
+  }
+  all_zero_ = false;
   for (int e = 0; e < m; ++e) {
     if (d_(e) == 0.0) {  // (an inactive limit's row, a structurally zero one: no pass)
       Y.col(e).setZero();
@@ -413,6 +421,10 @@ void LoopClosures::factor(const TreeModel& model, const TreeWorkspace& ws) {
 // allocate: 5 heap allocations a call) with preallocated vectors: no allocation.
 void LoopClosures::solve(const Eigen::VectorXd& b, Eigen::VectorXd& x) const {
   if (m == 0) return;
+  if (all_zero_) {
+    x.setZero();
+    return;
+  }
   auto& self = const_cast<LoopClosures&>(*this);
   Eigen::VectorXd& c = self.rhs_;
   Eigen::VectorXd& y = self.mu_;

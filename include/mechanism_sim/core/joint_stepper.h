@@ -13,9 +13,10 @@
 // What it runs today (jointFormulationUnsupported says what it does not): trees of every
 // joint type and free bodies, with gravity, applied efforts, body wrenches, springs (body
 // loads at the tree's poses), and joint limits, drives and mimic couplers as equations on
-// the tree (loop_closure.h: their absolute equations through G = Phi_x J(q)). Not yet: loop
-// closures, joint damping (the absolute formulation integrates stiff damping implicitly),
-// Coulomb friction.
+// the tree (loop_closure.h: their absolute equations through G = Phi_x J(q)), and joint
+// damping (efforts in the stages; stiff ones by implicit Euler after them, the absolute
+// formulation's rule: classifyDamping). Not yet: loop closures, damping on spherical
+// joints, Coulomb friction.
 #pragma once
 #include <string>
 
@@ -65,6 +66,12 @@ class JointStepper {
                      const Eigen::VectorXd& qdot, Eigen::VectorXd& qddot);
   void finish(const System& sys, State& s, const Inputs& in);
   void project(const System& sys, State& s);
+  // Joint damping (the absolute formulation's rule, stiff_damping.cpp, in joint
+  // coordinates): which damped coordinates are stiff at this step (ws_ at s.q's factors);
+  // returns whether the set changed. The others stay in the stages as efforts.
+  bool classifyDamping(const System& sys, const State& s, double h);
+  // The stiff ones after the stages: implicit Euler in the metric M + h C (Lie splitting).
+  void implicitDamping(const System& sys, State& s, double h);
   // s.x, s.u, s.acc and the tracked angles from s.q, s.qdot, s.qddot.
   void writeAbsolute(const System& sys, State& s);
 
@@ -76,6 +83,18 @@ class JointStepper {
   SolverStats stats_;
   Eigen::VectorXd tau_, q0_, v0_, qs_, vs_, kq_[Tableau::kMaxStages], kv_[Tableau::kMaxStages], sum_q_, sum_v_;
   Inputs loads_;  // the inputs plus the springs' body loads
+  struct Damped {
+    int j = 0, k = 0, iv = 0;  // joint, its coordinate, q_dot's index
+    double c = 0.0;
+  };
+  std::vector<Damped> damped_;  // every damped tree coordinate
+  std::vector<char> stiff_;     // per damped_: integrated implicitly (classifyDamping)
+  std::vector<int> stiff_list_;  // indices into damped_ of the stiff ones
+  Eigen::MatrixXd damp_Y_;       // M^-1 e_iv per damped_ entry that was checked exactly (at q0)
+  Eigen::MatrixXd damp_K_;       // C^-1 / h + E^T M^-1 E over the stiff ones, and its Cholesky factor
+  Eigen::VectorXd damp_e_, damp_z_, damp_du_, damp_zero_, damp_qdd_, damp_tau_;
+  AlignedVector<Vector6d> damp_v_, damp_f_;  // bodies' velocities and momenta (implicitDamping)
+  std::vector<Row> damp_rows_;   // Joint::coordinates of a damped joint (the bound)
   // s.qddot is q_ddot at (q_end_, v_end_) under the current inputs: stage 1 of the next step
   bool fresh_ = false;
   Eigen::VectorXd q_end_, v_end_;

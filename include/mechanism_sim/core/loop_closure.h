@@ -171,6 +171,7 @@ class LoopClosures {
   AlignedVector<Vector6d> pa_, a_;  // inverse-mass passes
   AlignedVector<Vector6d> a0_;      // spatial accelerations at q_ddot = 0
   Eigen::VectorXd d_;               // Jacobi scale per row (0: a dropped row)
+  bool all_zero_ = false;           // every row dropped at the last factor()
   Eigen::VectorXd rhs_, mu_, tau_, qdd_cut_, work_;
   Eigen::VectorXd zero_v_, qdd_v_, dv_v_, ref_v_, r_m_, x_m_;  // the projections' scratch
   Eigen::MatrixXd A_;               // scaled G M^-1 G^T
