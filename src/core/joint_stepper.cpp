@@ -103,6 +103,10 @@ JointStepper::JointStepper(const System& sys) : model_(sys), ws_(model_), closur
   damp_e_.setZero(model_.nv), damp_z_.setZero(nd), damp_du_.setZero(model_.nv);
   damp_zero_.setZero(model_.nv), damp_qdd_.setZero(model_.nv), damp_tau_.setZero(model_.nv);
   damp_v_.assign(model_.nb, Vector6d::Zero());
+  damp_w_.setZero(nd), damp_c_.setZero(model_.nv);
+  damp_Z_.setZero(model_.nv, closures_.m), damp_AW_.setZero(closures_.m, closures_.m);
+  damp_r_.setZero(closures_.m), damp_d_.setZero(closures_.m), damp_mu_.setZero(closures_.m);
+  damp_cod_ = Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd>(closures_.m, closures_.m);
   damp_f_.assign(model_.nb, Vector6d::Zero());
   damp_rows_.assign(kMaxJointDofs, Row());
 }
@@ -341,8 +345,17 @@ bool JointStepper::classifyDamping(const System& sys, const State& s, double h) 
       damp_e_.setZero();
       damp_e_(d.iv) = 1.0;
       closures_.applyInverseMass(model_, ws_, damp_e_.data(), damp_Y_.col(i).data());
+      // with closures, the constrained inverse mass P e_k = y - M^-1 G^T (G M^-1 G^T)^+ G y
+      // (the absolute formulation's P): a finger coupled to its hand is not stiff when the
+      // hand carries it (closures_ holds q0's factorization: stage 1 ran there)
+      damp_c_ = damp_Y_.col(i);
+      if (closures_.m > 0) {
+        damp_r_.noalias() = closures_.G * damp_c_;
+        closures_.solve(damp_r_, damp_mu_);
+        damp_c_.noalias() -= closures_.Y * damp_mu_;
+      }
       double exact = 0.0;
-      for (const Damped& o : damped_) exact += std::sqrt(d.c * o.c) * std::fabs(damp_Y_(o.iv, i));
+      for (const Damped& o : damped_) exact += std::sqrt(d.c * o.c) * std::fabs(damp_c_(o.iv));
       stiff = !(h * exact <= bound);
     }
     if (stiff != static_cast<bool>(stiff_[i])) changed = true;
@@ -385,19 +398,56 @@ void JointStepper::implicitDamping(const System& sys, State& s, double h) {
       damp_K_(i, j) = v / d;
     }
   }
-  for (int i = 0; i < ns; ++i) {  // L y = u_s
-    double v = damp_z_(i);
-    for (int k = 0; k < i; ++k) v -= damp_K_(i, k) * damp_z_(k);
-    damp_z_(i) = v / damp_K_(i, i);
-  }
-  for (int i = ns - 1; i >= 0; --i) {  // L^T z = y
-    double v = damp_z_(i);
-    for (int k = i + 1; k < ns; ++k) v -= damp_K_(k, i) * damp_z_(k);
-    damp_z_(i) = v / damp_K_(i, i);
-  }
+  auto solveK = [&](Eigen::VectorXd& z) {  // z = K^-1 z on the leading ns entries
+    for (int i = 0; i < ns; ++i) {
+      double v = z(i);
+      for (int k = 0; k < i; ++k) v -= damp_K_(i, k) * z(k);
+      z(i) = v / damp_K_(i, i);
+    }
+    for (int i = ns - 1; i >= 0; --i) {
+      double v = z(i);
+      for (int k = i + 1; k < ns; ++k) v -= damp_K_(k, i) * z(k);
+      z(i) = v / damp_K_(i, i);
+    }
+  };
+  solveK(damp_z_);
   damp_du_.setZero();
   for (int a = 0; a < ns; ++a) damp_du_ -= damp_Y_.col(stiff_list_[a]) * damp_z_(a);
   s.qdot += damp_du_;
+  if (closures_.m > 0) {
+    // With closures (couplers, drives, active limits) the same minimum subject to
+    // G u' = nu at the end of the step: u' = u_free - Z mu with Z = W^-1 G^T, W = M + h E C E^T
+    // (Z = M^-1 G^T - Y K^-1 Y^T G^T by Woodbury), (G Z) mu = G u_free - nu: the absolute
+    // formulation's KKT in the metric M + h G^T C G (stiff_damping.cpp, item 3).
+    EvalContext ctx = s.context();
+    ctx.t = s.t + h;
+    closures_.setContext(ctx);
+    closures_.evaluate(model_, sys, ws_);  // G and nu at s.q (ws_: s.q at rest)
+    closures_.factor(model_, ws_);         // closures_.Y = M^-1 G^T
+    const int m = closures_.m;
+    damp_Z_ = closures_.Y;
+    for (int e = 0; e < m; ++e) {
+      for (int a = 0; a < ns; ++a) damp_w_(a) = closures_.G.row(e).dot(damp_Y_.col(stiff_list_[a]));
+      solveK(damp_w_);
+      for (int a = 0; a < ns; ++a) damp_Z_.col(e) -= damp_Y_.col(stiff_list_[a]) * damp_w_(a);
+    }
+    damp_AW_.noalias() = closures_.G * damp_Z_;
+    damp_r_.noalias() = closures_.G * s.qdot;
+    damp_r_ -= closures_.nu;
+    // Jacobi-scaled, zero rows (free limits) held at mu = 0; least norm for dependent rows
+    for (int e = 0; e < m; ++e) damp_d_(e) = damp_AW_(e, e) > 0.0 ? 1.0 / std::sqrt(damp_AW_(e, e)) : 0.0;
+    for (int i = 0; i < m; ++i)
+      for (int k = 0; k < m; ++k) damp_AW_(i, k) *= damp_d_(i) * damp_d_(k);
+    for (int e = 0; e < m; ++e)
+      if (damp_d_(e) == 0.0) damp_AW_(e, e) = 1.0;
+    damp_cod_.compute(damp_AW_);
+    damp_r_ = damp_r_.cwiseProduct(damp_d_);
+    damp_mu_ = damp_cod_.solve(damp_r_);
+    damp_mu_ = damp_mu_.cwiseProduct(damp_d_);
+    damp_c_.noalias() = damp_Z_ * damp_mu_;
+    s.qdot -= damp_c_;
+    damp_du_ -= damp_c_;
+  }
   damp_du_ *= 0.5 * h;
   // The positions move by h (u' - u) / 2 with each body keeping its absolute velocity (v
   // global, omega' body: the absolute formulation's u, which the move leaves as they are):
