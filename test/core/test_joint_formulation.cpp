@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <functional>
 #include <cstdio>
 #include <random>
 
@@ -24,6 +25,17 @@ IntegratorOptions formulation(const char* f, const char* method = "rk4") {
   io.formulation = f;
   io.method = method;
   return io;
+}
+
+// The same mechanism (`model` adds it) in absolute coordinates (a) and joint ones (j),
+// built and assembled.
+void buildBoth(Mechanism& a, Mechanism& j, const std::function<void(Mechanism&)>& model) {
+  for (auto [m, f] : {std::make_pair(&a, "absolute"), std::make_pair(&j, "joint")}) {
+    model(*m);
+    m->setIntegrator(formulation(f));
+    m->build();
+    m->assemble();
+  }
 }
 
 // A random tree of every joint type and a free body, frames coinciding at the start,
@@ -237,19 +249,14 @@ TEST(JointFormulation, SnapshotRestoreContinuesBitIdentically) {
 // absolute coordinates (joint positions after 1 s; the same stops reached), passes no
 // stop, and reports the drive's effort and the stops' reactions as the absolute one.
 TEST(JointFormulation, LimitsDrivesAndCouplersMoveAsInAbsoluteCoordinates) {
-  auto build = [](Mechanism& m, const char* f) {
+  Mechanism a, j;
+  buildBoth(a, j, [](Mechanism& m) {
     models::pendulumChain(m, 4, 0.5, 1.0, 0.4);
     m.setJointLimits(1, 0, -0.3, 0.3);
     m.setJointLimits(2, 0, -0.25, 0.25);
     m.addCoupler("mimic", 3, 0, 2, 0, -0.5, 0.0);
     m.addDrive(0, 0, DriveProfile::harmonic(0.0, 0.3, 0.7, 0.0));
-    m.setIntegrator(formulation(f));
-    m.build();
-    m.assemble();
-  };
-  Mechanism a, j;
-  build(a, "absolute");
-  build(j, "joint");
+  });
   ASSERT_STREQ(j.formulation(), "joint") << j.formulationReason();
   bool reached = false;
   double worst_drive = 0, drive_scale = 0;
@@ -283,16 +290,11 @@ TEST(JointFormulation, LimitsDrivesAndCouplersMoveAsInAbsoluteCoordinates) {
 // way in both (joint positions after 2 s), loses energy monotonically, and its joints
 // report -c q_dot. (Stiff damping: test_stiff_damping.cpp runs every case in both.)
 TEST(JointFormulation, DampedChainMovesAsInAbsoluteCoordinates) {
-  auto build = [](Mechanism& m, const char* f) {
-    models::pendulumChain(m, 6, 0.3, 0.5, 0.0);
-    for (int j = 0; j < 6; ++j) m.setJointDamping(j, 0, 0.02 * (j + 1));
-    m.setIntegrator(formulation(f));
-    m.build();
-    m.assemble();
-  };
   Mechanism a, j;
-  build(a, "absolute");
-  build(j, "joint");
+  buildBoth(a, j, [](Mechanism& m) {
+    models::pendulumChain(m, 6, 0.3, 0.5, 0.0);
+    for (int k = 0; k < 6; ++k) m.setJointDamping(k, 0, 0.02 * (k + 1));
+  });
   ASSERT_STREQ(j.formulation(), "joint");
   double E = j.kineticEnergy() + j.potentialEnergy(), worst = 0;
   for (int s = 0; s < 4000; ++s) {
