@@ -198,7 +198,10 @@ void JointStepper::finish(const System& sys, State& s, const Inputs& in) {
                  << "]; change the drive or the limits";
               throw SimulationError(os.str());
             }
-    project(sys, s);
+    // (closures that are all free limits are zero rows: nothing to project onto)
+    bool active = closures_.constraints.size() > sys.limits.size();
+    for (size_t l = 0; l < sys.limits.size() && !active; ++l) active = s.limit_side[l] != 0;
+    if (active) project(sys, s);
   }
   accelerations(sys, s, in, s.t, s.q, s.qdot, s.qddot);
   for (size_t pass = 0; pass < sys.limits.size() && closures_.releasePullingLimits(sys, s.limit_side.data()) > 0;
