@@ -4,6 +4,8 @@
 #include <cmath>
 #include <sstream>
 
+#include <Eigen/Cholesky>
+
 #include "mechanism_sim/core/evaluation.h"
 #include "mechanism_sim/core/projection.h"
 
@@ -105,8 +107,8 @@ JointStepper::JointStepper(const System& sys) : model_(sys), ws_(model_), closur
   damp_v_.assign(model_.nb, Vector6d::Zero());
   damp_w_.setZero(nd), damp_c_.setZero(model_.nv);
   damp_Z_.setZero(model_.nv, closures_.m), damp_AW_.setZero(closures_.m, closures_.m);
-  damp_r_.setZero(closures_.m), damp_d_.setZero(closures_.m), damp_mu_.setZero(closures_.m);
-  damp_cod_ = Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd>(closures_.m, closures_.m);
+  damp_r_.setZero(closures_.m), damp_mu_.setZero(closures_.m);
+  damp_least_norm_ = ScaledLeastNorm(closures_.m);
   damp_f_.assign(model_.nb, Vector6d::Zero());
   damp_rows_.assign(kMaxJointDofs, Row());
 }
@@ -389,30 +391,11 @@ void JointStepper::implicitDamping(const System& sys, State& s, double h) {
     damp_K_(a, a) += 1.0 / (h * damped_[ia].c);
     damp_z_(a) = s.qdot(damped_[ia].iv);
   }
-  // Cholesky in place on the leading ns x ns block (SPD: a positive diagonal plus E^T M^-1 E)
-  for (int j = 0; j < ns; ++j) {
-    double d = damp_K_(j, j);
-    for (int k = 0; k < j; ++k) d -= damp_K_(j, k) * damp_K_(j, k);
-    d = std::sqrt(d);
-    damp_K_(j, j) = d;
-    for (int i = j + 1; i < ns; ++i) {
-      double v = damp_K_(i, j);
-      for (int k = 0; k < j; ++k) v -= damp_K_(i, k) * damp_K_(j, k);
-      damp_K_(i, j) = v / d;
-    }
-  }
-  auto solveK = [&](Eigen::VectorXd& z) {  // z = K^-1 z on the leading ns entries
-    for (int i = 0; i < ns; ++i) {
-      double v = z(i);
-      for (int k = 0; k < i; ++k) v -= damp_K_(i, k) * z(k);
-      z(i) = v / damp_K_(i, i);
-    }
-    for (int i = ns - 1; i >= 0; --i) {
-      double v = z(i);
-      for (int k = i + 1; k < ns; ++k) v -= damp_K_(k, i) * z(k);
-      z(i) = v / damp_K_(i, i);
-    }
-  };
+  // K = C^-1 / h + E^T M^-1 E is SPD (a positive diagonal plus an inverse mass): its
+  // Cholesky factor in place on the leading ns x ns block (no allocation)
+  Eigen::Ref<Eigen::MatrixXd> K = damp_K_.topLeftCorner(ns, ns);
+  const Eigen::LLT<Eigen::Ref<Eigen::MatrixXd>> llt(K);
+  auto solveK = [&](Eigen::VectorXd& z) { llt.solveInPlace(z.head(ns)); };  // z = K^-1 z
   solveK(damp_z_);
   damp_du_.setZero();
   for (int a = 0; a < ns; ++a) damp_du_ -= damp_Y_.col(stiff_list_[a]) * damp_z_(a);
@@ -437,16 +420,10 @@ void JointStepper::implicitDamping(const System& sys, State& s, double h) {
     damp_AW_.noalias() = closures_.G * damp_Z_;
     damp_r_.noalias() = closures_.G * s.qdot;
     damp_r_ -= closures_.nu;
-    // Jacobi-scaled, zero rows (free limits) held at mu = 0; least norm for dependent rows
-    for (int e = 0; e < m; ++e) damp_d_(e) = damp_AW_(e, e) > 0.0 ? 1.0 / std::sqrt(damp_AW_(e, e)) : 0.0;
-    for (int i = 0; i < m; ++i)
-      for (int k = 0; k < m; ++k) damp_AW_(i, k) *= damp_d_(i) * damp_d_(k);
-    for (int e = 0; e < m; ++e)
-      if (damp_d_(e) == 0.0) damp_AW_(e, e) = 1.0;
-    damp_cod_.compute(damp_AW_);
-    damp_r_ = damp_r_.cwiseProduct(damp_d_);
-    damp_mu_ = damp_cod_.solve(damp_r_);
-    damp_mu_ = damp_mu_.cwiseProduct(damp_d_);
+    // as the closures' own solve: zero rows (free limits) held at mu = 0, least norm for
+    // dependent rows
+    damp_least_norm_.factor(damp_AW_);
+    damp_least_norm_.solve(damp_r_, damp_mu_);
     damp_c_.noalias() = damp_Z_ * damp_mu_;
     s.qdot -= damp_c_;
     damp_du_ -= damp_c_;

@@ -111,11 +111,10 @@ LoopClosures::LoopClosures(const TreeModel& model, const System& sys) : model_(&
   kin_.assign(sys.numBodies(), BodyKin());
   pa_.assign(model.nb, Vector6d::Zero());
   a_ = a0_ = pa_;
-  d_.setZero(m), rhs_.setZero(m), mu_.setZero(m), tau_.setZero(nv), qdd_cut_.setZero(nv), work_.setZero(std::max(m, 1));
+  keep_.setZero(m), tau_.setZero(nv), qdd_cut_.setZero(nv);
   zero_v_.setZero(nv), qdd_v_.setZero(nv), dv_v_.setZero(nv), ref_v_.setZero(nv), r_m_.setZero(m), x_m_.setZero(m);
   A_.setZero(m, m);
-  cod_ = Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd>(m, m);
-  cod_.setThreshold(kClosureRankThreshold);
+  least_norm_ = ScaledLeastNorm(m);
   info.rows = m;
 }
 
@@ -385,7 +384,7 @@ void LoopClosures::factor(const TreeModel& model, const TreeWorkspace& ws) {
     bool zero = true;
     for (int k = 0; k < nv && zero; ++k)
       if (std::fabs(G(e, k)) > kClosureZeroEntry * Gabs(e, k)) zero = false;
-    d_(e) = zero ? 0.0 : 1.0;
+    keep_(e) = zero ? 0.0 : 1.0;
     zero_rows += zero;
   }
   if (zero_rows == m) {  // every row zero (free limits): nothing to solve, lambda = 0
@@ -397,7 +396,7 @@ void LoopClosures::factor(const TreeModel& model, const TreeWorkspace& ws) {
   }
   all_zero_ = false;
   for (int e = 0; e < m; ++e) {
-    if (d_(e) == 0.0) {  // (an inactive limit's row, a structurally zero one: no pass)
+    if (keep_(e) == 0.0) {  // (an inactive limit's row, a structurally zero one: no pass)
       Y.col(e).setZero();
       continue;
     }
@@ -405,30 +404,47 @@ void LoopClosures::factor(const TreeModel& model, const TreeWorkspace& ws) {
     applyInverseMass(model, ws, tau_.data(), Y.col(e).data());
   }
   A_.noalias() = G * Y;
-  for (int e = 0; e < m; ++e) d_(e) = (d_(e) > 0 && A_(e, e) > 0) ? 1.0 / std::sqrt(A_(e, e)) : 0.0;
-  for (int i = 0; i < m; ++i)
-    for (int j = 0; j < m; ++j) A_(i, j) *= d_(i) * d_(j);
-  for (int e = 0; e < m; ++e)
-    if (d_(e) == 0.0) A_(e, e) = 1.0;  // a dropped row: mu_e = 0 (its right-hand side is zeroed)
-  cod_.compute(A_);
-  info.rank = static_cast<int>(cod_.rank()) - zero_rows;
+  info.rank = least_norm_.factor(A_, &keep_) - zero_rows;
   info.dependent = m - info.rank;
 }
 
-// The least-norm solution of the scaled system by the complete orthogonal decomposition
-// A P = Q [T 0; 0 0] Z: x = P Z^T [T^-1 (Q^T b)_1..r; 0], written out on the decomposition's
-// factors (as Eigen's CompleteOrthogonalDecomposition::solve does, whose temporaries
-// allocate: 5 heap allocations a call) with preallocated vectors: no allocation.
 void LoopClosures::solve(const Eigen::VectorXd& b, Eigen::VectorXd& x) const {
   if (m == 0) return;
   if (all_zero_) {
     x.setZero();
     return;
   }
-  auto& self = const_cast<LoopClosures&>(*this);
-  Eigen::VectorXd& c = self.rhs_;
-  Eigen::VectorXd& y = self.mu_;
-  double* work = self.work_.data();
+  least_norm_.solve(b, x);
+}
+
+ScaledLeastNorm::ScaledLeastNorm(int n)
+    : d_(Eigen::VectorXd::Zero(n)), c_(Eigen::VectorXd::Zero(n)), y_(Eigen::VectorXd::Zero(n)),
+      work_(Eigen::VectorXd::Zero(std::max(n, 1))), cod_(n, n) {
+  cod_.setThreshold(kClosureRankThreshold);
+}
+
+int ScaledLeastNorm::factor(Eigen::MatrixXd& A, const Eigen::VectorXd* keep) {
+  const Eigen::Index n = d_.size();
+  for (Eigen::Index e = 0; e < n; ++e)
+    d_(e) = ((!keep || (*keep)(e) > 0) && A(e, e) > 0) ? 1.0 / std::sqrt(A(e, e)) : 0.0;
+  for (Eigen::Index i = 0; i < n; ++i)
+    for (Eigen::Index j = 0; j < n; ++j) A(i, j) *= d_(i) * d_(j);
+  for (Eigen::Index e = 0; e < n; ++e)
+    if (d_(e) == 0.0) A(e, e) = 1.0;  // a dropped row: x_e = 0 (its right-hand side is zeroed)
+  cod_.compute(A);
+  return static_cast<int>(cod_.rank());
+}
+
+// The least-norm solution of the scaled system by the complete orthogonal decomposition
+// A P = Q [T 0; 0 0] Z: x = P Z^T [T^-1 (Q^T b)_1..r; 0], written out on the decomposition's
+// factors (as Eigen's CompleteOrthogonalDecomposition::solve does, whose temporaries
+// allocate: 5 heap allocations a call) with preallocated vectors: no allocation.
+void ScaledLeastNorm::solve(const Eigen::VectorXd& b, Eigen::VectorXd& x) const {
+  const Eigen::Index n = d_.size();
+  if (n == 0) return;
+  Eigen::VectorXd& c = c_;
+  Eigen::VectorXd& y = y_;
+  double* work = work_.data();
   c = d_.cwiseProduct(b);
   const Eigen::Index r = cod_.rank();
   const Eigen::MatrixXd& QTZ = cod_.matrixQTZ();
@@ -438,22 +454,22 @@ void LoopClosures::solve(const Eigen::VectorXd& b, Eigen::VectorXd& x) const {
   }
   // c = Q^T c: the first r reflectors H_0 ... H_{r-1} (H_k = I - h_k v_k v_k^T, v_k = (1, QTZ(k+1:, k)))
   for (Eigen::Index k = 0; k < r; ++k)
-    c.tail(m - k).applyHouseholderOnTheLeft(QTZ.col(k).tail(m - k - 1), cod_.hCoeffs().coeff(k), work);
+    c.tail(n - k).applyHouseholderOnTheLeft(QTZ.col(k).tail(n - k - 1), cod_.hCoeffs().coeff(k), work);
   // T z = c(0:r)
   y.head(r) = c.head(r);
   QTZ.topLeftCorner(r, r).triangularView<Eigen::Upper>().solveInPlace(y.head(r));
-  if (r < m) {  // y = Z^T [z; 0]
-    y.tail(m - r).setZero();
+  if (r < n) {  // y = Z^T [z; 0]
+    y.tail(n - r).setZero();
     for (Eigen::Index k = 0; k < r; ++k) {
       if (k != r - 1) std::swap(y(k), y(r - 1));
-      y.segment(r - 1, m - r + 1)
-          .applyHouseholderOnTheLeft(QTZ.row(k).tail(m - r).transpose(), cod_.zCoeffs().coeff(k), work);
+      y.segment(r - 1, n - r + 1)
+          .applyHouseholderOnTheLeft(QTZ.row(k).tail(n - r).transpose(), cod_.zCoeffs().coeff(k), work);
       if (k != r - 1) std::swap(y(k), y(r - 1));
     }
   }
   // x = D P y
   const auto& P = cod_.colsPermutation().indices();
-  for (int e = 0; e < m; ++e) x(P(e)) = y(e);
+  for (Eigen::Index e = 0; e < n; ++e) x(P(e)) = y(e);
   x = d_.cwiseProduct(x);
 }
 

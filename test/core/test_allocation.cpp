@@ -233,6 +233,19 @@ TEST(Allocation, StepAllocatesNothing) {
   ASSERT_STREQ(joint.formulation(), "joint");
   joint.step(1e-3);  // (the first step after an input changed computes its stage 1)
   EXPECT_EQ(allocationsIn(joint, 200), 0);
+
+  // ... with a coupler and damping, stiff on the last joint (h c / I about 10 at 1 ms):
+  // the implicit step subject to the closures (JointStepper::implicitDamping)
+  Mechanism damped;
+  models::pendulumChain(damped, 6, 0.5, 1.0, 0.3);
+  for (int k = 0; k < 6; ++k) damped.setJointDamping(k, 0, k == 5 ? 1000.0 : 0.1);
+  damped.addCoupler("mimic", 3, 0, 2, 0, 0.5, 0.0);
+  damped.setIntegrator(io);
+  damped.build();
+  damped.assemble();
+  ASSERT_STREQ(damped.formulation(), "joint");
+  damped.step(1e-3);
+  EXPECT_EQ(allocationsIn(damped, 200), 0);
 }
 
 }  // namespace

@@ -21,7 +21,6 @@
 #include <string>
 
 #include <Eigen/Core>
-#include <Eigen/QR>
 
 #include "mechanism_sim/core/joint_space.h"
 #include "mechanism_sim/core/loop_closure.h"
@@ -95,9 +94,9 @@ class JointStepper {
   Eigen::MatrixXd damp_K_;       // C^-1 / h + E^T M^-1 E over the stiff ones, and its Cholesky factor
   Eigen::VectorXd damp_e_, damp_z_, damp_du_, damp_zero_, damp_qdd_, damp_tau_;
   AlignedVector<Vector6d> damp_v_, damp_f_;  // bodies' velocities and momenta (implicitDamping)
-  Eigen::VectorXd damp_w_, damp_c_, damp_r_, damp_d_, damp_mu_;  // with closures (implicitDamping)
+  Eigen::VectorXd damp_w_, damp_c_, damp_r_, damp_mu_;  // with closures (implicitDamping)
   Eigen::MatrixXd damp_Z_, damp_AW_;
-  Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd> damp_cod_;
+  ScaledLeastNorm damp_least_norm_;  // of G W^-1 G^T
   std::vector<Row> damp_rows_;   // Joint::coordinates of a damped joint (the bound)
   // s.qddot is q_ddot at (q_end_, v_end_) under the current inputs: stage 1 of the next step
   bool fresh_ = false;

@@ -50,6 +50,28 @@ constexpr double kClosureRankThreshold = 1e-10;
 // A G entry counts as round-off when below this fraction of the size of its terms.
 constexpr double kClosureZeroEntry = 1e-11;
 
+// The least-norm solution of a symmetric positive semi-definite system A x = b (a
+// G M^-1 G^T): rows not kept, or with a zero diagonal, held at x = 0; the rest
+// Jacobi-scaled (row e by 1/sqrt(A_ee), unit diagonal) and solved by a complete
+// orthogonal decomposition with relative threshold kClosureRankThreshold. Sized once;
+// factor() and solve() allocate nothing.
+class ScaledLeastNorm {
+ public:
+  ScaledLeastNorm() = default;
+  explicit ScaledLeastNorm(int n);
+  // Factors D A D, scaling A in place (a dropped row gets a unit diagonal). keep: per row,
+  // 0 drops it (nullptr: every row with a positive diagonal is kept). Returns the rank of
+  // the scaled matrix (dropped rows included, each with its unit diagonal).
+  int factor(Eigen::MatrixXd& A, const Eigen::VectorXd* keep = nullptr);
+  // x = D (D A D)^+ D b; x may be b.
+  void solve(const Eigen::VectorXd& b, Eigen::VectorXd& x) const;
+
+ private:
+  Eigen::VectorXd d_;  // the Jacobi scale per row (0: dropped)
+  mutable Eigen::VectorXd c_, y_, work_;
+  Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd> cod_;
+};
+
 struct ClosureSolveInfo {
   int rows = 0;       // closure rows m
   int rank = 0;       // independent rows
@@ -170,12 +192,12 @@ class LoopClosures {
   std::vector<BodyKin> kin_;      // ground first
   AlignedVector<Vector6d> pa_, a_;  // inverse-mass passes
   AlignedVector<Vector6d> a0_;      // spatial accelerations at q_ddot = 0
-  Eigen::VectorXd d_;               // Jacobi scale per row (0: a dropped row)
+  Eigen::VectorXd keep_;            // per row: 1, or 0 for a dropped (zero) row
   bool all_zero_ = false;           // every row dropped at the last factor()
-  Eigen::VectorXd rhs_, mu_, tau_, qdd_cut_, work_;
+  Eigen::VectorXd tau_, qdd_cut_;
   Eigen::VectorXd zero_v_, qdd_v_, dv_v_, ref_v_, r_m_, x_m_;  // the projections' scratch
   Eigen::MatrixXd A_;               // scaled G M^-1 G^T
-  Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd> cod_;
+  ScaledLeastNorm least_norm_;      // its factorization
   const TreeModel* model_ = nullptr;
   const System* sys_ = nullptr;
   EvalContext external_;
