@@ -167,8 +167,9 @@ void JointStepper::writeAbsolute(const System& sys, State& s) {
   }
   bodyAccelerations(model_, ws_, s.qddot, s.acc);
   // Tracked angles: a tree joint's are its coordinates themselves (so an angle may advance
-  // by any amount in a step: a wheel at 4000 rad/s turns 4 rad a millisecond). Every
-  // constraint of a System this stepper runs is a tree joint (jointFormulationUnsupported).
+  // by any amount in a step: a wheel at 4000 rad/s turns 4 rad a millisecond). The other
+  // constraints this stepper runs (couplers, drives, limits) keep none of their own: they
+  // read their joints' (jointFormulationUnsupported refuses cut joints).
   for (const TreeLink& L : model_.links) {
     if (L.joint < 0 || L.kind == TreeJointKind::kSpherical) continue;
     for (int k = 0; k < L.ptr->dof(); ++k) {
@@ -217,29 +218,21 @@ void JointStepper::finish(const System& sys, State& s, const Inputs& in) {
 void JointStepper::project(const System& sys, State& s) {
   closures_.setContext(s.context());
   const ClosureProjectionReport p = projectClosurePositions(model_, sys, closures_, s.q, ws_, sys.options.position_tol);
-  ++stats_.position_projections;
-  if (!p.converged) {
-    ++stats_.position_shortfalls;
-    stats_.worst_position = std::max(stats_.worst_position, p.residual);
-    if (p.residual > kFailureResidual) {
-      std::ostringstream os;
-      os << "at t = " << s.t << " s: the step left the constraints on the joint coordinates (relative residual "
-         << fmt(p.residual) << "); try a smaller step";
-      throw StepFailure(os.str());
-    }
+  stats_.countPositionProjection(p.converged, p.residual);
+  if (!p.converged && p.residual > kFailureResidual) {
+    std::ostringstream os;
+    os << "at t = " << s.t << " s: the step left the constraints on the joint coordinates (relative residual "
+       << fmt(p.residual) << "); try a smaller step";
+    throw StepFailure(os.str());
   }
   const ClosureProjectionReport v =
       projectClosureVelocities(model_, sys, closures_, s.q, s.qdot, ws_, sys.options.velocity_tol, kMaxVelocityPasses);
-  ++stats_.velocity_projections;
-  if (!v.converged) {
-    ++stats_.velocity_shortfalls;
-    stats_.worst_velocity = std::max(stats_.worst_velocity, v.residual);
-    if (v.residual > kFailureResidual) {
-      std::ostringstream os;
-      os << "at t = " << s.t << " s: the velocities cannot be brought onto the constraints (relative residual "
-         << fmt(v.residual) << ")";
-      throw StepFailure(os.str());
-    }
+  stats_.countVelocityProjection(v.converged, v.residual);
+  if (!v.converged && v.residual > kFailureResidual) {
+    std::ostringstream os;
+    os << "at t = " << s.t << " s: the velocities cannot be brought onto the constraints (relative residual "
+       << fmt(v.residual) << ")";
+    throw StepFailure(os.str());
   }
 }
 
@@ -371,8 +364,8 @@ bool JointStepper::classifyDamping(const System& sys, const State& s, double h) 
 }
 
 // u' = argmin 1/2 |u' - u|_M^2 + 1/2 h sum_stiff c_k u'_k^2, i.e. (M + h E C E^T) u' = M u
-// (E the stiff coordinates), by Woodbury with Y = M^-1 E (at q0, classifyDamping's
-// columns) and B = E^T Y:  u' - u = -Y (C^-1 / h + B)^-1 E^T u, a small SPD solve. The
+// (E the stiff coordinates), by Woodbury with Y = M^-1 E (at the positions the stages
+// reached) and B = E^T Y:  u' - u = -Y (C^-1 / h + B)^-1 E^T u, a small SPD solve. The
 // impulse held over the step moves the positions by h (u' - u) / 2 (stiff_damping.cpp,
 // items 3-4). It never adds energy: |u'|_M <= |u|_M.
 void JointStepper::implicitDamping(const System& sys, State& s, double h) {

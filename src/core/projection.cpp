@@ -62,12 +62,8 @@ bool projectPositions(const System& sys, State& s, Evaluation& ev, ConstraintSol
     ++stats.evaluations;
     err = positionResidual(sys, ev);
   }
-  ++stats.position_projections;
-  if (err > tol) {
-    ++stats.position_shortfalls;
-    stats.worst_position = std::max(stats.worst_position, err);
-    if (err > kFailureResidual) leftConstraints(sys, ev, s.t, err);
-  }
+  stats.countPositionProjection(err <= tol, err);
+  if (err > tol && err > kFailureResidual) leftConstraints(sys, ev, s.t, err);
   return it > 0;
 }
 
@@ -107,10 +103,8 @@ bool projectVelocities(const System& sys, State& s, Evaluation& ev, ConstraintSo
     }
     if (gauge > 0.5 * previous) break;
   }
-  ++stats.velocity_projections;
+  stats.countVelocityProjection(err <= tol, err);
   if (err <= tol) return moves;
-  ++stats.velocity_shortfalls;
-  stats.worst_velocity = std::max(stats.worst_velocity, err);
   if (err > kFailureResidual) {
     // as for positions: the step cannot be repaired (it is retaken in halves, then the run
     // stops) rather than going on with the velocity constraints visibly broken

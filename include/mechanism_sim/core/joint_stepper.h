@@ -35,10 +35,10 @@ std::string jointFormulationUnsupported(const System& sys);
 
 // The formulation that runs sys when `asked` is requested, and why (one sentence). kJoint
 // for a System the joint formulation cannot run throws ModelError with the reason; kAuto
-// takes the joint formulation for a tree with no equations besides its joints' (O(n) a
-// stage, 3 to 5 times cheaper than the absolute KKT form: bench/RESULTS.md), else absolute
-// (limits, drives and couplers run as dense closures in joint space today, slower than the
-// absolute form on real arms).
+// takes the joint formulation for a tree whose couplers and drives are at most one per 8
+// coordinates (limits free: O(n) a stage, 3 to 5 times cheaper than the absolute KKT form,
+// bench/RESULTS.md; each coupler or drive is a dense closure in joint space today), else
+// absolute.
 Formulation chooseFormulation(const System& sys, Formulation asked, std::string* why);
 
 class JointStepper {
@@ -90,7 +90,8 @@ class JointStepper {
   std::vector<Damped> damped_;  // every damped tree coordinate
   std::vector<char> stiff_;     // per damped_: integrated implicitly (classifyDamping)
   std::vector<int> stiff_list_;  // indices into damped_ of the stiff ones
-  Eigen::MatrixXd damp_Y_;       // M^-1 e_iv per damped_ entry that was checked exactly (at q0)
+  Eigen::MatrixXd damp_Y_;       // M^-1 e_iv per damped_ entry: of the checked ones at q0
+                                 // (classifyDamping), of the stiff ones at the stages' end
   Eigen::MatrixXd damp_K_;       // C^-1 / h + E^T M^-1 E over the stiff ones, and its Cholesky factor
   Eigen::VectorXd damp_e_, damp_z_, damp_du_, damp_zero_, damp_qdd_, damp_tau_;
   AlignedVector<Vector6d> damp_v_, damp_f_;  // bodies' velocities and momenta (implicitDamping)

@@ -9,6 +9,7 @@
 // tree of joints (TreeKktSolver) and the penalty form H = M + kappa Phi_q^T W Phi_q for
 // everything else (PenaltySolver). doc/method.md "Integration method".
 #pragma once
+#include <algorithm>
 #include <memory>
 #include <string>
 #include <vector>
@@ -31,6 +32,16 @@ struct SolverStats {
   long halved_steps = 0;  // steps whose projection failed, retaken as two half steps
   double worst_solve = 0, worst_position = 0, worst_velocity = 0;
   long shortfalls() const { return solve_shortfalls + position_shortfalls + velocity_shortfalls; }
+  // One projection counted; one that missed its tolerance also as a shortfall, with its
+  // relative residual.
+  void countPositionProjection(bool met, double residual) {
+    ++position_projections;
+    if (!met) ++position_shortfalls, worst_position = std::max(worst_position, residual);
+  }
+  void countVelocityProjection(bool met, double residual) {
+    ++velocity_projections;
+    if (!met) ++velocity_shortfalls, worst_velocity = std::max(worst_velocity, residual);
+  }
   std::string describe() const;  // one line
 };
 
