@@ -190,17 +190,7 @@ void JointStepper::finish(const System& sys, State& s, const Inputs& in) {
   if (closures_.m > 0) {
     closures_.setContext(s.context());
     forwardKinematics(model_, s.q, s.qdot, ws_);
-    if (!sys.limits.empty() && closures_.activateReachedLimits(sys, ws_, s.limit_side.data()) > 0)
-      for (size_t l = 0; l < sys.limits.size(); ++l)
-        if (s.limit_side[l] != 0)
-          for (const DriveSpec& D : sys.drives)
-            if (D.joint == sys.limits[l].joint && D.k == sys.limits[l].k) {
-              std::ostringstream os;
-              os << "at t = " << s.t << " s: the drive of joint '" << sys.joints[D.joint]->name()
-                 << "' moves it past its limits [" << fmt(sys.limits[l].lower) << ", " << fmt(sys.limits[l].upper)
-                 << "]; change the drive or the limits";
-              throw SimulationError(os.str());
-            }
+    if (!sys.limits.empty()) closures_.activateReachedLimits(sys, ws_, s.limit_side.data());
     // (closures that are all free limits are zero rows: nothing to project onto)
     bool active = closures_.constraints.size() > sys.limits.size();
     for (size_t l = 0; l < sys.limits.size() && !active; ++l) active = s.limit_side[l] != 0;

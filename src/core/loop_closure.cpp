@@ -173,6 +173,7 @@ int LoopClosures::activateReachedLimits(const System& sys, const TreeWorkspace& 
     const double q = rows[L.k].Phi;
     const int side = q < L.lower ? -1 : q > L.upper ? 1 : 0;
     if (!side) continue;
+    refuseDrivenPastLimit(sys, L, q, ctx.t);
     limit_side[l] = static_cast<signed char>(side);
     ++changed;
   }

@@ -370,14 +370,7 @@ bool Stepper::updateLimits(const System& sys, State& s) {
     const double q = rows[L.k].Phi;
     const int side = q < L.lower ? -1 : q > L.upper ? 1 : 0;
     if (!side) continue;
-    for (const DriveSpec& D : sys.drives)
-      if (D.joint == L.joint && D.k == L.k) {
-        std::ostringstream os;
-        os << "at t = " << s.t << " s: the drive of joint '" << sys.joints[L.joint]->name()
-           << "' moves it to " << fmt(q) << ", past its limits [" << fmt(L.lower) << ", "
-           << fmt(L.upper) << "]; change the drive or the limits";
-        throw SimulationError(os.str());
-      }
+    refuseDrivenPastLimit(sys, L, q, s.t);
     s.limit_side[l] = static_cast<signed char>(side);
     changed = true;
   }

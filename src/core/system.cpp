@@ -4,10 +4,12 @@
 #include <algorithm>
 #include <cmath>
 #include <set>
+#include <sstream>
 
 #include <Eigen/Eigenvalues>
 
 #include "mechanism_sim/core/couplers.h"
+#include "mechanism_sim/core/errors.h"
 #include "mechanism_sim/core/evaluation.h"
 #include "mechanism_sim/core/tableau.h"
 
@@ -218,6 +220,16 @@ Inputs zeroInputs(const System& sys) {
   in.torque.assign(sys.bodies.size(), Vector3d::Zero());
   in.spring_actuation.assign(sys.springs.size(), 0.0);
   return in;
+}
+
+void refuseDrivenPastLimit(const System& sys, const LimitSpec& L, double q, double t) {
+  for (const DriveSpec& D : sys.drives)
+    if (D.joint == L.joint && D.k == L.k) {
+      std::ostringstream os;
+      os << "at t = " << t << " s: the drive of joint '" << sys.joints[L.joint]->name() << "' moves it to " << fmt(q)
+         << ", past its limits [" << fmt(L.lower) << ", " << fmt(L.upper) << "]; change the drive or the limits";
+      throw SimulationError(os.str());
+    }
 }
 
 }  // namespace mechanism_sim

@@ -165,7 +165,8 @@ class LoopClosures {
   // Limits' activation, the caller's (the absolute Stepper's rules, on limit_side: size
   // sys.limits.size(), e.g. State::limit_side.data()):
   //   activateReachedLimits: a free limit whose coordinate (Joint::coordinates at ws's
-  //     kinematics, tracked angles of context()) is past a bound gets side -1 / +1;
+  //     kinematics, tracked angles of context()) is past a bound gets side -1 / +1 (one a
+  //     drive moves throws SimulationError: refuseDrivenPastLimit);
   //   releasePullingLimits: after a solve (lambda), an active limit whose multiplier would
   //     pull (side -1 with lambda > 0, side +1 with lambda < 0) gets side 0.
   // Both return how many sides they changed; the caller then evaluates and solves again.

@@ -192,4 +192,9 @@ void buildTreeTopology(System& sys);
 State initialState(const System& sys);
 Inputs zeroInputs(const System& sys);
 
+// A limit reached (its coordinate at q, past a bound, at time t) on a coordinate a drive
+// moves: throws SimulationError naming the joint (the drive's motion is prescribed; no
+// stop can hold it). Both formulations call it where they activate a limit.
+void refuseDrivenPastLimit(const System& sys, const LimitSpec& limit, double q, double t);
+
 }  // namespace mechanism_sim
