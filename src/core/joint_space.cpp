@@ -106,6 +106,39 @@ void setSizes(TreeLink& L) {
   }
 }
 
+// S in the child's centre-of-mass coordinates (forwardKinematics' transform of
+// jointTransform's S, which for these kinds does not depend on q).
+void setConstantSubspace(TreeLink& L) {
+  L.constant_S = L.nv == 1 && (L.kind == TreeJointKind::kRevolute || L.kind == TreeJointKind::kPrismatic ||
+                               L.kind == TreeJointKind::kScrew);
+  if (!L.constant_S) return;
+  Matrix3d R;
+  Vector3d t;
+  MotionSubspace S;
+  Vector6d c;
+  const double q = L.params.phi0, qd = 0.0;
+  jointTransform(L, &q, &qd, R, t, S, c);
+  const Vector3d w = L.Rc * S.col(0).head<3>();
+  L.S0.tail<3>() = L.Rc * S.col(0).tail<3>() + L.sc.cross(w);
+  L.S0.head<3>() = w;
+}
+
+// The pose (R, t) of jointTransform for a constant_S link, without S and c.
+inline void constantSubspacePose(const TreeLink& L, double q, Matrix3d& R, Vector3d& t) {
+  t.setZero();
+  if (L.kind == TreeJointKind::kPrismatic) {
+    R.setIdentity();
+    t.z() = q;
+  } else {
+    R = rotZ(q);
+    if (L.kind == TreeJointKind::kScrew) t.z() = L.params.alpha * (q - L.params.phi0);
+  }
+  if (L.reversed) {
+    t = -R.transpose() * t;
+    R.transposeInPlace();
+  }
+}
+
 }  // namespace
 
 // ---- the tree
@@ -199,6 +232,7 @@ TreeModel::TreeModel(const System& sys) {
         L.Rp = fp.Rp, L.sp = fp.sp_B, L.Rc = fc.Rp, L.sc = fc.sp_B;
         L.params = J.params();
         setSizes(L);
+        setConstantSubspace(L);
         joint_link[j] = child - 1;
         order.push_back(child);
         queue.push_back(child);
@@ -260,6 +294,7 @@ TreeWorkspace::TreeWorkspace(const TreeModel& model) {
   for (int k = 0; k < n; ++k) {
     const int nv = model.links[k].nv;
     S[k].setZero(6, nv);
+    if (model.links[k].constant_S) S[k].col(0) = model.links[k].S0;  // forwardKinematics leaves it
     U[k].setZero(6, nv);
     Dinv[k].setZero(nv, nv);
     u[k].setZero(nv);
@@ -370,6 +405,26 @@ void forwardKinematics(const TreeModel& model, const Eigen::VectorXd& q, const E
   for (int b : model.order) {
     const int k = b - 1;
     const TreeLink& L = model.links[k];
+    if (L.constant_S) {  // the common case: S constant (set once in ws), c_J = 0
+      constantSubspacePose(L, q(L.iq), R, t);
+      const Matrix3d Rrel = L.Rp * R * L.Rc.transpose();
+      ws.E[k] = Rrel.transpose();
+      ws.rho[k] = L.sp + L.Rp * t - Rrel * L.sc;
+      ws.cJ[k].setZero();
+      const Vector6d vJ = L.S0 * qdot(L.iv);
+      if (L.parent == 0) {
+        ws.A[k] = Rrel;
+        ws.r[k] = ws.rho[k];
+        ws.v[k] = vJ;
+      } else {
+        const int p = L.parent - 1;
+        ws.A[k].noalias() = ws.A[p] * Rrel;
+        ws.r[k].noalias() = ws.r[p] + ws.A[p] * ws.rho[k];
+        ws.v[k] = transformMotion(ws.E[k], ws.rho[k], ws.v[p]) + vJ;
+      }
+      ws.c[k] = crossMotion(ws.v[k], vJ);
+      continue;
+    }
     Vector6d cJ;
     MotionSubspace& S = ws.S[k];
     jointTransform(L, q.data() + L.iq, qdot.data() + L.iv, R, t, S, cJ);

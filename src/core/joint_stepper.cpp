@@ -95,7 +95,7 @@ JointStepper::JointStepper(const System& sys) : model_(sys), ws_(model_), closur
   for (const TreeLink& L : model_.links) {
     if (L.joint < 0) continue;
     for (int k = 0; k < L.nv; ++k)
-      if (sys.damping[L.joint][k] > 0.0) damped_.push_back({L.joint, k, L.iv + k, sys.damping[L.joint][k]});
+      if (sys.damping[L.joint][k] > 0.0) damped_.push_back({L.joint, k, L.iv + k, sys.damping[L.joint][k], L.kind == TreeJointKind::kRevolute});
   }
   const int nd = static_cast<int>(damped_.size());
   stiff_.assign(nd, 0);
@@ -189,8 +189,7 @@ void JointStepper::writeAbsolute(const System& sys, State& s) {
 void JointStepper::finish(const System& sys, State& s, const Inputs& in) {
   if (closures_.m > 0) {
     closures_.setContext(s.context());
-    forwardKinematics(model_, s.q, s.qdot, ws_);
-    if (!sys.limits.empty()) closures_.activateReachedLimits(sys, ws_, s.limit_side.data());
+    if (!sys.limits.empty()) closures_.activateReachedLimits(sys, model_, s.q, s.qdot, ws_, s.limit_side.data());
     // (closures that are all free limits are zero rows: nothing to project onto)
     bool active = closures_.constraints.size() > sys.limits.size();
     for (size_t l = 0; l < sys.limits.size() && !active; ++l) active = s.limit_side[l] != 0;
@@ -216,7 +215,8 @@ void JointStepper::project(const System& sys, State& s) {
     throw StepFailure(os.str());
   }
   const ClosureProjectionReport v =
-      projectClosureVelocities(model_, sys, closures_, s.q, s.qdot, ws_, sys.options.velocity_tol, kMaxVelocityPasses);
+      projectClosureVelocities(model_, sys, closures_, s.q, s.qdot, ws_, sys.options.velocity_tol, kMaxVelocityPasses,
+                               true);  // (ws_ and closures_ at s.q: the position projection's last evaluation)
   stats_.countVelocityProjection(v.converged, v.residual);
   if (!v.converged && v.residual > kFailureResidual) {
     std::ostringstream os;
@@ -306,25 +306,30 @@ void JointStepper::step(const System& sys, State& s, const Inputs& in, double h)
 // exceeds stiff_bound, (M^-1) e_k itself (one articulated-body pass at q0).
 bool JointStepper::classifyDamping(const System& sys, const State& s, double h) {
   const double bound = tableau_->stiff_bound;
-  loadKinematics(sys, s.x.data(), s.u.data(), kin_);
+  bool kinematics = false;
   bool changed = false;
   stiff_list_.clear();
   for (size_t i = 0; i < damped_.size(); ++i) {
-    const Damped& d = damped_[i];
+    Damped& d = damped_[i];
     const Joint& J = *sys.joints[d.j];
-    J.coordinates(kin_[J.bodyI()], kin_[J.bodyJ()], s.tracked[J.id()], damp_rows_.data());
-    double sum = 0.0;  // the bound: sum over the damped coordinates of the same joint
-    for (const Damped& o : damped_) {
-      if (o.j != d.j) continue;
-      for (int slot = 0; slot < 2; ++slot) {
-        const int b = slot == 0 ? J.bodyI() : J.bodyJ();
-        if (b == System::kGround) continue;
-        const auto& Mi = sys.Minv[b - 1];
-        const Vector6d gk = damp_rows_[d.k].J.segment<6>(6 * slot).transpose();
-        const Vector6d gl = damp_rows_[o.k].J.segment<6>(6 * slot).transpose();
-        sum += std::sqrt(d.c * o.c) * std::fabs(Mi(0, 0) * gk.head<3>().dot(gl.head<3>()) +
-                                                gk.tail<3>().dot(Mi.bottomRightCorner<3, 3>() * gl.tail<3>()));
+    double sum = d.bound;  // the bound: sum over the damped coordinates of the same joint
+    if (sum < 0.0) {
+      if (!kinematics) loadKinematics(sys, s.x.data(), s.u.data(), kin_), kinematics = true;
+      J.coordinates(kin_[J.bodyI()], kin_[J.bodyJ()], s.tracked[J.id()], damp_rows_.data());
+      sum = 0.0;
+      for (const Damped& o : damped_) {
+        if (o.j != d.j) continue;
+        for (int slot = 0; slot < 2; ++slot) {
+          const int b = slot == 0 ? J.bodyI() : J.bodyJ();
+          if (b == System::kGround) continue;
+          const auto& Mi = sys.Minv[b - 1];
+          const Vector6d gk = damp_rows_[d.k].J.segment<6>(6 * slot).transpose();
+          const Vector6d gl = damp_rows_[o.k].J.segment<6>(6 * slot).transpose();
+          sum += std::sqrt(d.c * o.c) * std::fabs(Mi(0, 0) * gk.head<3>().dot(gl.head<3>()) +
+                                                  gk.tail<3>().dot(Mi.bottomRightCorner<3, 3>() * gl.tail<3>()));
+        }
       }
+      if (d.revolute) d.bound = sum;
     }
     // (other joints' damped coordinates on the same bodies add to the bound; the exact
     // column below counts every damped coordinate)

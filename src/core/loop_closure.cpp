@@ -97,6 +97,13 @@ LoopClosures::LoopClosures(const TreeModel& model, const System& sys) : model_(&
     }
     direct_[i] = d;
   }
+  only_limits_ = true;
+  for (int c : constraints) only_limits_ = only_limits_ && sys.constraints[c]->limit() >= 0;
+  limit_col_.assign(sys.limits.size(), -1);
+  for (size_t i = 0; i < constraints.size(); ++i) {
+    const int l = sys.constraints[constraints[i]]->limit();
+    if (l >= 0 && direct_[i].n == 1) limit_col_[l] = direct_[i].col[0];
+  }
   {
     const State s0 = initialState(sys);
     tracked = s0.tracked;
@@ -160,17 +167,24 @@ bool LoopClosures::addCutJointEfforts(const TreeModel& model, const System& sys,
   return any;
 }
 
-int LoopClosures::activateReachedLimits(const System& sys, const TreeWorkspace& ws, signed char* limit_side) {
+int LoopClosures::activateReachedLimits(const System& sys, const TreeModel& model, const Eigen::VectorXd& qv,
+                                        const Eigen::VectorXd& qdot, TreeWorkspace& ws, signed char* limit_side) {
   int changed = 0;
   const EvalContext ctx = context();
-  loadKin(ws);
+  bool kinematics = false;
   Row rows[kMaxJointDofs];
   for (size_t l = 0; l < sys.limits.size(); ++l) {
     if (limit_side[l]) continue;
     const LimitSpec& L = sys.limits[l];
-    const Joint& J = *sys.joints[L.joint];
-    J.coordinates(kin_[J.bodyI()], kin_[J.bodyJ()], ctx.tracked[sys.joint_constraint[L.joint]], rows);
-    const double q = rows[L.k].Phi;
+    double q;
+    if (limit_col_[l] >= 0) {  // a tree coordinate: the limit's row is q's own
+      q = qv(limit_col_[l]);
+    } else {
+      if (!kinematics) forwardKinematics(model, qv, qdot, ws), loadKin(ws), kinematics = true;
+      const Joint& J = *sys.joints[L.joint];
+      J.coordinates(kin_[J.bodyI()], kin_[J.bodyJ()], ctx.tracked[sys.joint_constraint[L.joint]], rows);
+      q = rows[L.k].Phi;
+    }
     const int side = q < L.lower ? -1 : q > L.upper ? 1 : 0;
     if (!side) continue;
     refuseDrivenPastLimit(sys, L, q, ctx.t);
@@ -210,7 +224,28 @@ void LoopClosures::loadKin(const TreeWorkspace& ws) {
 // the loop Jacobian as the difference of the two bodies' Jacobians, here through the
 // seed's Phi_x). gamma_q = gamma - Phi_x a0 with a0 the bodies' accelerations at
 // q_ddot = 0 (the velocity-product terms J_dot q_dot).
+bool LoopClosures::allFreeLimits() const {
+  if (!only_limits_) return false;
+  const EvalContext ctx = context();
+  for (int c : constraints)
+    if (!inactiveLimit(*sys_->constraints[c], ctx)) return false;
+  return true;
+}
+
+void LoopClosures::clearRows() {
+  if (cleared_) return;
+  Phi.setZero(), gamma.setZero(), scale.setZero(), gamma_q.setZero(), nu.setZero(), lambda.setZero();
+  G.setZero(), Gabs.setZero(), Y.setZero();
+  for (Eigen::MatrixXd& J : Jc) J.setZero();
+  keep_.setZero();
+  info.rank = 0;
+  info.dependent = m;
+  all_zero_ = true;
+  cleared_ = true;
+}
+
 void LoopClosures::evaluate(const TreeModel& model, const System& sys, const TreeWorkspace& ws) {
+  cleared_ = false;
   loadKin(ws);
   // a0: spatial accelerations at q_ddot = 0 (RBDA table 7.1's a'_i without the S q_ddot)
   for (int b : model.order) {
@@ -503,6 +538,10 @@ ClosureSolveInfo constrainedForwardDynamics(const TreeModel& model, const System
     }
   }
   if (cl.m == 0) return cl.info;
+  if (cl.allFreeLimits()) {  // (zero rows: nothing acts)
+    cl.clearRows();
+    return cl.info;
+  }
   cl.evaluate(model, sys, ws);
   cl.factor(model, ws);
   cl.lambda.noalias() = cl.G * qddot;  // (the right-hand side, solved in place)
@@ -559,12 +598,14 @@ ClosureProjectionReport projectClosurePositions(const TreeModel& model, const Sy
 
 ClosureProjectionReport projectClosureVelocities(const TreeModel& model, const System& sys, LoopClosures& cl,
                                                  const Eigen::VectorXd& q, Eigen::VectorXd& qdot, TreeWorkspace& ws,
-                                                 double tol, int max_iterations) {
+                                                 double tol, int max_iterations, bool evaluated_at_q) {
   ClosureProjectionReport rep;
   const Eigen::VectorXd& zero = cl.zero_v_;
   Eigen::VectorXd &qdd = cl.qdd_v_, &r = cl.r_m_, &x = cl.x_m_;
-  forwardDynamics(model, sys, q, zero, zero, ws, qdd);
-  cl.evaluate(model, sys, ws);  // G depends on q only
+  if (!evaluated_at_q) {
+    forwardDynamics(model, sys, q, zero, zero, ws, qdd);
+    cl.evaluate(model, sys, ws);  // G depends on q only
+  }
   cl.factor(model, ws);
   rep.dependent = cl.info.dependent;
   Eigen::VectorXd& reference = cl.ref_v_;

@@ -402,7 +402,7 @@ TEST(JointSpaceClosures, LimitsPastTheirBoundsAreActivated) {
       if (J.trackedSlot(k) >= 0) cl.tracked[sys.joint_constraint[j]][J.trackedSlot(k)] = q(model.links[model.joint_link[j]].iq + k);
   }
   std::vector<signed char> side(sys.limits.size(), 0);
-  EXPECT_EQ(cl.activateReachedLimits(sys, ws, side.data()), 2);
+  EXPECT_EQ(cl.activateReachedLimits(sys, model, q, qd, ws, side.data()), 2);
   EXPECT_EQ(side, (std::vector<signed char>{1, -1, 0}));
 }
 

@@ -100,6 +100,11 @@ struct TreeLink {
   // that body's centre of mass; ground's in global components.
   Matrix3d Rp = Matrix3d::Identity(), Rc = Matrix3d::Identity();
   Vector3d sp = Vector3d::Zero(), sc = Vector3d::Zero();
+  // One coordinate whose motion subspace is constant in the child's centre-of-mass
+  // coordinates (revolute, prismatic, screw; either direction): S0, and c_J = 0.
+  // forwardKinematics then computes only the pose (RBDA ch. 4: S constant for these).
+  bool constant_S = false;
+  Vector6d S0 = Vector6d::Zero();
 };
 
 // Empty when the joint-space formulation can run the System; otherwise a sentence naming

@@ -86,6 +86,11 @@ class JointStepper {
   struct Damped {
     int j = 0, k = 0, iv = 0;  // joint, its coordinate, q_dot's index
     double c = 0.0;
+    // A revolute joint's angle: its rows on the two bodies are the axis in each body's
+    // frame, so classifyDamping's bound does not change with the configuration: kept in
+    // `bound` once computed (-1: not yet).
+    bool revolute = false;
+    double bound = -1.0;
   };
   std::vector<Damped> damped_;  // every damped tree coordinate
   std::vector<char> stiff_;     // per damped_: integrated implicitly (classifyDamping)

@@ -159,18 +159,26 @@ class LoopClosures {
   void applyInverseMass(const TreeModel& model, const TreeWorkspace& ws, const double* tau, double* out);
   // Y = M^-1 G^T and the factorization of G M^-1 G^T (after evaluate() and forwardDynamics).
   void factor(const TreeModel& model, const TreeWorkspace& ws);
+  // Whether every closure is a limit and every limit is free in context(): then every
+  // row is zero wherever the tree is, and clearRows() gives what evaluate() and factor()
+  // would (zero rows, lambda = 0), without the kinematics (a tree arm between its stops).
+  bool allFreeLimits() const;
+  void clearRows();
   // x = (G M^-1 G^T)^+ b as above (after factor()); x and b of size m (x may be b).
   // No allocation.
   void solve(const Eigen::VectorXd& b, Eigen::VectorXd& x) const;
   // Limits' activation, the caller's (the absolute Stepper's rules, on limit_side: size
   // sys.limits.size(), e.g. State::limit_side.data()):
-  //   activateReachedLimits: a free limit whose coordinate (Joint::coordinates at ws's
-  //     kinematics, tracked angles of context()) is past a bound gets side -1 / +1 (one a
-  //     drive moves throws SimulationError: refuseDrivenPastLimit);
+  //   activateReachedLimits: a free limit whose coordinate is past a bound gets side -1 /
+  //     +1 (one a drive moves throws SimulationError: refuseDrivenPastLimit); the
+  //     coordinate is q's own where the limit is on a tree coordinate (a direct row),
+  //     else Joint::coordinates at q's kinematics (forwardKinematics into ws, only then),
+  //     tracked angles of context();
   //   releasePullingLimits: after a solve (lambda), an active limit whose multiplier would
   //     pull (side -1 with lambda > 0, side +1 with lambda < 0) gets side 0.
   // Both return how many sides they changed; the caller then evaluates and solves again.
-  int activateReachedLimits(const System& sys, const TreeWorkspace& ws, signed char* limit_side);
+  int activateReachedLimits(const System& sys, const TreeModel& model, const Eigen::VectorXd& q,
+                            const Eigen::VectorXd& qdot, TreeWorkspace& ws, signed char* limit_side);
   int releasePullingLimits(const System& sys, signed char* limit_side) const;
   // The closure's own tracked angles (of every constraint, tree joints' included, as they
   // are the branch references of couplers, drives and limits on those joints) moved to
@@ -189,12 +197,15 @@ class LoopClosures {
     double coef[2] = {0.0, 0.0};
   };
   std::vector<DirectRow> direct_;  // per closure
+  std::vector<int> limit_col_;     // per sys limit: its velocity coordinate (a direct row), or -1
   Eigen::VectorXd unit_;           // per velocity coordinate: length scale (an angle) or 1
   std::vector<BodyKin> kin_;      // ground first
   AlignedVector<Vector6d> pa_, a_;  // inverse-mass passes
   AlignedVector<Vector6d> a0_;      // spatial accelerations at q_ddot = 0
   Eigen::VectorXd keep_;            // per row: 1, or 0 for a dropped (zero) row
   bool all_zero_ = false;           // every row dropped at the last factor()
+  bool only_limits_ = false;        // every closure is a limit
+  bool cleared_ = false;            // clearRows() ran since the last evaluate()
   Eigen::VectorXd tau_, qdd_cut_;
   Eigen::VectorXd zero_v_, qdd_v_, dv_v_, ref_v_, r_m_, x_m_;  // the projections' scratch
   Eigen::MatrixXd A_;               // scaled G M^-1 G^T
@@ -211,7 +222,7 @@ class LoopClosures {
                                                          Eigen::VectorXd&, TreeWorkspace&, double, int);
   friend ClosureProjectionReport projectClosureVelocities(const TreeModel&, const System&, LoopClosures&,
                                                           const Eigen::VectorXd&, Eigen::VectorXd&, TreeWorkspace&,
-                                                          double, int);
+                                                          double, int, bool);
 };
 
 // Constrained forward dynamics: q_ddot and closures.lambda at (q, q_dot) with efforts tau
@@ -235,9 +246,12 @@ ClosureProjectionReport projectClosurePositions(const TreeModel& model, const Sy
                                                 Eigen::VectorXd& q, TreeWorkspace& ws, double tol = 1e-13,
                                                 int max_iterations = 20);
 // q_dot -= M^-1 G^T (G M^-1 G^T)^+ (G q_dot - nu) (the M-nearest q_dot with G q_dot = nu), repeated
-// while the relative residual exceeds tol (at most max_iterations).
+// while the relative residual exceeds tol (at most max_iterations). evaluated_at_q: ws and
+// closures already hold q's kinematics (zero velocity) and evaluation, as
+// projectClosurePositions leaves them: only the factorization is taken.
 ClosureProjectionReport projectClosureVelocities(const TreeModel& model, const System& sys, LoopClosures& closures,
                                                  const Eigen::VectorXd& q, Eigen::VectorXd& qdot, TreeWorkspace& ws,
-                                                 double tol = 1e-13, int max_iterations = 3);
+                                                 double tol = 1e-13, int max_iterations = 3,
+                                                 bool evaluated_at_q = false);
 
 }  // namespace mechanism_sim

@@ -1,5 +1,7 @@
 // Small rotation helpers: skew matrices, Euler parameters, the exponential map.
 #pragma once
+#include <cmath>
+
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
@@ -53,7 +55,12 @@ inline Eigen::Isometry3d pose(const Matrix3d& R, const Vector3d& t) {
   T.translation() = t;
   return T;
 }
-inline Matrix3d rotZ(double a) { return Eigen::AngleAxisd(a, Vector3d::UnitZ()).toRotationMatrix(); }
+inline Matrix3d rotZ(double a) {
+  const double c = std::cos(a), s = std::sin(a);
+  Matrix3d R;
+  R << c, -s, 0, s, c, 0, 0, 0, 1;
+  return R;
+}
 
 // Nearest representative of angle to ref (unwrap across turns).
 inline double unwrapNear(double angle, double ref) {
