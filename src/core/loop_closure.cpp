@@ -439,7 +439,18 @@ void LoopClosures::factor(const TreeModel& model, const TreeWorkspace& ws) {
     for (int k = 0; k < nv; ++k) tau_(k) = G(e, k);
     applyInverseMass(model, ws, tau_.data(), Y.col(e).data());
   }
-  A_.noalias() = G * Y;
+  if (m - zero_rows <= ScaledLeastNorm::kSmall && zero_rows > 0) {  // (the small path reads the kept rows only)
+    for (int e = 0; e < m; ++e) {
+      if (keep_(e) == 0.0) {
+        A_(e, e) = 0.0;
+        continue;
+      }
+      for (int f = 0; f < m; ++f)
+        if (keep_(f) != 0.0) A_(e, f) = G.row(e).dot(Y.col(f));
+    }
+  } else {
+    A_.noalias() = G * Y;
+  }
   info.rank = least_norm_.factor(A_, &keep_) - zero_rows;
   info.dependent = m - info.rank;
 }
@@ -457,12 +468,29 @@ ScaledLeastNorm::ScaledLeastNorm(int n)
     : d_(Eigen::VectorXd::Zero(n)), c_(Eigen::VectorXd::Zero(n)), y_(Eigen::VectorXd::Zero(n)),
       work_(Eigen::VectorXd::Zero(std::max(n, 1))), cod_(n, n) {
   cod_.setThreshold(kClosureRankThreshold);
+  small_cod_.setThreshold(kClosureRankThreshold);
 }
 
 int ScaledLeastNorm::factor(Eigen::MatrixXd& A, const Eigen::VectorXd* keep) {
   const Eigen::Index n = d_.size();
-  for (Eigen::Index e = 0; e < n; ++e)
+  int kept = 0;
+  for (Eigen::Index e = 0; e < n; ++e) {
     d_(e) = ((!keep || (*keep)(e) > 0) && A(e, e) > 0) ? 1.0 / std::sqrt(A(e, e)) : 0.0;
+    if (d_(e) != 0.0) {
+      if (kept < kSmall) kept_rows_[kept] = static_cast<int>(e);
+      ++kept;
+    }
+  }
+  small_ = kept <= kSmall && kept < n;
+  if (small_) {  // the kept rows alone (dropped ones: x_e = 0, each counted with rank 1 as below)
+    kept_ = kept;
+    SmallMatrix S(kept, kept);
+    for (int i = 0; i < kept; ++i)
+      for (int j = 0; j < kept; ++j)
+        S(i, j) = A(kept_rows_[i], kept_rows_[j]) * d_(kept_rows_[i]) * d_(kept_rows_[j]);
+    if (kept > 0) small_cod_.compute(S);
+    return static_cast<int>(n - kept) + (kept > 0 ? static_cast<int>(small_cod_.rank()) : 0);
+  }
   for (Eigen::Index i = 0; i < n; ++i)
     for (Eigen::Index j = 0; j < n; ++j) A(i, j) *= d_(i) * d_(j);
   for (Eigen::Index e = 0; e < n; ++e)
@@ -478,6 +506,15 @@ int ScaledLeastNorm::factor(Eigen::MatrixXd& A, const Eigen::VectorXd* keep) {
 void ScaledLeastNorm::solve(const Eigen::VectorXd& b, Eigen::VectorXd& x) const {
   const Eigen::Index n = d_.size();
   if (n == 0) return;
+  if (small_) {
+    SmallVector c(kept_);
+    for (int i = 0; i < kept_; ++i) c(i) = d_(kept_rows_[i]) * b(kept_rows_[i]);
+    SmallVector y(kept_);
+    if (kept_ > 0) y = small_cod_.solve(c);
+    x.setZero();
+    for (int i = 0; i < kept_; ++i) x(kept_rows_[i]) = d_(kept_rows_[i]) * y(i);
+    return;
+  }
   Eigen::VectorXd& c = c_;
   Eigen::VectorXd& y = y_;
   double* work = work_.data();

@@ -65,11 +65,22 @@ class ScaledLeastNorm {
   int factor(Eigen::MatrixXd& A, const Eigen::VectorXd* keep = nullptr);
   // x = D (D A D)^+ D b; x may be b.
   void solve(const Eigen::VectorXd& b, Eigen::VectorXd& x) const;
+  // At most this many kept rows (of more) are factored on their own, in fixed-capacity
+  // storage: a tree arm's active limit or its gripper's mimic coupler among many free
+  // limits costs a k x k decomposition, not an n x n one. Only the kept rows of A are read.
+  static constexpr int kSmall = 8;
 
  private:
+  using SmallMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kSmall, kSmall>;
+  using SmallVector = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kSmall, 1>;
   Eigen::VectorXd d_;  // the Jacobi scale per row (0: dropped)
   mutable Eigen::VectorXd c_, y_, work_;
   Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd> cod_;
+  // the small path: kept rows (their indices) factored alone
+  bool small_ = false;
+  int kept_ = 0;
+  int kept_rows_[kSmall] = {};
+  Eigen::CompleteOrthogonalDecomposition<SmallMatrix> small_cod_;
 };
 
 struct ClosureSolveInfo {
