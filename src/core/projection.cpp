@@ -10,6 +10,18 @@ namespace {
 
 constexpr int kMaxNewton = 20;
 constexpr int kMaxVelocityPasses = 8;
+constexpr int kRoundoffSteps = 4;
+
+// The size of a correction dn (per body: translation and rotation): max |dn| over the
+// bodies, a rotation through the length scale.
+double correctionSize(const System& sys, const Eigen::VectorXd& dn) {
+  double c = 0;
+  for (int b = 0; b < sys.nb; ++b) {
+    const int i = BodyCoordinates::u(b);
+    c = std::max({c, dn.segment<3>(i).cwiseAbs().maxCoeff(), dn.segment<3>(i + 3).cwiseAbs().maxCoeff() * sys.length_scale});
+  }
+  return c;
+}
 
 [[noreturn]] void leftConstraints(const System& sys, const Evaluation& ev, double t, double err) {
   double worst_err = 0;
@@ -42,7 +54,7 @@ int worstConstraint(const System& sys, const Eigen::VectorXd& r, double* value) 
 // mass-orthogonal step onto the tree's equations), renewing the factorization when
 // progress is slow.
 bool projectPositions(const System& sys, State& s, Evaluation& ev, ConstraintSolver& solver, Projection& w,
-                      SolverStats& stats, bool frozen) {
+                      SolverStats& stats, bool frozen, bool to_roundoff) {
   const double tol = sys.options.position_tol;
   double err = positionResidual(sys, ev), previous = HUGE_VAL;
   int it = 0;
@@ -60,6 +72,23 @@ bool projectPositions(const System& sys, State& s, Evaluation& ev, ConstraintSol
     displace(sys, s.x, solver.dn().data());
     evaluateAt(sys, s, ev);
     ++stats.evaluations;
+    err = positionResidual(sys, ev);
+  }
+  if (to_roundoff && err <= tol) {
+    double previous_step = HUGE_VAL;
+    for (int extra = 0; extra < kRoundoffSteps; ++extra) {
+      solver.factor(sys, ev, "position projection", s.t);
+      w.r2 = -ev.Phi;
+      w.r1.setZero();
+      solver.precondition(sys, ev, w.r1.data(), w.r2.data(), false);
+      const double step = correctionSize(sys, solver.dn());
+      if (!(step < 0.5 * previous_step) || step == 0.0) break;  // stagnant: round-off reached
+      previous_step = step;
+      displace(sys, s.x, solver.dn().data());
+      evaluateAt(sys, s, ev);
+      ++stats.evaluations;
+      ++it;
+    }
     err = positionResidual(sys, ev);
   }
   stats.countPositionProjection(err <= tol, err);
@@ -80,7 +109,7 @@ bool projectPositions(const System& sys, State& s, Evaluation& ev, ConstraintSol
 // that just engaged: relative 1 before and after a pass that cut the velocity into it by
 // a factor 270).
 bool projectVelocities(const System& sys, State& s, Evaluation& ev, ConstraintSolver& solver, Projection& w,
-                       SolverStats& stats) {
+                       SolverStats& stats, bool to_roundoff) {
   const double tol = sys.options.velocity_tol;
   double err = velocityResidual(sys, ev, s.u, w.body_scale);
   const bool moves = err > tol;
@@ -102,6 +131,20 @@ bool projectVelocities(const System& sys, State& s, Evaluation& ev, ConstraintSo
       break;
     }
     if (gauge > 0.5 * previous) break;
+  }
+  if (to_roundoff && err <= tol) {
+    double previous_step = HUGE_VAL;
+    for (int extra = 0; extra < kRoundoffSteps; ++extra) {
+      mulJ(sys, ev, sys.all_constraints, s.u.data(), w.r2.data());
+      w.r2 = ev.nu - w.r2;
+      w.r1.setZero();
+      solver.precondition(sys, ev, w.r1.data(), w.r2.data(), false);
+      const double step = correctionSize(sys, solver.dn());
+      if (!(step < 0.5 * previous_step) || step == 0.0) break;
+      previous_step = step;
+      s.u += solver.dn();
+    }
+    err = velocityResidual(sys, ev, s.u, w.body_scale);
   }
   stats.countVelocityProjection(err <= tol, err);
   if (err <= tol) return moves;

@@ -217,6 +217,7 @@ void Stepper::stepOnce(const System& sys, State& s, const Inputs& in, double h) 
   // factorization, only when the inputs changed, so a restored State continues
   // bit-identically.
   const bool reuse = ev_.stamp.level == EvaluationStamp::kSolved && ev_.stamp.describes(s);
+  stage_shortfalls_ = stats_.solve_shortfalls;
   load(sys, s.x.data(), s.u.data());
   if (!reuse) evaluate(sys, s);
   // Damped coordinates too stiff for the stages leave them (finishStep integrates them).
@@ -319,7 +320,9 @@ void Stepper::finishStep(const System& sys, State& s, const Inputs& in, bool aft
     if (frozen) std::swap(ev_.J, projection_.J_frozen);
     evaluate(sys, s);
   }
-  bool moved = projectPositions(sys, s, ev_, *solver_, projection_, stats_, frozen);
+  // a stage solve that stalled: equations nearly dependent here (projection.h, to_roundoff)
+  const bool near_dependent = after_stages && stats_.solve_shortfalls > stage_shortfalls_;
+  bool moved = projectPositions(sys, s, ev_, *solver_, projection_, stats_, frozen, near_dependent);
   // A projection that stops one joint on its limit moves the joints around it: in a chain
   // it can carry another joint past its own stop (a three-rod chain swinging onto its
   // stops ended 3.4e-4 rad past one this way). Such limits become active and the
@@ -339,7 +342,8 @@ void Stepper::finishStep(const System& sys, State& s, const Inputs& in, bool aft
     moved = projectPositions(sys, s, ev_, *solver_, projection_, stats_, false) || moved;
   }
   if (moved || !frozen) solver_->factor(sys, ev_, "projection", s.t, !frozen);  // velocities need H at this Phi_q
-  const bool sped = projectVelocities(sys, s, ev_, *solver_, projection_, stats_);
+  if (near_dependent && !moved && frozen) solver_->factor(sys, ev_, "projection", s.t);
+  const bool sped = projectVelocities(sys, s, ev_, *solver_, projection_, stats_, near_dependent);
   // Tracked angles move to the new pose. The evaluation above stands when neither
   // projection moved the state: its branch references were predicted within O(h^2) of
   // these (the branch, all an evaluation takes from them, is the same).

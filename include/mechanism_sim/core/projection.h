@@ -35,12 +35,16 @@ struct Projection {
 // Moves s.x onto Phi = 0 (ev evaluated at s on entry and on return). With `frozen` the
 // factorization at hand and w.J_frozen (the Jacobian it was taken with) make the Newton
 // steps, refactored when progress is slow. Returns whether it moved.
+// to_roundoff: Newton goes on past the tolerance while its correction keeps halving (at
+// most kRoundoffSteps more): near a configuration where equations become dependent (a
+// parallelogram passing flat, where the stage solves stall) a residual at the tolerance
+// leaves the positions off by residual / sigma_min along the nearly dependent direction.
 bool projectPositions(const System& sys, State& s, Evaluation& ev, ConstraintSolver& solver, Projection& w,
-                      SolverStats& stats, bool frozen);
+                      SolverStats& stats, bool frozen, bool to_roundoff = false);
 // Moves s.u onto Phi_q v = nu with the factorization at hand (at s's positions). Returns
-// whether it moved.
+// whether it moved. to_roundoff as for positions.
 bool projectVelocities(const System& sys, State& s, Evaluation& ev, ConstraintSolver& solver, Projection& w,
-                       SolverStats& stats);
+                       SolverStats& stats, bool to_roundoff = false);
 // The constraint with the largest |r| over its rows (r per equation), and that value.
 int worstConstraint(const System& sys, const Eigen::VectorXd& r, double* value);
 

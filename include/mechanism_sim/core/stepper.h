@@ -110,6 +110,7 @@ class Stepper {
   // has stiff coordinates) forces() takes the damping from stage_damping_, in which the
   // stiff coordinates have none; they are integrated implicitly in finishStep.
   bool split_ = false;
+  long stage_shortfalls_ = 0;  // the solver's shortfall count when this step's stages began
   double split_h_ = 0.0;
   std::vector<std::array<double, 3>> stage_damping_;  // per joint coordinate
   std::vector<std::array<double, 3>> damping_bound_;  // s_k of the step (0: undamped)
