@@ -405,55 +405,39 @@ void forwardKinematics(const TreeModel& model, const Eigen::VectorXd& q, const E
   for (int b : model.order) {
     const int k = b - 1;
     const TreeLink& L = model.links[k];
-    if (L.constant_S) {  // the common case: S constant (set once in ws), c_J = 0
+    Vector6d vJ, cJ;
+    if (L.constant_S) {  // the common case: S constant in the child's frame (set once in ws), c_J = 0
       constantSubspacePose(L, q(L.iq), R, t);
-      const Matrix3d Rrel = L.Rp * R * L.Rc.transpose();
-      ws.E[k] = Rrel.transpose();
-      ws.rho[k] = L.sp + L.Rp * t - Rrel * L.sc;
-      ws.cJ[k].setZero();
-      const Vector6d vJ = L.S0 * qdot(L.iv);
-      if (L.parent == 0) {
-        ws.A[k] = Rrel;
-        ws.r[k] = ws.rho[k];
-        ws.v[k] = vJ;
-      } else {
-        const int p = L.parent - 1;
-        ws.A[k].noalias() = ws.A[p] * Rrel;
-        ws.r[k].noalias() = ws.r[p] + ws.A[p] * ws.rho[k];
-        ws.v[k] = transformMotion(ws.E[k], ws.rho[k], ws.v[p]) + vJ;
+      cJ.setZero();
+      vJ = L.S0 * qdot(L.iv);
+    } else {
+      MotionSubspace& S = ws.S[k];
+      jointTransform(L, q.data() + L.iq, qdot.data() + L.iv, R, t, S, cJ);
+      // From the child's joint frame to its centre of mass: E = Rc, rho = -Rc^T sc, i.e.
+      // (omega; v) -> (Rc omega; Rc v + sc x Rc omega).
+      for (int col = 0; col < L.nv; ++col) {
+        const Vector3d w = L.Rc * S.col(col).head<3>();
+        S.col(col).tail<3>() = L.Rc * S.col(col).tail<3>() + L.sc.cross(w);
+        S.col(col).head<3>() = w;
       }
-      ws.c[k] = crossMotion(ws.v[k], vJ);
-      continue;
+      const Vector3d w = L.Rc * cJ.head<3>();
+      cJ.tail<3>() = L.Rc * cJ.tail<3>() + L.sc.cross(w);
+      cJ.head<3>() = w;
+      vJ = S * qdot.segment(L.iv, L.nv);
     }
-    Vector6d cJ;
-    MotionSubspace& S = ws.S[k];
-    jointTransform(L, q.data() + L.iq, qdot.data() + L.iv, R, t, S, cJ);
+    ws.cJ[k] = cJ;
     // Child body axes in parent body axes, and the child's centre relative to the parent's.
     const Matrix3d Rrel = L.Rp * R * L.Rc.transpose();
     ws.E[k] = Rrel.transpose();
     ws.rho[k] = L.sp + L.Rp * t - Rrel * L.sc;
-    // From the child's joint frame to its centre of mass: E = Rc, rho = -Rc^T sc, i.e.
-    // (omega; v) -> (Rc omega; Rc v + sc x Rc omega).
-    for (int col = 0; col < L.nv; ++col) {
-      const Vector3d w = L.Rc * S.col(col).head<3>();
-      S.col(col).tail<3>() = L.Rc * S.col(col).tail<3>() + L.sc.cross(w);
-      S.col(col).head<3>() = w;
-    }
-    {
-      const Vector3d w = L.Rc * cJ.head<3>();
-      cJ.tail<3>() = L.Rc * cJ.tail<3>() + L.sc.cross(w);
-      cJ.head<3>() = w;
-    }
-    ws.cJ[k] = cJ;
-    const Vector6d vJ = S * qdot.segment(L.iv, L.nv);
     if (L.parent == 0) {
       ws.A[k] = Rrel;
       ws.r[k] = ws.rho[k];
       ws.v[k] = vJ;
     } else {
       const int p = L.parent - 1;
-      ws.A[k] = ws.A[p] * Rrel;
-      ws.r[k] = ws.r[p] + ws.A[p] * ws.rho[k];
+      ws.A[k].noalias() = ws.A[p] * Rrel;
+      ws.r[k].noalias() = ws.r[p] + ws.A[p] * ws.rho[k];
       ws.v[k] = transformMotion(ws.E[k], ws.rho[k], ws.v[p]) + vJ;
     }
     // c_i = c_J + v_i x v_J (RBDA table 7.1)
