@@ -185,7 +185,7 @@ int LoopClosures::activateReachedLimits(const System& sys, const TreeModel& mode
       J.coordinates(kin_[J.bodyI()], kin_[J.bodyJ()], ctx.tracked[sys.joint_constraint[L.joint]], rows);
       q = rows[L.k].Phi;
     }
-    const int side = q < L.lower ? -1 : q > L.upper ? 1 : 0;
+    const int side = limitSide(L, q);
     if (!side) continue;
     refuseDrivenPastLimit(sys, L, q, ctx.t);
     limit_side[l] = static_cast<signed char>(side);

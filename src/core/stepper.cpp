@@ -372,7 +372,7 @@ bool Stepper::updateLimits(const System& sys, State& s) {
     if (s.limit_side[l]) continue;
     jointRows(sys, ev_, s, L.joint, rows);
     const double q = rows[L.k].Phi;
-    const int side = q < L.lower ? -1 : q > L.upper ? 1 : 0;
+    const int side = limitSide(L, q);
     if (!side) continue;
     refuseDrivenPastLimit(sys, L, q, s.t);
     s.limit_side[l] = static_cast<signed char>(side);

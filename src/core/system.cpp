@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <set>
 #include <sstream>
 
@@ -220,6 +221,11 @@ Inputs zeroInputs(const System& sys) {
   in.torque.assign(sys.bodies.size(), Vector3d::Zero());
   in.spring_actuation.assign(sys.springs.size(), 0.0);
   return in;
+}
+
+int limitSide(const LimitSpec& L, double q) {
+  const double slack = 8 * std::numeric_limits<double>::epsilon() * std::max(std::fabs(L.lower), std::fabs(L.upper));
+  return q < L.lower - slack ? -1 : q > L.upper + slack ? 1 : 0;
 }
 
 void refuseDrivenPastLimit(const System& sys, const LimitSpec& L, double q, double t) {

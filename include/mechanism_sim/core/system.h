@@ -196,5 +196,10 @@ Inputs zeroInputs(const System& sys);
 // moves: throws SimulationError naming the joint (the drive's motion is prescribed; no
 // stop can hold it). Both formulations call it where they activate a limit.
 void refuseDrivenPastLimit(const System& sys, const LimitSpec& limit, double q, double t);
+// Which bound a free limit's coordinate q is past: -1 (lower), +1 (upper) or 0, with a
+// round-off slack of a few ulps of the bounds' size: a coordinate driven exactly onto its
+// bound (q = 2 t reaching 1 at t = 0.5, t itself a sum of steps) is at it, not past it,
+// in both formulations alike (one computes q from the bodies, the other integrates it).
+int limitSide(const LimitSpec& limit, double q);
 
 }  // namespace mechanism_sim
