@@ -19,15 +19,6 @@ std::string jointFormulationUnsupported(const System& sys) {
   // friction is not (jointSpaceUnsupported says so).
   std::string why = jointSpaceUnsupported(sys, true);
   if (!why.empty()) return why;
-  // Loop closures (the spanning tree's cut joints) are not released: integrated, the
-  // parallelogram four-bar was 1.7e-12 m from exact at 1 ms but 4e-3 m at 0.1 ms. Not the
-  // closures' rank threshold (1e-10 to 1e-15 gave the same figures): near its flat passage,
-  // where two branches cross, the equations determine the tangent only to eps / x^2 at a
-  // distance x, and stages of smaller steps land closer (doc/limitations.md).
-  const TreeModel tree(sys);
-  if (!tree.cut_joints.empty())
-    return "joint '" + sys.joints[tree.cut_joints[0]]->name() +
-           "' closes a loop: the joint formulation does not integrate loop closures yet";
   // Joint damping acts along the joint coordinates (the stages' efforts, or implicit Euler
   // where stiff); a spherical joint's rates are not its coordinates' (a rotation vector
   // against the quaternion's rates): not yet.
@@ -65,7 +56,20 @@ Formulation chooseFormulation(const System& sys, Formulation asked, std::string*
       if (!tree_joint[c] && sys.constraints[c]->limit() < 0) always_on += sys.constraints[c]->size();
   }
   int nv = 0;
-  if (unsupported.empty()) nv = TreeModel(sys).nv;
+  if (unsupported.empty()) {
+    const TreeModel tree(sys);
+    nv = tree.nv;
+    // Loops run in joint coordinates when asked (their closures on the tree, passages of
+    // branches held by the motion: branch_passage.cpp); auto keeps them in absolute ones,
+    // where a loop's closure costs less today (dense G M^-1 G^T and a decomposition near a
+    // passage: the ten-loop four-bar 300 against 80 us a step, bench/RESULTS.md).
+    if (!tree.cut_joints.empty()) {
+      if (why)
+        *why = "absolute coordinates (auto: joint '" + sys.joints[tree.cut_joints[0]]->name() +
+               "' closes a loop; loops run in joint coordinates when asked, at a higher cost today)";
+      return Formulation::kAbsolute;
+    }
+  }
   if (unsupported.empty() && 8 * always_on <= nv) {
     if (why)
       *why = always_on == 0 ? "joint coordinates (auto: a tree whose other equations are limits at most, O(n) a stage)"
@@ -227,6 +231,8 @@ void JointStepper::project(const System& sys, State& s) {
 }
 
 void JointStepper::settle(const System& sys, State& s, const Inputs& in) {
+  // (a settled state has no motion before it: no branch passage is held, branch_passage.cpp)
+  closures_.passage_ref = nullptr;
   // The joint coordinates of the absolute state: each link's joint reads them from its two
   // bodies (Joint::coordinates, branch references in s.tracked); a spherical joint's
   // quaternion is the rotation of frame j in frame i; a free body's are its own x, u.
@@ -269,6 +275,12 @@ void JointStepper::step(const System& sys, State& s, const Inputs& in, double h)
   if (!(fresh_ && q_end_ == s.q && v_end_ == s.qdot)) accelerations(sys, s, in, s.t, q0_, v0_, s.qddot);
   // (ws_ holds q0's articulated factors now); stage 1 again if the stiff set changed
   if (!damped_.empty() && classifyDamping(sys, s, h)) accelerations(sys, s, in, s.t, q0_, v0_, s.qddot);
+  // branch passages of loops (branch_passage.cpp): what the solves hold across a branch is
+  // the acceleration at the step's start
+  if (!model_.cut_joints.empty()) {
+    a_ref_ = s.qddot;
+    closures_.passage_ref = &a_ref_;
+  }
   positionRates(model_, q0_, v0_, kq_[0]);
   kv_[0] = s.qddot;
   for (int k = 1; k < T.stages; ++k) {

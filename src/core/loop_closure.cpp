@@ -112,7 +112,7 @@ LoopClosures::LoopClosures(const TreeModel& model, const System& sys) : model_(&
     t = s0.t;
   }
   Phi.setZero(m), gamma.setZero(m), scale.setZero(m), gamma_q.setZero(m), nu.setZero(m), lambda.setZero(m);
-  G.setZero(m, nv), Gabs.setZero(m, nv), Y.setZero(nv, m);
+  G.setZero(m, nv), Gabs.setZero(m, nv), Gbound.setZero(m, nv), Y.setZero(nv, m);
   for (int c : constraints)
     Jc.push_back(Eigen::MatrixXd::Zero(sys.constraints[c]->size(), 6 * static_cast<int>(sys.constraints[c]->bodies().size())));
   kin_.assign(sys.numBodies(), BodyKin());
@@ -257,6 +257,7 @@ void LoopClosures::evaluate(const TreeModel& model, const System& sys, const Tre
   const EvalContext ctx = context();
   G.setZero();
   Gabs.setZero();
+  Gbound.setZero();
   const BodyKin* ptrs[kMaxConstraintBodies];
   for (size_t i = 0; i < constraints.size(); ++i) {
     const Constraint& C = *sys.constraints[constraints[i]];
@@ -282,6 +283,7 @@ void LoopClosures::evaluate(const TreeModel& model, const System& sys, const Tre
       for (int k = 0; k < direct_[i].n; ++k) {
         G(r0, direct_[i].col[k]) += direct_[i].coef[k];
         Gabs(r0, direct_[i].col[k]) += std::fabs(direct_[i].coef[k]);
+        Gbound(r0, direct_[i].col[k]) += std::fabs(direct_[i].coef[k]);
       }
       continue;
     }
@@ -312,6 +314,11 @@ void LoopClosures::evaluate(const TreeModel& model, const System& sys, const Tre
           uabs.tail<3>() = u.tail<3>().cwiseAbs();
           G.col(L.iv + col).segment(r0, n).noalias() += Jb * u;
           Gabs.col(L.iv + col).segment(r0, n).noalias() += Jb.cwiseAbs() * uabs;
+          // (norms, not components: a bound that does not vanish where the geometry makes
+          // the entry vanish, for the branch passages' normalization)
+          const double sv = vg.norm() + wg.norm() * lever.norm(), sw = wg.norm();
+          for (int e = 0; e < n; ++e)
+            Gbound(r0 + e, L.iv + col) += Jb.row(e).head<3>().norm() * sv + Jb.row(e).tail<3>().norm() * sw;
         }
       }
     }
@@ -581,6 +588,25 @@ ClosureSolveInfo constrainedForwardDynamics(const TreeModel& model, const System
   }
   cl.evaluate(model, sys, ws);
   cl.factor(model, ws);
+  if (cl.passage_ref && cl.findPassage() > 0) {
+    // a branch passage (branch_passage.cpp): the regular directions by their equations,
+    // the held ones at passage_ref's acceleration across the branch
+    cl.passageFactor(model, ws);
+    cl.passageRhs(cl.gamma_q, cl.p_g_);
+    const int r = cl.p_regular_ + cl.p_band_;
+    for (int i = cl.p_regular_; i < r; ++i) cl.p_g_(i) = cl.p_R_.row(i).dot(*cl.passage_ref);
+    cl.p_mu_.noalias() = cl.p_R_ * qddot;
+    cl.p_mu_ -= cl.p_g_;
+    cl.p_mu_ = cl.p_ldlt_.solve(cl.p_mu_);
+    qddot.noalias() -= cl.p_Y_ * cl.p_mu_;
+    // lambda = D_r U S^-1 mu on the kept rows (G^T lambda = R^T mu), 0 elsewhere
+    cl.lambda.setZero();
+    for (int i = 0; i < r; ++i)
+      for (int j = 0; j < cl.p_kept_; ++j)
+        cl.lambda(cl.p_row_[j]) += cl.p_dr_(j) * cl.p_U_(j, i) * cl.p_mu_(i) / cl.p_sigma_(i);
+    cl.gamma_q.noalias() = cl.G * qddot;
+    return cl.info;
+  }
   cl.lambda.noalias() = cl.G * qddot;  // (the right-hand side, solved in place)
   cl.lambda -= cl.gamma_q;
   cl.solve(cl.lambda, cl.lambda);
@@ -614,19 +640,43 @@ ClosureProjectionReport projectClosurePositions(const TreeModel& model, const Sy
   ClosureProjectionReport rep;
   const Eigen::VectorXd& zero = cl.zero_v_;
   Eigen::VectorXd &qdd = cl.qdd_v_, &dv = cl.dv_v_, &x = cl.x_m_;
+  // Near a branch passage (branch_passage.cpp) the equations' residual tolerance leaves
+  // the coordinate across the branch off by tol / s (s the passage's singular value), and
+  // the solves at the next stages see the level set through that point: there Newton goes
+  // on to round-off (while its step keeps halving) once the tolerance is met.
+  double previous_step = HUGE_VAL;
+  int extra = 0;
   for (;;) {
     forwardDynamics(model, sys, q, zero, zero, ws, qdd);  // kinematics and the articulated factors
     cl.evaluate(model, sys, ws);
-    rep.residual = cl.positionResidual();
+    // in a branch passage the held directions are the integration's: not judged, not moved
+    const bool passage = cl.passage_ref && cl.findPassage() > 0;
+    rep.residual = passage ? cl.passageResidual(cl.Phi, cl.scale) : cl.positionResidual();
+    const bool near = cl.passage_ref && cl.passageNear();
     if (rep.residual <= tol) {
       rep.converged = true;
-      break;
+      if (!near || extra >= kPassageRoundoffSteps) break;
     }
     if (rep.iterations >= max_iterations) break;
-    cl.factor(model, ws);
-    rep.dependent = cl.info.dependent;
-    cl.solve(cl.Phi, x);
-    dv.noalias() = -cl.Y * x;
+    if (passage) {
+      cl.passageFactor(model, ws);
+      cl.passageRhs(cl.Phi, cl.p_g_);
+      cl.p_mu_ = cl.p_ldlt_.solve(cl.p_g_);
+      dv.noalias() = -cl.p_Y_ * cl.p_mu_;
+      rep.dependent = cl.m - cl.p_regular_ - cl.p_band_;
+    } else {
+      cl.factor(model, ws);
+      rep.dependent = cl.info.dependent;
+      cl.solve(cl.Phi, x);
+      dv.noalias() = -cl.Y * x;
+    }
+    if (rep.converged) {  // past the tolerance, near a passage: to round-off
+      double step = 0.0;
+      for (int k = 0; k < cl.nv; ++k) step = std::max(step, std::fabs(dv(k)) * cl.unit_(k));
+      if (!(step < 0.5 * previous_step) || step == 0.0) break;
+      previous_step = step;
+      ++extra;
+    }
     retract(model, q, dv);
     ++rep.iterations;
   }
@@ -643,21 +693,66 @@ ClosureProjectionReport projectClosureVelocities(const TreeModel& model, const S
     forwardDynamics(model, sys, q, zero, zero, ws, qdd);
     cl.evaluate(model, sys, ws);  // G depends on q only
   }
-  cl.factor(model, ws);
-  rep.dependent = cl.info.dependent;
   Eigen::VectorXd& reference = cl.ref_v_;
   reference = qdot;
+  if (cl.passage_ref && cl.findPassage() > 0) {
+    // a branch passage (branch_passage.cpp): the regular directions onto their equations,
+    // the held rates as the integration carried them
+    cl.passageFactor(model, ws);
+    rep.dependent = cl.m - cl.p_regular_ - cl.p_band_;
+    double previous_step = HUGE_VAL;
+    int extra = 0;
+    for (;;) {
+      r.noalias() = cl.G * qdot;
+      r -= cl.nu;
+      cl.p_t_ = cl.nu.cwiseAbs();
+      cl.p_t_.noalias() += cl.Gabs * (qdot.cwiseAbs() + reference.cwiseAbs());
+      rep.residual = cl.passageResidual(r, cl.p_t_);
+      if (rep.residual <= tol) {
+        rep.converged = true;
+        if (extra >= kPassageRoundoffSteps) break;
+      }
+      if (rep.iterations >= max_iterations) break;
+      cl.passageRhs(r, cl.p_g_);
+      cl.p_mu_ = cl.p_ldlt_.solve(cl.p_g_);
+      cl.p_dv_.noalias() = cl.p_Y_ * cl.p_mu_;
+      if (rep.converged) {  // to round-off, as the positions
+        double step = 0.0;
+        for (int k = 0; k < cl.nv; ++k) step = std::max(step, std::fabs(cl.p_dv_(k)) * cl.unit_(k));
+        if (!(step < 0.5 * previous_step) || step == 0.0) break;
+        previous_step = step;
+        ++extra;
+      }
+      qdot -= cl.p_dv_;
+      ++rep.iterations;
+    }
+    forwardKinematics(model, q, qdot, ws);
+    return rep;
+  }
+  cl.factor(model, ws);
+  rep.dependent = cl.info.dependent;
+  const bool near = cl.passage_ref && cl.passageNear();  // (to round-off, as the positions)
+  double previous_step = HUGE_VAL;
+  int extra = 0;
   for (;;) {
     rep.residual = cl.velocityResidual(qdot, &reference);
     if (rep.residual <= tol) {
       rep.converged = true;
-      break;
+      if (!near || extra >= kPassageRoundoffSteps) break;
     }
     if (rep.iterations >= max_iterations) break;
     r.noalias() = cl.G * qdot;
     r -= cl.nu;
     cl.solve(r, x);
-    qdot.noalias() -= cl.Y * x;
+    cl.dv_v_.noalias() = cl.Y * x;
+    if (rep.converged) {
+      double step = 0.0;
+      for (int k = 0; k < cl.nv; ++k) step = std::max(step, std::fabs(cl.dv_v_(k)) * cl.unit_(k));
+      if (!(step < 0.5 * previous_step) || step == 0.0) break;
+      previous_step = step;
+      ++extra;
+    }
+    qdot -= cl.dv_v_;
     ++rep.iterations;
   }
   forwardKinematics(model, q, qdot, ws);

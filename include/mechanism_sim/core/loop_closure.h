@@ -39,7 +39,9 @@
 #include <vector>
 
 #include <Eigen/Core>
+#include <Eigen/Cholesky>
 #include <Eigen/QR>
+#include <Eigen/SVD>
 
 #include "mechanism_sim/core/joint_space.h"
 
@@ -49,6 +51,16 @@ namespace mechanism_sim {
 constexpr double kClosureRankThreshold = 1e-10;
 // A G entry counts as round-off when below this fraction of the size of its terms.
 constexpr double kClosureZeroEntry = 1e-11;
+// Branch passages (LoopClosures::findPassage): a direction of the term-normalized G whose
+// singular value is below kPassageBand is near a crossing of branches and held by the
+// motion; below kPassageDependent it is a structural dependency (dropped, as the rank
+// threshold drops it).
+constexpr double kPassageBand = 1e-2;
+constexpr double kPassageDependent = 1e-8;
+// Below kPassageNear the projections go on to round-off past their tolerance (at most
+// kPassageRoundoffSteps more steps, while each halves the last).
+constexpr double kPassageNear = 0.1;
+constexpr int kPassageRoundoffSteps = 4;
 
 // The least-norm solution of a symmetric positive semi-definite system A x = b (a
 // G M^-1 G^T): rows not kept, or with a zero diagonal, held at x = 0; the rest
@@ -131,6 +143,8 @@ class LoopClosures {
   Eigen::VectorXd scale;       // per row: the size of Phi's terms (as evaluation.cpp)
   Eigen::MatrixXd G;           // Phi_x J(q), m x nv
   Eigen::MatrixXd Gabs;        // |Phi_x| |J(q)|: the size of each entry's terms
+  Eigen::MatrixXd Gbound;      // the same with norms of the rows' and columns' parts: does
+                               // not vanish with the geometry (branch passages)
   Eigen::VectorXd gamma_q;     // G q_ddot = gamma_q
   Eigen::VectorXd nu;          // G q_dot = nu (drives' velocity terms; 0 for the rest)
   std::vector<Eigen::MatrixXd> Jc;  // per closure: Phi_x (size x 6 slots)
@@ -191,6 +205,32 @@ class LoopClosures {
   int activateReachedLimits(const System& sys, const TreeModel& model, const Eigen::VectorXd& q,
                             const Eigen::VectorXd& qdot, TreeWorkspace& ws, signed char* limit_side);
   int releasePullingLimits(const System& sys, signed char* limit_side) const;
+  // ---- branch passages (branch_passage.cpp)
+  // Where two branches of a loop cross (a parallelogram four-bar passing flat), G loses a
+  // rank that the loop's geometry, not round-off, takes away: locally Phi ~ x y with x along
+  // the motion and y across it. Near the crossing the equations determine y only to
+  // eps / x, its rate to eps / x^2 and its acceleration to eps / x^3, so any solve there
+  // (a stage, a projection) turns round-off into motion. passage_ref, when set (the joint
+  // stepper sets it to the accelerations at the start of its step), makes every solve take
+  // the passage instead: the rows of G are normalized by the size of their terms (rates as
+  // speeds: W = D_r G diag(1/unit)), decomposed W = U S V^T, and a direction whose singular
+  // value is below kPassageBand (and above kPassageDependent: a structural dependency) is
+  // held by the motion instead of by the equations: its acceleration v^T a is passage_ref's
+  // (the transverse acceleration is continuous along the branch), the projections leave
+  // its position and rate as the integration carried them. The other directions keep the
+  // equations exactly (v_i^T a = u_i^T D_r gamma_q / s_i). Outside a passage nothing changes.
+  const Eigen::VectorXd* passage_ref = nullptr;
+  // After evaluate(): the decomposition of W over the rows that are not round-off; returns
+  // how many directions are in a passage now (0: none, the ordinary solves apply).
+  int findPassage();
+  // Directions held by the motion at the last findPassage(), and how many passages were met
+  // (findPassage() calls that found one) since construction.
+  int passageDirections() const { return p_band_; }
+  long passagesMet() const { return p_met_; }
+  // Whether the last findPassage() saw a direction below kPassageNear (a passage, or one
+  // close): the projections then go on to round-off past their tolerance.
+  bool passageNear() const { return p_near_; }
+
   // The closure's own tracked angles (of every constraint, tree joints' included, as they
   // are the branch references of couplers, drives and limits on those joints) moved to
   // ws's kinematics (Constraint::track), after an accepted step. With setContext() the
@@ -219,6 +259,27 @@ class LoopClosures {
   bool cleared_ = false;            // clearRows() ran since the last evaluate()
   Eigen::VectorXd tau_, qdd_cut_;
   Eigen::VectorXd zero_v_, qdd_v_, dv_v_, ref_v_, r_m_, x_m_;  // the projections' scratch
+  // branch passages (branch_passage.cpp): W's kept rows, its decomposition, the reduced rows
+  // R (one per direction kept: regular ones, then the passage's), M^-1 R^T and R M^-1 R^T
+  std::vector<int> p_row_;
+  Eigen::VectorXd p_dr_, p_sigma_, p_b_, p_g_, p_mu_, p_dv_, p_t_;
+  Eigen::MatrixXd p_W_, p_U_, p_V_, p_R_, p_Y_, p_A_;
+  Eigen::JacobiSVD<Eigen::MatrixXd> p_svd_;
+  int p_kept_ = 0, p_regular_ = 0, p_band_ = 0;
+  bool p_near_ = false;
+  long p_met_ = 0;
+  // R, M^-1 R^T and the factor of R M^-1 R^T at ws (after findPassage() > 0); band rows are
+  // held (zero right-hand side) unless accel.
+  void passageFactor(const TreeModel& model, const TreeWorkspace& ws);
+  bool passageNearAnyClosure();  // the gate of findPassage()
+  int p_gate_rows_[6] = {};
+  // rhs_i = u_i^T D_r b_kept / s_i for the regular directions, 0 for the held ones
+  void passageRhs(const Eigen::VectorXd& b, Eigen::VectorXd& rhs) const;
+  // max_e |b'_e| / scale_e with b' = b without its components on the held directions
+  double passageResidual(const Eigen::VectorXd& b, const Eigen::VectorXd& scale_e);
+  // mu = (R M^-1 R^T)^-1 rhs
+  Eigen::LDLT<Eigen::MatrixXd> p_ldlt_;
+  Eigen::VectorXd p_scale_;
   Eigen::MatrixXd A_;               // scaled G M^-1 G^T
   ScaledLeastNorm least_norm_;      // its factorization
   const TreeModel* model_ = nullptr;
