@@ -112,6 +112,30 @@ void jointRows(const System& sys, const Evaluation& ev, const State& s, int j, R
   jt.coordinates(ev.kin[jt.bodyI()], ev.kin[jt.bodyJ()], s.tracked[jt.id()], rows);
 }
 
+void coulombFriction(const std::array<double, 3>& f, bool planar, const double rate[3], const double gPg[3][3],
+                     std::array<double, 3>& out) {
+  out = {0.0, 0.0, 0.0};
+  double needed[3] = {0, 0, 0};
+  const bool disc = planar && f[0] > 0.0 && f[1] > 0.0;
+  if (disc) {  // the two in-plane translations together: a 2x2 effective inertia
+    const double det = gPg[0][0] * gPg[1][1] - gPg[0][1] * gPg[1][0];
+    if (det > 0) {
+      needed[0] = (gPg[1][1] * rate[0] - gPg[0][1] * rate[1]) / det;
+      needed[1] = (-gPg[1][0] * rate[0] + gPg[0][0] * rate[1]) / det;
+      // clamp to the ellipse (needed_0 / f_0)^2 + (needed_1 / f_1)^2 <= 1, radially
+      const double r = std::hypot(needed[0] / f[0], needed[1] / f[1]);
+      const double scale = r > 1.0 ? 1.0 / r : 1.0;
+      out[0] = -scale * needed[0];
+      out[1] = -scale * needed[1];
+    }
+  }
+  for (int k = disc ? 2 : 0; k < 3; ++k) {
+    if (f[k] <= 0.0 || !(gPg[k][k] > 0)) continue;
+    needed[k] = rate[k] / gPg[k][k];
+    out[k] = -std::max(-f[k], std::min(f[k], needed[k]));
+  }
+}
+
 void appliedForces(const System& sys, const State& s, const Inputs& in,
                    const std::vector<std::array<double, 3>>& damping,
                    const std::vector<std::array<double, 3>>& friction, Evaluation& ev) {

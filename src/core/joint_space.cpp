@@ -166,10 +166,6 @@ std::string jointSpaceUnsupported(const System& sys, bool loops_as_closures) {
       return "joint '" + J->name() + "': the joint-space tree has no model of joint type '" + J->type() + "'";
     if (J->bodyI() == J->bodyJ()) return "joint '" + J->name() + "': joins a body to itself";
   }
-  for (int j = 0; j < sys.numJoints(); ++j)
-    for (int k = 0; k < 3; ++k)
-      if (j < static_cast<int>(sys.friction.size()) && sys.friction[j][k] != 0)
-        return "joint '" + sys.joints[j]->name() + "': the joint-space formulation has no Coulomb friction yet";
   // Joints that close loops are cut joints, constraints on the tree (loop_closure.h), for
   // a caller that integrates them as such.
   if (!loops_as_closures) {

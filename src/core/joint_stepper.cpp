@@ -15,17 +15,10 @@ constexpr int kMaxVelocityPasses = 8;  // (as the absolute formulation's velocit
 }  // namespace
 
 std::string jointFormulationUnsupported(const System& sys) {
-  // Couplers, drives and limits are closures on the tree (loop_closure.h); Coulomb
-  // friction is not (jointSpaceUnsupported says so).
+  // Couplers, drives and limits are closures on the tree (loop_closure.h); joint damping
+  // and Coulomb friction are efforts along the joint coordinates (step()).
   std::string why = jointSpaceUnsupported(sys, true);
   if (!why.empty()) return why;
-  // Joint damping acts along the joint coordinates (the stages' efforts, or implicit Euler
-  // where stiff); a spherical joint's rates are not its coordinates' (a rotation vector
-  // against the quaternion's rates): not yet.
-  for (int j = 0; j < sys.numJoints(); ++j)
-    for (int k = 0; k < sys.joints[j]->dof(); ++k)
-      if (sys.damping[j][k] != 0.0 && sys.joints[j]->type() == "spherical")
-        return "joint '" + sys.joints[j]->name() + "': the joint formulation has no damping on spherical joints yet";
   return why;
 }
 
@@ -96,6 +89,12 @@ JointStepper::JointStepper(const System& sys) : model_(sys), ws_(model_), closur
   zeros(sum_q_, model_.nq), zeros(sum_v_, model_.nv);
   loads_ = zeroInputs(sys);
   kin_.assign(sys.bodies.size(), BodyKin());
+  setDamping(sys);
+  fric_e_.setZero(model_.nv), fric_y_.setZero(model_.nv);
+}
+
+void JointStepper::setDamping(const System& sys) {
+  damped_.clear();
   for (const TreeLink& L : model_.links) {
     if (L.joint < 0) continue;
     for (int k = 0; k < L.nv; ++k)
@@ -115,13 +114,22 @@ JointStepper::JointStepper(const System& sys) : model_(sys), ws_(model_), closur
   damp_least_norm_ = ScaledLeastNorm(closures_.m);
   damp_f_.assign(model_.nb, Vector6d::Zero());
   damp_rows_.assign(kMaxJointDofs, Row());
+  fresh_ = false;
 }
 
 void JointStepper::accelerations(const System& sys, const State& s, const Inputs& in, double t,
                                  const Eigen::VectorXd& q, const Eigen::VectorXd& qdot, Eigen::VectorXd& qddot) {
   jointEfforts(model_, in, tau_);  // efforts along the joint coordinates
+  // Damping, per coordinate of q_dot: a spherical joint's are the relative angular velocity
+  // in frame i, Joint::coordinates' rates (settle() reads q_dot from them), so tau_k =
+  // -c_k q_dot_k is the absolute formulation's G_k^T (-c_k G_k u) (appliedForces): one power,
+  // tau . q_dot = (G^T tau) . u, on the tree's coordinates and the bodies' alike.
   for (size_t i = 0; i < damped_.size(); ++i)  // damping that is not stiff: an effort
     if (!stiff_[i]) tau_(damped_[i].iv) -= damped_[i].c * qdot(damped_[i].iv);
+  // Coulomb friction: the step's efforts (frictionFor), held over its stages
+  for (const TreeLink& L : model_.links)
+    if (L.joint >= 0)
+      for (int k = 0; k < L.nv; ++k) tau_(L.iv + k) += s.friction[L.joint][k];
   const Inputs* loads = &in;
   if (!sys.springs.empty()) {
     // springs act between points of bodies: body loads at the tree's poses (appliedForces)
@@ -270,11 +278,20 @@ void JointStepper::step(const System& sys, State& s, const Inputs& in, double h)
   const Tableau& T = *tableau_;
   q0_ = s.q;
   v0_ = s.qdot;
+  const double t0 = s.t;
+  friction0_ = s.friction;
   // stage 1: the accelerations the last step (or settle) left, when they are of this state
-  // under these inputs; else computed here
-  if (!(fresh_ && q_end_ == s.q && v_end_ == s.qdot)) accelerations(sys, s, in, s.t, q0_, v0_, s.qddot);
+  // under these inputs; else computed here (with friction: without it, frictionFor's)
+  const bool friction = clearFriction(sys, s);
+  if (friction || !(fresh_ && q_end_ == s.q && v_end_ == s.qdot)) accelerations(sys, s, in, s.t, q0_, v0_, s.qddot);
   // (ws_ holds q0's articulated factors now); stage 1 again if the stiff set changed
   if (!damped_.empty() && classifyDamping(sys, s, h)) accelerations(sys, s, in, s.t, q0_, v0_, s.qddot);
+  // Coulomb friction sized for this step from those (as the absolute formulation: after the
+  // stiff set, so the stages' damping is in q_ddot), then stage 1 with it
+  if (friction) {
+    frictionFor(sys, s, h);
+    accelerations(sys, s, in, s.t, q0_, v0_, s.qddot);
+  }
   // branch passages of loops (branch_passage.cpp): what the solves hold across a branch is
   // the acceleration at the step's start
   if (!model_.cut_joints.empty()) {
@@ -293,7 +310,6 @@ void JointStepper::step(const System& sys, State& s, const Inputs& in, double h)
   combineStages(h, T.b, T.stages, T.b_den, v0_, kv_, sum_v_, s.qdot);
   normalizeQuaternions(model_, s.q);
   if (!stiff_list_.empty()) implicitDamping(sys, s, h);
-  const double t0 = s.t;
   s.t += h;
   ++s.steps;
   limit_side0_ = s.limit_side;
@@ -303,10 +319,52 @@ void JointStepper::step(const System& sys, State& s, const Inputs& in, double h)
     s.t = t0, --s.steps;
     s.q = q0_, s.qdot = v0_;
     s.limit_side = limit_side0_;
+    s.friction = friction0_;
     fresh_ = false;
     throw;
   }
   stats_.solves += T.stages;
+}
+
+bool JointStepper::clearFriction(const System& sys, State& s) const {
+  bool any = false;
+  for (int j = 0; j < sys.numJoints(); ++j) {
+    s.friction[j] = {0.0, 0.0, 0.0};
+    any = any || sys.friction[j][0] > 0.0 || sys.friction[j][1] > 0.0 || sys.friction[j][2] > 0.0;
+  }
+  return any;
+}
+
+// Coulomb friction for the step h about to be taken: the absolute formulation's rule
+// (Stepper::frictionFor, coulombFriction) with its inputs in joint coordinates. The
+// coordinate's rate after the step without friction is q_dot + h q_ddot, q_ddot the free
+// accelerations at q0 (s.qddot; in joint coordinates the coordinate's own velocity term,
+// the absolute formulation's -gamma, is in q_ddot itself). Its effective inertia's inverse
+// is G_k P G_l^T = (P e_k)_l, P the constrained inverse mass in joint coordinates: M^-1
+// from the articulated factors at q0 (ws_), less M^-1 G^T (G M^-1 G^T)^+ G M^-1 with the
+// closures (their factorization at q0: stage 1 ran there), as classifyDamping's.
+void JointStepper::frictionFor(const System& sys, State& s, double h) {
+  for (const TreeLink& L : model_.links) {
+    if (L.joint < 0) continue;
+    const std::array<double, 3>& f = sys.friction[L.joint];
+    if (!(f[0] > 0.0 || f[1] > 0.0 || f[2] > 0.0)) continue;
+    double rate[3] = {0, 0, 0}, gPg[3][3] = {{0}};
+    for (int k = 0; k < L.nv; ++k) {
+      if (!(f[k] > 0.0)) continue;
+      rate[k] = s.qdot(L.iv + k) / h + s.qddot(L.iv + k);
+      fric_e_.setZero();
+      fric_e_(L.iv + k) = 1.0;
+      closures_.applyInverseMass(model_, ws_, fric_e_.data(), fric_y_.data());
+      if (closures_.m > 0) {
+        damp_r_.noalias() = closures_.G * fric_y_;
+        closures_.solve(damp_r_, damp_mu_);
+        fric_y_.noalias() -= closures_.Y * damp_mu_;
+      }
+      for (int l = 0; l < L.nv; ++l)
+        if (f[l] > 0.0) gPg[l][k] = fric_y_(L.iv + l);
+    }
+    coulombFriction(f, L.ptr->planarTranslation(), rate, gPg, s.friction[L.joint]);
+  }
 }
 
 // Which damped coordinates are stiff at this step, by stiff_damping.cpp's rule (see there):

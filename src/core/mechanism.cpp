@@ -162,17 +162,14 @@ void Mechanism::setJointDamping(int joint, int k, double c) {
   if (!(c >= 0) || !std::isfinite(c))
     throw ModelError("joint '" + sys_->joints[joint]->name() + "': damping must be finite and >= 0");
   editable().damping[joint][k] = c;
+  if (joint_) joint_->setDamping(*sys_);  // (the joint stepper keeps its damped coordinates)
 }
 
 void Mechanism::setJointFriction(int joint, int k, double f) {
   checkCoordinate(joint, k);
   if (!(f >= 0) || !std::isfinite(f))
     throw ModelError("joint '" + sys_->joints[joint]->name() + "': friction must be finite and >= 0");
-  if (built_ && f > 0 && parseFormulation(sys_->options.formulation) == Formulation::kJoint)
-    throw ModelError("joint '" + sys_->joints[joint]->name() +
-                     "': the joint formulation has no Coulomb friction yet (formulation 'auto' or 'absolute' has)");
   editable().friction[joint][k] = f;
-  if (built_) useFormulation(true);  // (the joint formulation has no Coulomb friction yet)
 }
 
 void Mechanism::setIntegrator(const IntegratorOptions& options) {

@@ -98,10 +98,8 @@ void Stepper::rates(const System& sys, const State& s, const Inputs& in,
 // mass (the factored matrix applied to G^T: exactly on a tree's KKT matrix, up to 1/kappa
 // with H); the effort that leaves q_dot = 0 after the step is I (q_dot / h + q_ddot_free)
 // with q_ddot_free = G a_free - gamma_G (the coordinate's own velocity term), and friction
-// supplies it up to f. A planar joint's two in-plane
-// translations are taken together: the effort vector that stops both, from their 2x2
-// effective inertia, clamped radially to the friction disc (Coulomb's law in the plane:
-// the friction force has one magnitude limit whatever its direction).
+// supplies it up to f; a planar joint's in-plane pair is clamped to a disc (coulombFriction,
+// the rule the joint formulation shares).
 void Stepper::frictionFor(const System& sys, State& s, const Inputs& in, double h) {
   for (auto& f : s.friction) f = {0.0, 0.0, 0.0};
   forces(sys, s, in, s.friction);
@@ -117,9 +115,9 @@ void Stepper::frictionFor(const System& sys, State& s, const Inputs& in, double 
     for (int k = 0; k < dof; ++k) has = has || f[k] > 0.0;
     if (!has) continue;
     jointRows(sys, ev_, s, j, rows);
-    // needed_k: the effort along q_k that stops the coordinate within the step, from the
-    // coupled effective inertia (G H^-1 G^T)^-1 of the coordinates that have friction
-    double needed[3] = {0, 0, 0}, gHg[3][3] = {{0}};
+    // the coupled effective inertia (G P G^T)^-1 of the coordinates that have friction,
+    // and q_dot / h + q_ddot_free (with the coordinate's own gamma): coulombFriction's inputs
+    double gHg[3][3] = {{0}};
     Eigen::VectorXd& Pg = solver_->dn();
     auto solveRow = [&](int k) {  // Pg = P G_k^T
       Pg.setZero();
@@ -127,7 +125,7 @@ void Stepper::frictionFor(const System& sys, State& s, const Inputs& in, double 
       solver_->applyInverseMass(sys, ev_);
     };
     auto dotRow = [&](int k, const Eigen::VectorXd& x) { return rowDot(sys, j, rows[k], x.data()); };
-    double rate[3] = {0, 0, 0};  // q_dot / h + q_ddot_free (with the coordinate's own gamma)
+    double rate[3] = {0, 0, 0};
     for (int k = 0; k < dof; ++k) {
       if (f[k] <= 0.0) continue;
       rate[k] = rows[k].Phi_dot / h - rows[k].gamma + dotRow(k, a_);
@@ -135,24 +133,7 @@ void Stepper::frictionFor(const System& sys, State& s, const Inputs& in, double 
       for (int l = 0; l < dof; ++l)
         if (f[l] > 0.0) gHg[l][k] = dotRow(l, Pg);
     }
-    const bool disc = jt.planarTranslation() && f[0] > 0.0 && f[1] > 0.0;
-    if (disc) {  // the two in-plane translations together: a 2x2 effective inertia
-      const double det = gHg[0][0] * gHg[1][1] - gHg[0][1] * gHg[1][0];
-      if (det > 0) {
-        needed[0] = (gHg[1][1] * rate[0] - gHg[0][1] * rate[1]) / det;
-        needed[1] = (-gHg[1][0] * rate[0] + gHg[0][0] * rate[1]) / det;
-        // clamp to the ellipse (needed_0 / f_0)^2 + (needed_1 / f_1)^2 <= 1, radially
-        const double r = std::hypot(needed[0] / f[0], needed[1] / f[1]);
-        const double scale = r > 1.0 ? 1.0 / r : 1.0;
-        s.friction[j][0] = -scale * needed[0];
-        s.friction[j][1] = -scale * needed[1];
-      }
-    }
-    for (int k = disc ? 2 : 0; k < dof; ++k) {
-      if (f[k] <= 0.0 || !(gHg[k][k] > 0)) continue;
-      needed[k] = rate[k] / gHg[k][k];
-      s.friction[j][k] = -std::max(-f[k], std::min(f[k], needed[k]));
-    }
+    coulombFriction(f, jt.planarTranslation(), rate, gHg, s.friction[j]);
   }
 }
 
@@ -227,6 +208,8 @@ void Stepper::stepOnce(const System& sys, State& s, const Inputs& in, double h) 
     solver_->factor(sys, ev_, "stage 1", s.t);
     factored = true;
     frictionFor(sys, s, in, h);
+  } else {
+    for (auto& f : s.friction) f = {0.0, 0.0, 0.0};  // (friction set to 0 since the last step)
   }
   forces(sys, s, in, s.friction);
   a_ = s.acc;

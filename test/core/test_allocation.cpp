@@ -235,10 +235,13 @@ TEST(Allocation, StepAllocatesNothing) {
   EXPECT_EQ(allocationsIn(joint, 200), 0);
 
   // ... with a coupler and damping, stiff on the last joint (h c / I about 10 at 1 ms):
-  // the implicit step subject to the closures (JointStepper::implicitDamping)
+  // the implicit step subject to the closures (JointStepper::implicitDamping); and Coulomb
+  // friction, sliding on one joint and holding another (JointStepper::frictionFor)
   Mechanism damped;
   models::pendulumChain(damped, 6, 0.5, 1.0, 0.3);
   for (int k = 0; k < 6; ++k) damped.setJointDamping(k, 0, k == 5 ? 1000.0 : 0.1);
+  damped.setJointFriction(1, 0, 0.05);
+  damped.setJointFriction(4, 0, 50.0);
   damped.addCoupler("mimic", 3, 0, 2, 0, 0.5, 0.0);
   damped.setIntegrator(io);
   damped.build();

@@ -201,6 +201,14 @@ TEST_P(JointTypes, CoordinateRowsMatchFiniteDifferences) {
       const double h = 1e-6;
       const Matrix3d W = (relative(h) - relative(-h)) / (2 * h) * relative(0).transpose();
       EXPECT_LT((Vector3d(W(2, 1), W(0, 2), W(1, 0)) - rate).cwiseAbs().maxCoeff(), 1e-8 * (1 + rate.norm())) << n;
+      // gamma is the rates' own: at constant body velocities (advance) d/dt rate = -gamma
+      auto rates = [&](const std::vector<BodyKin>& k) {
+        Eigen::VectorXd r(3);
+        coords(k, nullptr, &r, nullptr);
+        return r;
+      };
+      EXPECT_LT((test::fdRate(rates, kin) + gamma).cwiseAbs().maxCoeff(), 1e-7 * (1 + gamma.cwiseAbs().maxCoeff()))
+          << n;
       continue;
     }
     auto f = [&](const std::vector<BodyKin>& k) { return coords(k, nullptr, nullptr, nullptr); };

@@ -92,6 +92,17 @@ inline void gather(const Evaluation& ev, const Constraint& c, const BodyKin** pt
 inline double appliedEffort(double tau, double c, double q_dot, double friction) {
   return tau - c * q_dot + friction;
 }
+// Coulomb friction of one joint for the step h about to be taken: the one rule of both
+// formulations (Stepper::frictionFor, JointStepper::frictionFor), which differ only in how
+// they get its inputs. f: the joint's friction per coordinate (0: none); rate_k = q_dot_k / h
+// + q_ddot_k with q_ddot the accelerations without friction; gPg: G_k P G_l^T, P the
+// constrained inverse mass (the inverse effective inertia of the coordinates with friction).
+// The effort that stops coordinate k within the step, needed_k = rate_k / gPg_kk, is
+// supplied up to f_k; a planar joint's two in-plane translations (planar) are taken
+// together, the effort vector that stops both from their 2x2 block, clamped radially to
+// the friction ellipse (Coulomb's law in the plane). out: the friction efforts (-needed).
+void coulombFriction(const std::array<double, 3>& f, bool planar, const double rate[3], const double gPg[3][3],
+                     std::array<double, 3>& out);
 // The coordinate rows of joint j at the loaded kinematics (Joint::coordinates).
 void jointRows(const System& sys, const Evaluation& ev, const State& s, int j, Row* rows);
 // ev.Q per body: [f (global, at the centre of mass); n' (body components)] from gravity,

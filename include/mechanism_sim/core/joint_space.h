@@ -108,9 +108,9 @@ struct TreeLink {
 };
 
 // Empty when the joint-space formulation can run the System; otherwise a sentence naming
-// the first thing it cannot run (Coulomb friction, a joint type without a tree model, a
-// constraint type that is neither a joint, a coupler, a drive nor a limit, a joint from a
-// body to itself; and, by default, closures). Springs and joint damping pass: the caller
+// the first thing it cannot run (a joint type without a tree model, a constraint type
+// that is neither a joint, a coupler, a drive nor a limit, a joint from a body to itself;
+// and, by default, closures). Springs, joint damping and Coulomb friction pass: the caller
 // applies them as loads and efforts. Closures (the joints that close loops, couplers,
 // drives, limits: loop_closure.h) pass only with loops_as_closures: a caller that
 // integrates them as closures says so; the default refuses them, because a stepper that

@@ -15,10 +15,13 @@
 // loads at the tree's poses), and joint limits, drives and mimic couplers as equations on
 // the tree (loop_closure.h: their absolute equations through G = Phi_x J(q)), and joint
 // damping (efforts in the stages; stiff ones by implicit Euler after them, the absolute
-// formulation's rule: classifyDamping). Not yet: loop closures, damping on spherical
-// joints, Coulomb friction.
+// formulation's rule: classifyDamping; on spherical joints too, along the relative angular
+// velocity in frame i as there), and Coulomb friction (the absolute formulation's rule,
+// sized for each step: frictionFor). Not yet: loop closures.
 #pragma once
+#include <array>
 #include <string>
+#include <vector>
 
 #include <Eigen/Core>
 
@@ -57,6 +60,9 @@ class JointStepper {
   const SolverStats& stats() const { return stats_; }
   // The inputs or the System changed: the accelerations a State holds are not reused.
   void invalidate() { fresh_ = false; }
+  // The System's joint damping changed (Mechanism::setJointDamping): which coordinates are
+  // damped, and by how much, again (the constructor read them).
+  void setDamping(const System& sys);
   const TreeModel& model() const { return model_; }
 
  private:
@@ -72,6 +78,11 @@ class JointStepper {
   bool classifyDamping(const System& sys, const State& s, double h);
   // The stiff ones after the stages: implicit Euler in the metric M + h C (Lie splitting).
   void implicitDamping(const System& sys, State& s, double h);
+  // Sets s.friction to 0; returns whether any joint has Coulomb friction.
+  bool clearFriction(const System& sys, State& s) const;
+  // s.friction for the step h (Stepper::frictionFor's rule, coulombFriction) from s.qdot and
+  // the accelerations without friction s.qddot, with ws_ and the closures at s.q's factors.
+  void frictionFor(const System& sys, State& s, double h);
   // s.x, s.u, s.acc and the tracked angles from s.q, s.qdot, s.qddot.
   void writeAbsolute(const System& sys, State& s);
 
@@ -79,6 +90,8 @@ class JointStepper {
   TreeWorkspace ws_;
   LoopClosures closures_;  // drives, limits and couplers: equations on the tree
   std::vector<signed char> limit_side0_;
+  std::vector<std::array<double, 3>> friction0_;  // s.friction at the step's start
+  Eigen::VectorXd fric_e_, fric_y_;               // e_k and P e_k (frictionFor)
   const Tableau* tableau_ = &kRk4;
   SolverStats stats_;
   Eigen::VectorXd tau_, q0_, v0_, qs_, vs_, kq_[Tableau::kMaxStages], kv_[Tableau::kMaxStages], sum_q_, sum_v_;
