@@ -170,8 +170,8 @@ void JointStepper::writeAbsolute(const System& sys, State& s) {
   // (ws_ holds the kinematics of s.q, s.qdot: accelerations() ran there last)
   absoluteState(model_, ws_, s.x, s.u);
   // the closures' multipliers (drives, limits, couplers) in their System rows; a free
-  // limit's is 0. The tree joints' rows have none: Mechanism::multipliers() gives the
-  // least-norm ones for reactions.
+  // limit's is 0. The tree joints' rows have none: a reactions query computes them
+  // (Mechanism::multipliers(), treeJointMultipliers: tree_reactions.h).
   if (closures_.m > 0) {
     closures_.systemMultipliers(s.lambda);
     for (size_t l = 0; l < sys.limits.size(); ++l)

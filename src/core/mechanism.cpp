@@ -295,14 +295,24 @@ double Mechanism::jointEffort(int joint, int k) const {
 
 Eigen::VectorXd Mechanism::multipliers(const Evaluation** with) const {
   const System& sys = *sys_;
+  if (!reactions_) reactions_ = std::make_unique<ReactionSolve>();
+  if (joint_) {
+    // The joint formulation: the closures' multipliers (couplers, drives, limits) as its
+    // stepper solved them, the tree joints' from the recursive Newton-Euler pass over the
+    // State's accelerations (tree_reactions.h), in the absolute formulation's rows and sign.
+    if (!reactions_->tree) reactions_->tree = std::make_unique<TreeReactionWorkspace>(sys);
+    Eigen::VectorXd lambda = state_.lambda;
+    treeJointMultipliers(sys, joint_->model(), state_, inputs_, *reactions_->tree, lambda);
+    *with = &reactions_->tree->ev;  // (every row's Jacobian, none dropped)
+    return lambda;
+  }
   bool dependent = false;
   for (char d : state_.dropped) dependent = dependent || d;
-  if (!dependent && !joint_) {
+  if (!dependent) {
     *with = &evaluated();
     return state_.lambda;
   }
-  if (!reactions_) {
-    reactions_ = std::make_unique<ReactionSolve>();
+  if (!reactions_->solver) {
     reactions_->ev = Evaluation(sys);
     reactions_->solver = makeSolver(sys, reactions_->stats);
   }
@@ -355,21 +365,22 @@ std::vector<Reaction> Mechanism::jointReactions() const {
   const State& s = state_;
   const Evaluation* ev = nullptr;
   const Eigen::VectorXd lambda = multipliers(&ev);
+  const std::vector<BodyKin>& kn = ev->kin;  // (s's kinematics, loaded with the Jacobians)
   std::vector<Reaction> out(sys.joints.size());
   // wrench of a generalized force gen = [f; n'] on body b, moved to joint point sp_B of b
   auto add = [&](int j, const Eigen::Matrix<double, 6, 1>& gen) {
     const Joint& jt = *sys.joints[j];
-    const BodyKin& kb = kin(jt.bodyJ());
+    const BodyKin& kb = kn[jt.bodyJ()];
     const Vector3d f = gen.head<3>();
     out[j].force += f;
     out[j].torque += kb.A_Oi * gen.tail<3>() - (kb.A_Oi * jt.frameJ().sp_B).cross(f);
   };
   // an effort tau along coordinate k of joint j acts on its body j as G_k,j^T tau
+  Row rows[kMaxJointDofs];
   auto along = [&](int j, int k, double tau) {
     if (tau == 0.0) return;
     const Joint& jt = *sys.joints[j];
-    Row rows[kMaxJointDofs];
-    jt.coordinates(kin(jt.bodyI()), kin(jt.bodyJ()), s.tracked[jt.id()], rows);
+    jt.coordinates(kn[jt.bodyI()], kn[jt.bodyJ()], s.tracked[jt.id()], rows);
     add(j, rows[k].J.segment<6>(6).transpose() * tau);
   };
   std::vector<int> joint_of(sys.constraints.size(), -1);
@@ -390,9 +401,18 @@ std::vector<Reaction> Mechanism::jointReactions() const {
       for (int e = 0; e < n; ++e) along(joint_of[efforts[e].joint->id()], efforts[e].k, efforts[e].sign * lambda[L.row]);
     }
   }
-  for (int j = 0; j < numJoints(); ++j)  // applied efforts: command, damping, friction
-    for (int k = 0; k < sys.joints[j]->dof(); ++k)
-      along(j, k, appliedEffort(inputs_.effort[j][k], sys.damping[j][k], jointVelocity(j, k), s.friction[j][k]));
+  for (int j = 0; j < numJoints(); ++j) {  // applied efforts: command, damping, friction
+    const Joint& jt = *sys.joints[j];
+    bool any = false;
+    for (int k = 0; k < jt.dof(); ++k)
+      any = any || inputs_.effort[j][k] != 0.0 || sys.damping[j][k] != 0.0 || s.friction[j][k] != 0.0;
+    if (!any) continue;
+    jt.coordinates(kn[jt.bodyI()], kn[jt.bodyJ()], s.tracked[jt.id()], rows);
+    for (int k = 0; k < jt.dof(); ++k) {
+      const double tau = appliedEffort(inputs_.effort[j][k], sys.damping[j][k], rows[k].Phi_dot, s.friction[j][k]);
+      if (tau != 0.0) add(j, rows[k].J.segment<6>(6).transpose() * tau);
+    }
+  }
   return out;
 }
 

@@ -12,6 +12,7 @@
 #include "mechanism_sim/core/joint_stepper.h"
 #include "mechanism_sim/core/stepper.h"
 #include "mechanism_sim/core/system.h"
+#include "mechanism_sim/core/tree_reactions.h"
 
 namespace mechanism_sim {
 
@@ -105,7 +106,8 @@ class Mechanism {
   // ---- the parts
   const System& system() const { return *sys_; }
   const State& state() const { return state_; }
-  // The stepper's, plus the reaction queries' least-norm solves (jointReactions).
+  // The stepper's, plus the reaction queries' least-norm solves (jointReactions, absolute
+  // formulation with dependent equations).
   SolverStats solverStats() const;
 
   // ---- model queries
@@ -143,7 +145,9 @@ class Mechanism {
   // couplers (along its own coordinate) and the efforts applied along its coordinates
   // (command, damping, friction). Where equations are dependent the multipliers are the
   // least-norm ones (Stepper::minimumNormMultipliers): the same state gives the same
-  // reactions whatever the history.
+  // reactions whatever the history. In the joint formulation the tree joints' multipliers
+  // come from the recursive Newton-Euler pass over the state's accelerations
+  // (tree_reactions.h), the closures' from its stepper's solve.
   std::vector<Reaction> jointReactions() const;
   double positionViolation() const;  // max |Phi|
   double velocityViolation() const;  // max |Phi_q v|
@@ -169,9 +173,10 @@ class Mechanism {
   // state_, else the queries' own, evaluated on demand.
   const Evaluation& evaluated() const;
   // The multipliers of state_ and the evaluation whose Jacobian they go with: the State's
-  // own (absolute formulation, independent equations), or the least-norm ones from its
-  // accelerations (dependent equations; the joint formulation, whose tree joints have no
-  // multipliers of their own).
+  // own (absolute formulation, independent equations), the least-norm ones from its
+  // accelerations (absolute formulation, dependent equations), or in the joint formulation,
+  // whose tree joints have no multipliers in the State, the closures' own and the tree
+  // joints' from the recursive Newton-Euler pass (treeJointMultipliers).
   Eigen::VectorXd multipliers(const Evaluation** with) const;
   // Chooses the formulation from the System's options (chooseFormulation), with `settle`
   // bringing the State to it.
@@ -187,11 +192,14 @@ class Mechanism {
   Formulation formulation_ = Formulation::kAbsolute;
   std::string formulation_why_;
   mutable std::unique_ptr<Evaluation> query_eval_;  // the queries' own evaluation
-  // The reactions' least-norm solve: its own evaluation and solver (queries leave stepping alone).
+  // The reactions' solves, with their own evaluations and scratch (queries leave stepping
+  // alone): the least-norm one (absolute formulation, dependent equations), the tree pass
+  // (joint formulation).
   struct ReactionSolve {
     SolverStats stats;
     Evaluation ev;
     std::unique_ptr<ConstraintSolver> solver;
+    std::unique_ptr<TreeReactionWorkspace> tree;
   };
   mutable std::unique_ptr<ReactionSolve> reactions_;
   DependencyReport dependencies_;
