@@ -34,121 +34,116 @@
 #include <algorithm>
 #include <cmath>
 
-#include <Eigen/Eigenvalues>
-
 #include "mechanism_sim/core/evaluation.h"
 #include "mechanism_sim/core/loop_closure.h"
 
 namespace mechanism_sim {
 
-int LoopClosures::findPassage() {
+bool LoopClosures::findPassage() {
   p_band_ = 0;
   p_near_ = false;
-  if (m == 0) return 0;
-  if (p_W_.rows() != m || p_W_.cols() != nv) {
-    p_row_.assign(m, 0);
-    p_dr_.setZero(m), p_b_.setZero(m), p_scale_.setZero(m);
-    p_W_.setZero(m, nv);
+  p_r_ = 0;
+  bool reduce = false;
+  if (m == 0) return false;
+  if (p_P_.rows() != m || p_P_.cols() != m) {
+    p_P_.setZero(m, m), p_R_.setZero(m, nv), p_w_.setZero(m, m), p_z_.setZero(m, m);
+    p_held_.assign(m, 0);
+    p_b_.setZero(m), p_g_.setZero(m), p_mu_.setZero(m), p_t_.setZero(m), p_dv_.setZero(nv);
+    p_Y_.setZero(nv, m), p_A_.setZero(m, m);
+    p_least_norm_ = ScaledLeastNorm(m);
+    p_rows_.reserve(m), p_cols_.reserve(nv);
   }
-  p_kept_ = 0;
-  for (int e = 0; e < m; ++e) {
-    bool zero = true;
-    double n2 = 0.0;
-    for (int k = 0; k < nv; ++k) {
-      if (std::fabs(G(e, k)) > kClosureZeroEntry * Gabs(e, k)) zero = false;
-      const double t = Gbound(e, k) / unit_(k);
-      n2 += t * t;
-    }
-    if (zero || !(n2 > 0.0)) continue;
-    const double dr = 1.0 / std::sqrt(n2);
-    p_row_[p_kept_] = e;
-    p_dr_(p_kept_) = dr;
-    for (int k = 0; k < nv; ++k) p_W_(p_kept_, k) = G(e, k) / unit_(k) * dr;
-    ++p_kept_;
-  }
-  if (p_kept_ == 0) return 0;
-  if (!passageNearAnyClosure()) return 0;
-  p_svd_.compute(p_W_.topRows(p_kept_), Eigen::ComputeThinU | Eigen::ComputeThinV);
-  p_sigma_ = p_svd_.singularValues();  // descending
-  p_U_ = p_svd_.matrixU();
-  p_V_ = p_svd_.matrixV();
-  p_regular_ = 0;
-  for (Eigen::Index i = 0; i < p_sigma_.size(); ++i) {
-    if (p_sigma_(i) >= kPassageBand) ++p_regular_;
-    else if (p_sigma_(i) >= kPassageDependent) ++p_band_;
-    if (p_sigma_(i) >= kPassageDependent && p_sigma_(i) < kPassageNear) p_near_ = true;
-  }
-  if (p_band_ > 0) ++p_met_;
-  return p_band_;
-}
-
-// The gate: the decomposition of W is dense (kept rows x nv), so it is taken only where some
-// closure's own rows are near a loss of rank. Each closure's normalized rows give a small Gram
-// matrix W_c W_c^T (at most 6 x 6); its smallest eigenvalue is s_c^2 to round-off eps, so
-// s_c is resolved only down to about 1e-8, and a stage can land closer than that to the
-// crossing: any s_c below kGate opens the gate (a closure with structurally dependent rows
-// that are not zero, then, always does). A passage where rows of different
-// closures become dependent on each other, each closure's rows staying independent, does
-// not open it (the ordinary least-norm solve takes it, as before passages were handled).
-bool LoopClosures::passageNearAnyClosure() {
-  constexpr double kGate = 3 * kPassageNear;
+  // Each closure's rows decomposed on their own (a cut joint's 1 to 6 rows over the columns
+  // they touch): the crossing of a loop's branches takes a rank from that loop's rows. (Rows
+  // of different closures that become dependent on each other are not a passage here: the
+  // least-norm solve takes them, as outside a passage.)
   for (size_t c = 0; c < constraints.size(); ++c) {
     const int n = sys_->constraints[constraints[c]]->size();
-    if (n < 2 || direct_[c].n > 0) continue;  // one row has no rank to lose to another
-    int k = 0;
-    for (int e = row[c]; e < row[c] + n && k < 6; ++e) {
-      int j = -1;
-      for (int i = 0; i < p_kept_; ++i)
-        if (p_row_[i] == e) j = i;
-      if (j >= 0) p_gate_rows_[k++] = j;
+    p_rows_.clear();
+    p_cols_.clear();
+    for (int e = row[c]; e < row[c] + n; ++e) {
+      bool zero = true;
+      for (int k = 0; k < nv && zero; ++k)
+        if (std::fabs(G(e, k)) > kClosureZeroEntry * Gabs(e, k)) zero = false;
+      if (!zero) p_rows_.push_back(e);
     }
-    if (k < 2) continue;
-    Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 6, 6> K(k, k);
-    for (int a = 0; a < k; ++a)
-      for (int b = 0; b <= a; ++b) K(a, b) = K(b, a) = p_W_.row(p_gate_rows_[a]).dot(p_W_.row(p_gate_rows_[b]));
-    Eigen::SelfAdjointEigenSolver<decltype(K)> eig(K, Eigen::EigenvaluesOnly);
-    for (int i = 0; i < k; ++i) {
-      const double s = std::sqrt(std::max(0.0, eig.eigenvalues()(i)));
-      if (s < kGate) return true;
+    if (p_rows_.empty()) continue;
+    for (int k = 0; k < nv; ++k) {
+      bool used = false;
+      for (int e : p_rows_) used = used || Gbound(e, k) > 0.0;
+      if (used) p_cols_.push_back(k);
+    }
+    const int kr = static_cast<int>(p_rows_.size()), kc = static_cast<int>(p_cols_.size());
+    p_W_.resize(kr, kc);
+    Eigen::VectorXd& dr = p_dr_;
+    dr.resize(kr);
+    for (int i = 0; i < kr; ++i) {
+      const int e = p_rows_[i];
+      double n2 = 0.0;
+      for (int k : p_cols_) n2 += (Gbound(e, k) / unit_(k)) * (Gbound(e, k) / unit_(k));
+      dr(i) = 1.0 / std::sqrt(n2);
+      for (int j = 0; j < kc; ++j) p_W_(i, j) = G(e, p_cols_[j]) / unit_(p_cols_[j]) * dr(i);
+    }
+    p_svd_.compute(p_W_, Eigen::ComputeThinU | Eigen::ComputeThinV);
+    const auto& sigma = p_svd_.singularValues();
+    const auto& U = p_svd_.matrixU();
+    const auto& V = p_svd_.matrixV();
+    int rank = 0;
+    for (Eigen::Index d = 0; d < sigma.size(); ++d) rank += sigma(d) >= kPassageDependent;
+    if (rank < kr) reduce = true;  // rows dependent without being zero
+    for (Eigen::Index d = 0; d < sigma.size(); ++d) {
+      const double s = sigma(d);
+      if (!(s >= kPassageDependent)) continue;  // dependent: dropped
+      if (s < kPassageGate) reduce = true;
+      const int j = p_r_++;
+      const bool held = passage_hold && s < kPassageBand;
+      p_near_ = p_near_ || s < kPassageNear;
+      p_held_[j] = held;
+      // R_j = (1/s) u^T D_r G = (v o unit)^T, P(j, e) = D_r(e) u_e / s
+      p_P_.row(j).setZero();
+      p_R_.row(j).setZero();
+      for (int i = 0; i < kr; ++i) p_P_(j, p_rows_[i]) = dr(i) * U(i, d) / s;
+      for (int q = 0; q < kc; ++q) p_R_(j, p_cols_[q]) = V(q, d) * unit_(p_cols_[q]);
+      if (held) {
+        p_w_.row(p_band_).setZero();
+        p_z_.row(p_band_).setZero();
+        for (int i = 0; i < kr; ++i) {
+          p_w_(p_band_, p_rows_[i]) = dr(i) * U(i, d);
+          p_z_(p_band_, p_rows_[i]) = U(i, d) / dr(i);
+        }
+        ++p_band_;
+      }
     }
   }
-  return false;
+  if (p_band_ > 0) ++p_met_;
+  return reduce;
 }
 
 void LoopClosures::passageFactor(const TreeModel& model, const TreeWorkspace& ws) {
-  const int r = p_regular_ + p_band_;
-  p_R_.resize(r, nv);
-  for (int i = 0; i < r; ++i) p_R_.row(i) = p_V_.col(i).cwiseProduct(unit_).transpose();
-  p_Y_.resize(nv, r);
-  for (int i = 0; i < r; ++i) {
-    tau_ = p_R_.row(i).transpose();
-    applyInverseMass(model, ws, tau_.data(), p_Y_.col(i).data());
+  const int r = p_r_;
+  for (int j = 0; j < r; ++j) {
+    tau_ = p_R_.row(j).transpose();
+    applyInverseMass(model, ws, tau_.data(), p_Y_.col(j).data());
   }
-  p_A_.noalias() = p_R_ * p_Y_;
-  p_ldlt_.compute(p_A_);
+  // R M^-1 R^T on the leading r x r block; rows past r are held at mu = 0
+  p_A_.setZero();
+  p_A_.topLeftCorner(r, r).noalias() = p_R_.topRows(r) * p_Y_.leftCols(r);
+  p_least_norm_.factor(p_A_);
 }
 
-void LoopClosures::passageRhs(const Eigen::VectorXd& b, Eigen::VectorXd& rhs) const {
-  const int r = p_regular_ + p_band_;
-  rhs.setZero(r);
-  for (int i = 0; i < p_regular_; ++i) {
-    double s = 0.0;
-    for (int j = 0; j < p_kept_; ++j) s += p_U_(j, i) * p_dr_(j) * b(p_row_[j]);
-    rhs(i) = s / p_sigma_(i);
+void LoopClosures::passageRhs(const Eigen::VectorXd& b, Eigen::VectorXd& g, bool accel) const {
+  g.setZero();
+  for (int j = 0; j < p_r_; ++j) {
+    if (!p_held_[j]) g(j) = p_P_.row(j).dot(b);
+    else if (accel && passage_ref) g(j) = p_R_.row(j).dot(*passage_ref);
   }
 }
 
 double LoopClosures::passageResidual(const Eigen::VectorXd& b, const Eigen::VectorXd& scale_e) {
-  // b' = b - D_r^-1 U_band U_band^T D_r b on the kept rows (dropped rows are round-off)
-  Eigen::VectorXd& bp = p_b_;
-  bp = b;
-  for (int i = p_regular_; i < p_regular_ + p_band_; ++i) {
-    double c = 0.0;
-    for (int j = 0; j < p_kept_; ++j) c += p_U_(j, i) * p_dr_(j) * b(p_row_[j]);
-    for (int j = 0; j < p_kept_; ++j) bp(p_row_[j]) -= p_U_(j, i) * c / p_dr_(j);
-  }
+  p_b_ = b;
+  for (int h = 0; h < p_band_; ++h) p_b_ -= p_z_.row(h).transpose() * p_w_.row(h).dot(b);
   double worst = 0.0;
-  for (int e = 0; e < m; ++e) worst = std::max(worst, relative(bp(e), scale_e(e)));
+  for (int e = 0; e < m; ++e) worst = std::max(worst, relative(p_b_(e), scale_e(e)));
   return worst;
 }
 

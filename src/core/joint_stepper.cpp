@@ -239,8 +239,13 @@ void JointStepper::project(const System& sys, State& s) {
 }
 
 void JointStepper::settle(const System& sys, State& s, const Inputs& in) {
-  // (a settled state has no motion before it: no branch passage is held, branch_passage.cpp)
-  closures_.passage_ref = nullptr;
+  // A settled state has no motion before it: the closures' decomposition applies
+  // (branch_passage.cpp: dependent rows dropped by geometry) but nothing is held by the motion.
+  if (!model_.cut_joints.empty()) {
+    a_ref_ = Eigen::VectorXd::Zero(model_.nv);
+    closures_.passage_ref = &a_ref_;
+    closures_.passage_hold = false;
+  }
   // The joint coordinates of the absolute state: each link's joint reads them from its two
   // bodies (Joint::coordinates, branch references in s.tracked); a spherical joint's
   // quaternion is the rotation of frame j in frame i; a free body's are its own x, u.
@@ -269,6 +274,7 @@ void JointStepper::settle(const System& sys, State& s, const Inputs& in) {
   }
   normalizeQuaternions(model_, s.q);
   finish(sys, s, in);
+  closures_.passage_hold = true;
 }
 
 void JointStepper::step(const System& sys, State& s, const Inputs& in, double h) {

@@ -588,22 +588,17 @@ ClosureSolveInfo constrainedForwardDynamics(const TreeModel& model, const System
   }
   cl.evaluate(model, sys, ws);
   cl.factor(model, ws);
-  if (cl.passage_ref && cl.findPassage() > 0) {
+  if (cl.passage_ref && cl.findPassage()) {
     // a branch passage (branch_passage.cpp): the regular directions by their equations,
     // the held ones at passage_ref's acceleration across the branch
     cl.passageFactor(model, ws);
-    cl.passageRhs(cl.gamma_q, cl.p_g_);
-    const int r = cl.p_regular_ + cl.p_band_;
-    for (int i = cl.p_regular_; i < r; ++i) cl.p_g_(i) = cl.p_R_.row(i).dot(*cl.passage_ref);
+    cl.passageRhs(cl.gamma_q, cl.p_g_, true);
     cl.p_mu_.noalias() = cl.p_R_ * qddot;
     cl.p_mu_ -= cl.p_g_;
-    cl.p_mu_ = cl.p_ldlt_.solve(cl.p_mu_);
+    cl.p_least_norm_.solve(cl.p_mu_, cl.p_mu_);
     qddot.noalias() -= cl.p_Y_ * cl.p_mu_;
-    // lambda = D_r U S^-1 mu on the kept rows (G^T lambda = R^T mu), 0 elsewhere
-    cl.lambda.setZero();
-    for (int i = 0; i < r; ++i)
-      for (int j = 0; j < cl.p_kept_; ++j)
-        cl.lambda(cl.p_row_[j]) += cl.p_dr_(j) * cl.p_U_(j, i) * cl.p_mu_(i) / cl.p_sigma_(i);
+    // G^T lambda = R^T mu with R = P G: lambda = P^T mu per closure row
+    cl.lambda.noalias() = cl.p_P_.transpose() * cl.p_mu_;
     cl.gamma_q.noalias() = cl.G * qddot;
     return cl.info;
   }
@@ -650,7 +645,7 @@ ClosureProjectionReport projectClosurePositions(const TreeModel& model, const Sy
     forwardDynamics(model, sys, q, zero, zero, ws, qdd);  // kinematics and the articulated factors
     cl.evaluate(model, sys, ws);
     // in a branch passage the held directions are the integration's: not judged, not moved
-    const bool passage = cl.passage_ref && cl.findPassage() > 0;
+    const bool passage = cl.passage_ref && cl.findPassage();
     rep.residual = passage ? cl.passageResidual(cl.Phi, cl.scale) : cl.positionResidual();
     const bool near = cl.passage_ref && cl.passageNear();
     if (rep.residual <= tol) {
@@ -661,9 +656,9 @@ ClosureProjectionReport projectClosurePositions(const TreeModel& model, const Sy
     if (passage) {
       cl.passageFactor(model, ws);
       cl.passageRhs(cl.Phi, cl.p_g_);
-      cl.p_mu_ = cl.p_ldlt_.solve(cl.p_g_);
+      cl.p_least_norm_.solve(cl.p_g_, cl.p_mu_);
       dv.noalias() = -cl.p_Y_ * cl.p_mu_;
-      rep.dependent = cl.m - cl.p_regular_ - cl.p_band_;
+      rep.dependent = cl.m - cl.p_r_;
     } else {
       cl.factor(model, ws);
       rep.dependent = cl.info.dependent;
@@ -673,7 +668,9 @@ ClosureProjectionReport projectClosurePositions(const TreeModel& model, const Sy
     if (rep.converged) {  // past the tolerance, near a passage: to round-off
       double step = 0.0;
       for (int k = 0; k < cl.nv; ++k) step = std::max(step, std::fabs(dv(k)) * cl.unit_(k));
-      if (!(step < 0.5 * previous_step) || step == 0.0) break;
+      // (a step that is not round-off-sized is what a nearly dependent row does to a residual
+      // that is round-off: not taken)
+      if (!(step < 0.5 * previous_step) || step == 0.0 || step > kRoundoffStepBound * sys.length_scale) break;
       previous_step = step;
       ++extra;
     }
@@ -695,11 +692,11 @@ ClosureProjectionReport projectClosureVelocities(const TreeModel& model, const S
   }
   Eigen::VectorXd& reference = cl.ref_v_;
   reference = qdot;
-  if (cl.passage_ref && cl.findPassage() > 0) {
+  if (cl.passage_ref && cl.findPassage()) {
     // a branch passage (branch_passage.cpp): the regular directions onto their equations,
     // the held rates as the integration carried them
     cl.passageFactor(model, ws);
-    rep.dependent = cl.m - cl.p_regular_ - cl.p_band_;
+    rep.dependent = cl.m - cl.p_r_;
     double previous_step = HUGE_VAL;
     int extra = 0;
     for (;;) {
@@ -714,12 +711,15 @@ ClosureProjectionReport projectClosureVelocities(const TreeModel& model, const S
       }
       if (rep.iterations >= max_iterations) break;
       cl.passageRhs(r, cl.p_g_);
-      cl.p_mu_ = cl.p_ldlt_.solve(cl.p_g_);
+      cl.p_least_norm_.solve(cl.p_g_, cl.p_mu_);
       cl.p_dv_.noalias() = cl.p_Y_ * cl.p_mu_;
       if (rep.converged) {  // to round-off, as the positions
-        double step = 0.0;
-        for (int k = 0; k < cl.nv; ++k) step = std::max(step, std::fabs(cl.p_dv_(k)) * cl.unit_(k));
-        if (!(step < 0.5 * previous_step) || step == 0.0) break;
+        double step = 0.0, V = sys.velocity_scale;
+        for (int k = 0; k < cl.nv; ++k) {
+          step = std::max(step, std::fabs(cl.p_dv_(k)) * cl.unit_(k));
+          V = std::max(V, std::fabs(qdot(k)) * cl.unit_(k));
+        }
+        if (!(step < 0.5 * previous_step) || step == 0.0 || step > kRoundoffStepBound * V) break;
         previous_step = step;
         ++extra;
       }
@@ -746,9 +746,12 @@ ClosureProjectionReport projectClosureVelocities(const TreeModel& model, const S
     cl.solve(r, x);
     cl.dv_v_.noalias() = cl.Y * x;
     if (rep.converged) {
-      double step = 0.0;
-      for (int k = 0; k < cl.nv; ++k) step = std::max(step, std::fabs(cl.dv_v_(k)) * cl.unit_(k));
-      if (!(step < 0.5 * previous_step) || step == 0.0) break;
+      double step = 0.0, V = sys.velocity_scale;
+      for (int k = 0; k < cl.nv; ++k) {
+        step = std::max(step, std::fabs(cl.dv_v_(k)) * cl.unit_(k));
+        V = std::max(V, std::fabs(qdot(k)) * cl.unit_(k));
+      }
+      if (!(step < 0.5 * previous_step) || step == 0.0 || step > kRoundoffStepBound * V) break;
       previous_step = step;
       ++extra;
     }

@@ -56,11 +56,15 @@ constexpr double kClosureZeroEntry = 1e-11;
 // motion; below kPassageDependent it is a structural dependency (dropped, as the rank
 // threshold drops it).
 constexpr double kPassageBand = 1e-2;
-constexpr double kPassageDependent = 1e-8;
+constexpr double kPassageDependent = 1e-8;  // (the decomposition is each closure's own,
+                                             // singular values from its rows, not squared)
 // Below kPassageNear the projections go on to round-off past their tolerance (at most
 // kPassageRoundoffSteps more steps, while each halves the last).
 constexpr double kPassageNear = 0.1;
+constexpr double kPassageGate = 0.3;
 constexpr int kPassageRoundoffSteps = 4;
+// ... and only steps below this fraction of the length (positions) or speed (rates) scale.
+constexpr double kRoundoffStepBound = 1e-8;
 
 // The least-norm solution of a symmetric positive semi-definite system A x = b (a
 // G M^-1 G^T): rows not kept, or with a zero diagonal, held at x = 0; the rest
@@ -220,9 +224,17 @@ class LoopClosures {
   // its position and rate as the integration carried them. The other directions keep the
   // equations exactly (v_i^T a = u_i^T D_r gamma_q / s_i). Outside a passage nothing changes.
   const Eigen::VectorXd* passage_ref = nullptr;
-  // After evaluate(): the decomposition of W over the rows that are not round-off; returns
-  // how many directions are in a passage now (0: none, the ordinary solves apply).
-  int findPassage();
+  bool passage_hold = true;  // false: the decomposition applies, nothing is held (a settle)
+  // After evaluate(): each closure's rows (those that are not round-off) decomposed on their
+  // own. true where some closure is near a loss of rank (a singular value below
+  // kPassageGate: a passage, or one coming) or has rows that are dependent without being
+  // zero: the solves then take the decomposition's rows (the regular directions by their
+  // equations, the held ones by the motion, the dependent ones, s below kPassageDependent,
+  // dropped by this geometric threshold rather than by the rank threshold of the
+  // Jacobi-scaled G M^-1 G^T, which near a crossing keeps their round-off and leaves no null
+  // space: a four-bar whose cut joint has non-zero dependent rows stopped dead at its flat
+  // passage). false: the ordinary solves apply.
+  bool findPassage();
   // Directions held by the motion at the last findPassage(), and how many passages were met
   // (findPassage() calls that found one) since construction.
   int passageDirections() const { return p_band_; }
@@ -259,27 +271,26 @@ class LoopClosures {
   bool cleared_ = false;            // clearRows() ran since the last evaluate()
   Eigen::VectorXd tau_, qdd_cut_;
   Eigen::VectorXd zero_v_, qdd_v_, dv_v_, ref_v_, r_m_, x_m_;  // the projections' scratch
-  // branch passages (branch_passage.cpp): W's kept rows, its decomposition, the reduced rows
-  // R (one per direction kept: regular ones, then the passage's), M^-1 R^T and R M^-1 R^T
-  std::vector<int> p_row_;
-  Eigen::VectorXd p_dr_, p_sigma_, p_b_, p_g_, p_mu_, p_dv_, p_t_;
-  Eigen::MatrixXd p_W_, p_U_, p_V_, p_R_, p_Y_, p_A_;
+  // branch passages (branch_passage.cpp). Per reduced row j (one per direction of a
+  // closure's decomposition that is not dependent): R_j = sum_e P(j, e) G_e (= (v_j o unit)^T),
+  // held_[j] whether it is held by the motion. Per held direction: w = D_r u, z = D_r^-1 u
+  // over the System rows (the component b' = b - z (w . b) is not judged).
+  Eigen::MatrixXd p_P_, p_R_, p_Y_, p_A_, p_w_, p_z_;
+  std::vector<char> p_held_;
+  Eigen::VectorXd p_b_, p_g_, p_mu_, p_dv_, p_t_, p_dr_;
+  Eigen::MatrixXd p_W_;  // one closure's normalized rows, over its columns
+  std::vector<int> p_rows_, p_cols_;
   Eigen::JacobiSVD<Eigen::MatrixXd> p_svd_;
-  int p_kept_ = 0, p_regular_ = 0, p_band_ = 0;
+  int p_r_ = 0, p_band_ = 0;
   bool p_near_ = false;
   long p_met_ = 0;
-  // R, M^-1 R^T and the factor of R M^-1 R^T at ws (after findPassage() > 0); band rows are
-  // held (zero right-hand side) unless accel.
+  ScaledLeastNorm p_least_norm_;  // of R M^-1 R^T (rows of different closures may depend)
+  // R, M^-1 R^T and the factor of R M^-1 R^T at ws (after findPassage() > 0)
   void passageFactor(const TreeModel& model, const TreeWorkspace& ws);
-  bool passageNearAnyClosure();  // the gate of findPassage()
-  int p_gate_rows_[6] = {};
-  // rhs_i = u_i^T D_r b_kept / s_i for the regular directions, 0 for the held ones
-  void passageRhs(const Eigen::VectorXd& b, Eigen::VectorXd& rhs) const;
-  // max_e |b'_e| / scale_e with b' = b without its components on the held directions
+  // g = P b, 0 on the held rows; with accel, R_j passage_ref on the held rows
+  void passageRhs(const Eigen::VectorXd& b, Eigen::VectorXd& g, bool accel = false) const;
+  // max_e |b'_e| / scale_e, b' = b without its components on the held directions
   double passageResidual(const Eigen::VectorXd& b, const Eigen::VectorXd& scale_e);
-  // mu = (R M^-1 R^T)^-1 rhs
-  Eigen::LDLT<Eigen::MatrixXd> p_ldlt_;
-  Eigen::VectorXd p_scale_;
   Eigen::MatrixXd A_;               // scaled G M^-1 G^T
   ScaledLeastNorm least_norm_;      // its factorization
   const TreeModel* model_ = nullptr;
