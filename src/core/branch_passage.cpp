@@ -14,23 +14,27 @@
 // closer: the error at 0.1 ms was larger than at 1 ms.
 //
 // What. The branch is smooth through the crossing, and so is the motion across it: near
-// the crossing y is carried by the integration, not by the equations. The rows of G are
-// normalized by the size of their terms, with rates as speeds (W = D_r G C, D_r = 1/|row of
-// Gbound C| (norms of the entries' parts, which do not vanish with the geometry), C = diag(1/unit): a singular value of W is a relative measure, the same in
-// millimetres as in metres), and decomposed W = U S V^T. A direction i is
+// the crossing y is carried by the integration, not by the equations. Each closure's rows
+// (a cut joint's 1 to 6, those that are not round-off) are normalized by the size of their
+// terms, with rates as speeds, over the columns that move its bodies relative to each
+// other: W = D_r G C^-1 with D_r = 1 / |row of Gbound C^-1| (norms of the entries' parts,
+// which do not vanish with the geometry) and C = diag(unit) (a singular value of W is a
+// relative measure, the same in millimetres as in metres). Decomposed W = U S V^T, a
+// direction i is
 //   regular    s_i >= kPassageBand:   v_i^T C a = u_i^T D_r gamma_q / s_i (the equations),
 //   in passage kPassageDependent <= s_i < kPassageBand:
 //                                     v_i^T C a = v_i^T C a_ref (held: the acceleration across
 //                                     the branch at the step's start, continuous along it),
-//   dependent  s_i < kPassageDependent: dropped (a planar loop's out-of-plane rows).
-// With R the rows v_i^T C of the kept directions, a = a_free - M^-1 R^T mu,
-// (R M^-1 R^T) mu = R a_free - g (RBDA 8.3 on the reduced rows). The constraint force stays
-// along G^T (R^T = C V, G^T = C V S U^T D_r^-1), and lambda = D_r U S^-1 mu per closure row.
+//   dependent  s_i < kPassageDependent: dropped (rows dependent without being zero).
+// With R the rows (v_i o unit)^T = (1/s_i) u_i^T D_r G of every closure's kept directions
+// (R = P G), a = a_free - M^-1 R^T mu, (R M^-1 R^T) mu = R a_free - g (RBDA 8.3 on the
+// reduced rows, least norm: rows of different closures may depend on each other). The
+// constraint force stays along G^T (R^T mu = G^T P^T mu): lambda = P^T mu per closure row.
 // The projections keep the regular directions' equations and leave the held ones as the
 // integration carried them (rows with zero right-hand side). Once out of the passage
-// (s >= kPassageBand, about 1e-2 rad from the crossing) the ordinary solves and projections
-// take over; their round-off error there is eps / 1e-6 in rate, and what the passage left
-// across the branch is projected away, M-orthogonally, as the constraint force would have.
+// (s >= kPassageBand, about 1e-2 rad from the crossing) the equations take over; their
+// round-off error there is eps / 1e-6 in rate, and what the passage left across the branch
+// is projected away, M-orthogonally, as the constraint force would have.
 #include <algorithm>
 #include <cmath>
 
@@ -68,12 +72,17 @@ bool LoopClosures::findPassage() {
       if (!zero) p_rows_.push_back(e);
     }
     if (p_rows_.empty()) continue;
+    // The columns that move the closure's bodies relative to each other: not those of a
+    // link that carries the whole loop (an arm holding a gripper's four-bar), where G is
+    // round-off but Gbound is not (it would shrink every singular value by the loop's size
+    // over the distance to that link).
     for (int k = 0; k < nv; ++k) {
       bool used = false;
-      for (int e : p_rows_) used = used || Gbound(e, k) > 0.0;
+      for (int e : p_rows_) used = used || std::fabs(G(e, k)) > kClosureZeroEntry * Gabs(e, k);
       if (used) p_cols_.push_back(k);
     }
     const int kr = static_cast<int>(p_rows_.size()), kc = static_cast<int>(p_cols_.size());
+    if (kc == 0) continue;
     p_W_.resize(kr, kc);
     Eigen::VectorXd& dr = p_dr_;
     dr.resize(kr);

@@ -179,14 +179,28 @@ void JointStepper::writeAbsolute(const System& sys, State& s) {
   }
   bodyAccelerations(model_, ws_, s.qddot, s.acc);
   // Tracked angles: a tree joint's are its coordinates themselves (so an angle may advance
-  // by any amount in a step: a wheel at 4000 rad/s turns 4 rad a millisecond). The other
-  // constraints this stepper runs (couplers, drives, limits) keep none of their own: they
-  // read their joints' (jointFormulationUnsupported refuses cut joints).
+  // by any amount in a step: a wheel at 4000 rad/s turns 4 rad a millisecond). A cut
+  // joint's follow its two bodies (Constraint::track at the new kinematics, as the absolute
+  // formulation tracks every joint), below. The other constraints (couplers, drives,
+  // limits) keep none of their own: they read their joints'.
   for (const TreeLink& L : model_.links) {
     if (L.joint < 0 || L.kind == TreeJointKind::kSpherical) continue;
     for (int k = 0; k < L.ptr->dof(); ++k) {
       const int slot = L.ptr->trackedSlot(k);
       if (slot >= 0) s.tracked[L.ptr->id()][slot] = s.q[L.iq + k];
+    }
+  }
+  if (!model_.cut_joints.empty()) {
+    loadKinematics(sys, s.x.data(), s.u.data(), kin_);
+    const EvalContext ctx = s.context();
+    const BodyKin* ptrs[kMaxConstraintBodies];
+    for (int j : model_.cut_joints) {
+      const int c = sys.joint_constraint[j];
+      const Constraint& C = *sys.constraints[c];
+      for (size_t b = 0; b < C.bodies().size(); ++b) ptrs[b] = &kin_[C.bodies()[b]];
+      Tracked tr = s.tracked[c], rate;
+      C.track(ptrs, ctx, tr, rate);
+      s.tracked[c] = tr;
     }
   }
   q_end_ = s.q;
@@ -273,7 +287,12 @@ void JointStepper::settle(const System& sys, State& s, const Inputs& in) {
     }
   }
   normalizeQuaternions(model_, s.q);
-  finish(sys, s, in);
+  try {
+    finish(sys, s, in);
+  } catch (...) {
+    closures_.passage_hold = true;
+    throw;
+  }
   closures_.passage_hold = true;
 }
 
@@ -284,6 +303,12 @@ void JointStepper::step(const System& sys, State& s, const Inputs& in, double h)
   const Tableau& T = *tableau_;
   q0_ = s.q;
   v0_ = s.qdot;
+  // branch passages (branch_passage.cpp): a stage 1 computed again below holds what the
+  // State's own accelerations hold (so a restored State steps as the run it came from)
+  if (!model_.cut_joints.empty()) {
+    a_ref_ = s.qddot;
+    closures_.passage_ref = &a_ref_;
+  }
   const double t0 = s.t;
   friction0_ = s.friction;
   // stage 1: the accelerations the last step (or settle) left, when they are of this state

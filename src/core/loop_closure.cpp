@@ -113,6 +113,7 @@ LoopClosures::LoopClosures(const TreeModel& model, const System& sys) : model_(&
   }
   Phi.setZero(m), gamma.setZero(m), scale.setZero(m), gamma_q.setZero(m), nu.setZero(m), lambda.setZero(m);
   G.setZero(m, nv), Gabs.setZero(m, nv), Gbound.setZero(m, nv), Y.setZero(nv, m);
+  vr_.setZero(m), vt_.setZero(m);
   for (int c : constraints)
     Jc.push_back(Eigen::MatrixXd::Zero(sys.constraints[c]->size(), 6 * static_cast<int>(sys.constraints[c]->bodies().size())));
   kin_.assign(sys.numBodies(), BodyKin());
@@ -352,26 +353,33 @@ double LoopClosures::positionResidual() const {
   return worst;
 }
 
-double LoopClosures::velocityResidual(const Eigen::VectorXd& qdot, const Eigen::VectorXd* reference) const {
+void LoopClosures::velocityRows(const Eigen::VectorXd& qdot, const Eigen::VectorXd* reference, Eigen::VectorXd& r,
+                                Eigen::VectorXd& t) const {
   // A direct row's terms are its own coordinates only: a coordinate the closures lock ends
   // at round-off, judged against the speed of the whole motion (as speeds: rates times
   // unit_), or the loads' velocity scale, whichever is larger.
   double V = sys_->velocity_scale;
   for (int k = 0; k < nv; ++k)
     V = std::max({V, std::fabs(qdot(k)) * unit_(k), reference ? std::fabs((*reference)(k)) * unit_(k) : 0.0});
-  double worst = 0;
   for (size_t i = 0; i < constraints.size(); ++i) {
     for (int e = row[i]; e < row[i] + sys_->constraints[constraints[i]]->size(); ++e) {
-      double s = -nu(e), t = std::fabs(nu(e));
+      double s = -nu(e), sc = std::fabs(nu(e));
       for (int k = 0; k < nv; ++k) {
         s += G(e, k) * qdot(k);
-        t += Gabs(e, k) * (std::fabs(qdot(k)) + (reference ? std::fabs((*reference)(k)) : 0.0));
+        sc += Gabs(e, k) * (std::fabs(qdot(k)) + (reference ? std::fabs((*reference)(k)) : 0.0));
       }
-      if (direct_[i].n > 0 && s != 0.0)
-        for (int k = 0; k < direct_[i].n; ++k) t += std::fabs(direct_[i].coef[k]) * V / unit_(direct_[i].col[k]);
-      worst = std::max(worst, relative(s, t));
+      if (direct_[i].n > 0)
+        for (int k = 0; k < direct_[i].n; ++k) sc += std::fabs(direct_[i].coef[k]) * V / unit_(direct_[i].col[k]);
+      r(e) = s;
+      t(e) = sc;
     }
   }
+}
+
+double LoopClosures::velocityResidual(const Eigen::VectorXd& qdot, const Eigen::VectorXd* reference) const {
+  velocityRows(qdot, reference, vr_, vt_);
+  double worst = 0;
+  for (int e = 0; e < m; ++e) worst = std::max(worst, relative(vr_(e), vt_(e)));
   return worst;
 }
 
@@ -473,24 +481,30 @@ void LoopClosures::solve(const Eigen::VectorXd& b, Eigen::VectorXd& x) const {
 
 ScaledLeastNorm::ScaledLeastNorm(int n)
     : d_(Eigen::VectorXd::Zero(n)), c_(Eigen::VectorXd::Zero(n)), y_(Eigen::VectorXd::Zero(n)),
-      work_(Eigen::VectorXd::Zero(std::max(n, 1))), cod_(n, n) {
+      work_(Eigen::VectorXd::Zero(std::max(n, 1))), work2_(Eigen::VectorXd::Zero(n)), sub_(Eigen::MatrixXd::Zero(n, n)),
+      cod_(n, n) {
   cod_.setThreshold(kClosureRankThreshold);
+  compact_cod_.setThreshold(kClosureRankThreshold);
   small_cod_.setThreshold(kClosureRankThreshold);
+  kept_all_.reserve(n);
 }
 
 int ScaledLeastNorm::factor(Eigen::MatrixXd& A, const Eigen::VectorXd* keep) {
   const Eigen::Index n = d_.size();
   int kept = 0;
+  kept_all_.clear();
   for (Eigen::Index e = 0; e < n; ++e) {
     d_(e) = ((!keep || (*keep)(e) > 0) && A(e, e) > 0) ? 1.0 / std::sqrt(A(e, e)) : 0.0;
     if (d_(e) != 0.0) {
       if (kept < kSmall) kept_rows_[kept] = static_cast<int>(e);
+      kept_all_.push_back(static_cast<int>(e));
       ++kept;
     }
   }
   small_ = kept <= kSmall && kept < n;
+  compact_ = !small_ && kept < n;
+  kept_ = kept;
   if (small_) {  // the kept rows alone (dropped ones: x_e = 0, each counted with rank 1 as below)
-    kept_ = kept;
     SmallMatrix S(kept, kept);
     for (int i = 0; i < kept; ++i)
       for (int j = 0; j < kept; ++j)
@@ -498,10 +512,16 @@ int ScaledLeastNorm::factor(Eigen::MatrixXd& A, const Eigen::VectorXd* keep) {
     if (kept > 0) small_cod_.compute(S);
     return static_cast<int>(n - kept) + (kept > 0 ? static_cast<int>(small_cod_.rank()) : 0);
   }
+  if (compact_) {  // more kept rows, still not all (a planar loop's zero rows): those alone
+    // (bench: the ten-loop four-bar in joint coordinates, 50 rows of which 20 kept)
+    for (int i = 0; i < kept; ++i)
+      for (int j = 0; j < kept; ++j)
+        sub_(i, j) = A(kept_all_[i], kept_all_[j]) * d_(kept_all_[i]) * d_(kept_all_[j]);
+    compact_cod_.compute(sub_.topLeftCorner(kept, kept));
+    return static_cast<int>(n - kept) + static_cast<int>(compact_cod_.rank());
+  }
   for (Eigen::Index i = 0; i < n; ++i)
     for (Eigen::Index j = 0; j < n; ++j) A(i, j) *= d_(i) * d_(j);
-  for (Eigen::Index e = 0; e < n; ++e)
-    if (d_(e) == 0.0) A(e, e) = 1.0;  // a dropped row: x_e = 0 (its right-hand side is zeroed)
   cod_.compute(A);
   return static_cast<int>(cod_.rank());
 }
@@ -509,7 +529,38 @@ int ScaledLeastNorm::factor(Eigen::MatrixXd& A, const Eigen::VectorXd* keep) {
 // The least-norm solution of the scaled system by the complete orthogonal decomposition
 // A P = Q [T 0; 0 0] Z: x = P Z^T [T^-1 (Q^T b)_1..r; 0], written out on the decomposition's
 // factors (as Eigen's CompleteOrthogonalDecomposition::solve does, whose temporaries
-// allocate: 5 heap allocations a call) with preallocated vectors: no allocation.
+// allocate: 5 heap allocations a call) with preallocated vectors: no allocation. c (size
+// nn, overwritten) holds the scaled right-hand side, y is scratch, out gets y permuted.
+void ScaledLeastNorm::codSolve(const Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd>& cod,
+                               Eigen::Ref<Eigen::VectorXd> c, Eigen::Ref<Eigen::VectorXd> y,
+                               Eigen::Ref<Eigen::VectorXd> out) const {
+  const Eigen::Index n = c.size();
+  double* work = work_.data();
+  const Eigen::Index r = cod.rank();
+  const Eigen::MatrixXd& QTZ = cod.matrixQTZ();
+  if (r == 0) {
+    out.setZero();
+    return;
+  }
+  // c = Q^T c: the first r reflectors H_0 ... H_{r-1} (H_k = I - h_k v_k v_k^T, v_k = (1, QTZ(k+1:, k)))
+  for (Eigen::Index k = 0; k < r; ++k)
+    c.tail(n - k).applyHouseholderOnTheLeft(QTZ.col(k).tail(n - k - 1), cod.hCoeffs().coeff(k), work);
+  // T z = c(0:r)
+  y.head(r) = c.head(r);
+  QTZ.topLeftCorner(r, r).triangularView<Eigen::Upper>().solveInPlace(y.head(r));
+  if (r < n) {  // y = Z^T [z; 0]
+    y.tail(n - r).setZero();
+    for (Eigen::Index k = 0; k < r; ++k) {
+      if (k != r - 1) std::swap(y(k), y(r - 1));
+      y.segment(r - 1, n - r + 1)
+          .applyHouseholderOnTheLeft(QTZ.row(k).tail(n - r).transpose(), cod.zCoeffs().coeff(k), work);
+      if (k != r - 1) std::swap(y(k), y(r - 1));
+    }
+  }
+  const auto& P = cod.colsPermutation().indices();
+  for (Eigen::Index e = 0; e < n; ++e) out(P(e)) = y(e);
+}
+
 void ScaledLeastNorm::solve(const Eigen::VectorXd& b, Eigen::VectorXd& x) const {
   const Eigen::Index n = d_.size();
   if (n == 0) return;
@@ -522,34 +573,15 @@ void ScaledLeastNorm::solve(const Eigen::VectorXd& b, Eigen::VectorXd& x) const 
     for (int i = 0; i < kept_; ++i) x(kept_rows_[i]) = d_(kept_rows_[i]) * y(i);
     return;
   }
-  Eigen::VectorXd& c = c_;
-  Eigen::VectorXd& y = y_;
-  double* work = work_.data();
-  c = d_.cwiseProduct(b);
-  const Eigen::Index r = cod_.rank();
-  const Eigen::MatrixXd& QTZ = cod_.matrixQTZ();
-  if (r == 0) {
+  if (compact_) {
+    for (int i = 0; i < kept_; ++i) c_(i) = d_(kept_all_[i]) * b(kept_all_[i]);
+    codSolve(compact_cod_, c_.head(kept_), y_.head(kept_), work2_.head(kept_));
     x.setZero();
+    for (int i = 0; i < kept_; ++i) x(kept_all_[i]) = d_(kept_all_[i]) * work2_(i);
     return;
   }
-  // c = Q^T c: the first r reflectors H_0 ... H_{r-1} (H_k = I - h_k v_k v_k^T, v_k = (1, QTZ(k+1:, k)))
-  for (Eigen::Index k = 0; k < r; ++k)
-    c.tail(n - k).applyHouseholderOnTheLeft(QTZ.col(k).tail(n - k - 1), cod_.hCoeffs().coeff(k), work);
-  // T z = c(0:r)
-  y.head(r) = c.head(r);
-  QTZ.topLeftCorner(r, r).triangularView<Eigen::Upper>().solveInPlace(y.head(r));
-  if (r < n) {  // y = Z^T [z; 0]
-    y.tail(n - r).setZero();
-    for (Eigen::Index k = 0; k < r; ++k) {
-      if (k != r - 1) std::swap(y(k), y(r - 1));
-      y.segment(r - 1, n - r + 1)
-          .applyHouseholderOnTheLeft(QTZ.row(k).tail(n - r).transpose(), cod_.zCoeffs().coeff(k), work);
-      if (k != r - 1) std::swap(y(k), y(r - 1));
-    }
-  }
-  // x = D P y
-  const auto& P = cod_.colsPermutation().indices();
-  for (Eigen::Index e = 0; e < n; ++e) x(P(e)) = y(e);
+  c_ = d_.cwiseProduct(b);
+  codSolve(cod_, c_, y_, x);
   x = d_.cwiseProduct(x);
 }
 
@@ -648,10 +680,8 @@ ClosureProjectionReport projectClosurePositions(const TreeModel& model, const Sy
     const bool passage = cl.passage_ref && cl.findPassage();
     rep.residual = passage ? cl.passageResidual(cl.Phi, cl.scale) : cl.positionResidual();
     const bool near = cl.passage_ref && cl.passageNear();
-    if (rep.residual <= tol) {
-      rep.converged = true;
-      if (!near || extra >= kPassageRoundoffSteps) break;
-    }
+    rep.converged = rep.residual <= tol;
+    if (rep.converged && (!near || extra >= kPassageRoundoffSteps)) break;
     if (rep.iterations >= max_iterations) break;
     if (passage) {
       cl.passageFactor(model, ws);
@@ -700,15 +730,11 @@ ClosureProjectionReport projectClosureVelocities(const TreeModel& model, const S
     double previous_step = HUGE_VAL;
     int extra = 0;
     for (;;) {
-      r.noalias() = cl.G * qdot;
-      r -= cl.nu;
-      cl.p_t_ = cl.nu.cwiseAbs();
-      cl.p_t_.noalias() += cl.Gabs * (qdot.cwiseAbs() + reference.cwiseAbs());
-      rep.residual = cl.passageResidual(r, cl.p_t_);
-      if (rep.residual <= tol) {
-        rep.converged = true;
-        if (extra >= kPassageRoundoffSteps) break;
-      }
+      cl.velocityRows(qdot, &reference, cl.vr_, cl.vt_);  // (the residual judged as velocityResidual's)
+      r = cl.vr_;
+      rep.residual = cl.passageResidual(r, cl.vt_);
+      rep.converged = rep.residual <= tol;
+      if (rep.converged && (!cl.passageNear() || extra >= kPassageRoundoffSteps)) break;
       if (rep.iterations >= max_iterations) break;
       cl.passageRhs(r, cl.p_g_);
       cl.p_least_norm_.solve(cl.p_g_, cl.p_mu_);
@@ -736,10 +762,8 @@ ClosureProjectionReport projectClosureVelocities(const TreeModel& model, const S
   int extra = 0;
   for (;;) {
     rep.residual = cl.velocityResidual(qdot, &reference);
-    if (rep.residual <= tol) {
-      rep.converged = true;
-      if (!near || extra >= kPassageRoundoffSteps) break;
-    }
+    rep.converged = rep.residual <= tol;
+    if (rep.converged && (!near || extra >= kPassageRoundoffSteps)) break;
     if (rep.iterations >= max_iterations) break;
     r.noalias() = cl.G * qdot;
     r -= cl.nu;

@@ -17,7 +17,9 @@
 // damping (efforts in the stages; stiff ones by implicit Euler after them, the absolute
 // formulation's rule: classifyDamping; on spherical joints too, along the relative angular
 // velocity in frame i as there), and Coulomb friction (the absolute formulation's rule,
-// sized for each step: frictionFor). Not yet: loop closures.
+// sized for each step: frictionFor), and loop closures (the cut joints' equations on the
+// tree, their branch passages held by the motion: branch_passage.cpp; with friction or
+// stiff damping, those two solves use the ordinary closure factorization).
 #pragma once
 #include <array>
 #include <string>

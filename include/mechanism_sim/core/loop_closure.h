@@ -90,8 +90,13 @@ class ScaledLeastNorm {
   using SmallMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kSmall, kSmall>;
   using SmallVector = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kSmall, 1>;
   Eigen::VectorXd d_;  // the Jacobi scale per row (0: dropped)
-  mutable Eigen::VectorXd c_, y_, work_;
-  Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd> cod_;
+  mutable Eigen::VectorXd c_, y_, work_, work2_;
+  Eigen::MatrixXd sub_;  // the kept rows' block (compact path)
+  Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd> cod_, compact_cod_;
+  bool compact_ = false;  // more than kSmall rows kept, not all: those factored alone
+  std::vector<int> kept_all_;
+  void codSolve(const Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd>& cod, Eigen::Ref<Eigen::VectorXd> c,
+                Eigen::Ref<Eigen::VectorXd> y, Eigen::Ref<Eigen::VectorXd> out) const;
   // the small path: kept rows (their indices) factored alone
   bool small_ = false;
   int kept_ = 0;
@@ -216,10 +221,10 @@ class LoopClosures {
   // eps / x, its rate to eps / x^2 and its acceleration to eps / x^3, so any solve there
   // (a stage, a projection) turns round-off into motion. passage_ref, when set (the joint
   // stepper sets it to the accelerations at the start of its step), makes every solve take
-  // the passage instead: the rows of G are normalized by the size of their terms (rates as
-  // speeds: W = D_r G diag(1/unit)), decomposed W = U S V^T, and a direction whose singular
+  // the passage instead: each closure's rows are normalized by the size of their terms
+  // (rates as speeds: W = D_r G diag(1/unit)), decomposed W = U S V^T, and a direction whose singular
   // value is below kPassageBand (and above kPassageDependent: a structural dependency) is
-  // held by the motion instead of by the equations: its acceleration v^T a is passage_ref's
+  // held by the motion instead of by the equations: its acceleration (v o unit)^T a is passage_ref's
   // (the transverse acceleration is continuous along the branch), the projections leave
   // its position and rate as the integration carried them. The other directions keep the
   // equations exactly (v_i^T a = u_i^T D_r gamma_q / s_i). Outside a passage nothing changes.
@@ -287,6 +292,10 @@ class LoopClosures {
   ScaledLeastNorm p_least_norm_;  // of R M^-1 R^T (rows of different closures may depend)
   // R, M^-1 R^T and the factor of R M^-1 R^T at ws (after findPassage() > 0)
   void passageFactor(const TreeModel& model, const TreeWorkspace& ws);
+  // per closure row: r = G q_dot - nu and the size of its terms t (velocityResidual's)
+  void velocityRows(const Eigen::VectorXd& qdot, const Eigen::VectorXd* reference, Eigen::VectorXd& r,
+                    Eigen::VectorXd& t) const;
+  mutable Eigen::VectorXd vr_, vt_;
   // g = P b, 0 on the held rows; with accel, R_j passage_ref on the held rows
   void passageRhs(const Eigen::VectorXd& b, Eigen::VectorXd& g, bool accel = false) const;
   // max_e |b'_e| / scale_e, b' = b without its components on the held directions
