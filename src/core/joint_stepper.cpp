@@ -19,6 +19,13 @@ std::string jointFormulationUnsupported(const System& sys) {
   // and Coulomb friction are efforts along the joint coordinates (step()).
   std::string why = jointSpaceUnsupported(sys, true);
   if (!why.empty()) return why;
+  // Coulomb friction on a joint that closes a loop is not sized by frictionFor (tree
+  // coordinates only); its damping is an effort (accelerations()).
+  const TreeModel tree(sys);
+  for (int j : tree.cut_joints)
+    for (int k = 0; k < sys.joints[j]->dof(); ++k)
+      if (j < static_cast<int>(sys.friction.size()) && sys.friction[j][k] != 0.0)
+        return "joint '" + sys.joints[j]->name() + "' closes a loop: the joint formulation has no Coulomb friction on it";
   return why;
 }
 
@@ -95,11 +102,15 @@ JointStepper::JointStepper(const System& sys) : model_(sys), ws_(model_), closur
 
 void JointStepper::setDamping(const System& sys) {
   damped_.clear();
+  cut_damped_.clear();
   for (const TreeLink& L : model_.links) {
     if (L.joint < 0) continue;
     for (int k = 0; k < L.nv; ++k)
       if (sys.damping[L.joint][k] > 0.0) damped_.push_back({L.joint, k, L.iv + k, sys.damping[L.joint][k], L.kind == TreeJointKind::kRevolute});
   }
+  for (int j : model_.cut_joints)
+    for (int k = 0; k < sys.joints[j]->dof(); ++k)
+      if (sys.damping[j][k] > 0.0 && (cut_damped_.empty() || cut_damped_.back() != j)) cut_damped_.push_back(j);
   const int nd = static_cast<int>(damped_.size());
   stiff_.assign(nd, 0);
   stiff_list_.reserve(nd);
@@ -131,13 +142,24 @@ void JointStepper::accelerations(const System& sys, const State& s, const Inputs
     if (L.joint >= 0)
       for (int k = 0; k < L.nv; ++k) tau_(L.iv + k) += s.friction[L.joint][k];
   const Inputs* loads = &in;
-  if (!sys.springs.empty()) {
+  if (!sys.springs.empty() || !cut_damped_.empty()) {
     // springs act between points of bodies: body loads at the tree's poses (appliedForces)
     forwardKinematics(model_, q, qdot, ws_);
     absoluteState(model_, ws_, spring_x_, spring_u_);
     loadKinematics(sys, spring_x_.data(), spring_u_.data(), kin_);
     loads_.force = in.force;
     loads_.torque = in.torque;
+    loads_.effort = in.effort;  // (a cut joint's effort acts through the closures' rows)
+    // A cut joint's damping: an effort -c q_dot_k along its coordinate, the rate from its two
+    // bodies (Joint::coordinates, as the absolute formulation's appliedForces), acting on
+    // the tree through addCutJointEfforts. Explicit only: a cut joint damped too stiffly for
+    // the step fails the step (its projection), it is not integrated implicitly.
+    for (int j : cut_damped_) {
+      const Joint& J = *sys.joints[j];
+      Row rows[kMaxJointDofs];
+      J.coordinates(kin_[J.bodyI()], kin_[J.bodyJ()], s.tracked[J.id()], rows);
+      for (int k = 0; k < J.dof(); ++k) loads_.effort[j][k] -= sys.damping[j][k] * rows[k].Phi_dot;
+    }
     for (size_t i = 0; i < sys.springs.size(); ++i) {
       const SpringDamper& sd = sys.springs[i];
       const Gap g = gap(kin_[sd.body_i], sd.sp_i, kin_[sd.body_j], sd.sp_j);

@@ -722,64 +722,51 @@ ClosureProjectionReport projectClosureVelocities(const TreeModel& model, const S
   }
   Eigen::VectorXd& reference = cl.ref_v_;
   reference = qdot;
-  if (cl.passage_ref && cl.findPassage()) {
-    // a branch passage (branch_passage.cpp): the regular directions onto their equations,
-    // the held rates as the integration carried them
+  Eigen::VectorXd& dv = cl.dv_v_;
+  // in a branch passage (branch_passage.cpp) the regular directions onto their equations,
+  // the held rates as the integration carried them, and near it on to round-off (as the
+  // positions)
+  const bool passage = cl.passage_ref && cl.findPassage();
+  if (passage) {
     cl.passageFactor(model, ws);
     rep.dependent = cl.m - cl.p_r_;
-    double previous_step = HUGE_VAL;
-    int extra = 0;
-    for (;;) {
-      cl.velocityRows(qdot, &reference, cl.vr_, cl.vt_);  // (the residual judged as velocityResidual's)
-      r = cl.vr_;
-      rep.residual = cl.passageResidual(r, cl.vt_);
-      rep.converged = rep.residual <= tol;
-      if (rep.converged && (!cl.passageNear() || extra >= kPassageRoundoffSteps)) break;
-      if (rep.iterations >= max_iterations) break;
-      cl.passageRhs(r, cl.p_g_);
-      cl.p_least_norm_.solve(cl.p_g_, cl.p_mu_);
-      cl.p_dv_.noalias() = cl.p_Y_ * cl.p_mu_;
-      if (rep.converged) {  // to round-off, as the positions
-        double step = 0.0, V = sys.velocity_scale;
-        for (int k = 0; k < cl.nv; ++k) {
-          step = std::max(step, std::fabs(cl.p_dv_(k)) * cl.unit_(k));
-          V = std::max(V, std::fabs(qdot(k)) * cl.unit_(k));
-        }
-        if (!(step < 0.5 * previous_step) || step == 0.0 || step > kRoundoffStepBound * V) break;
-        previous_step = step;
-        ++extra;
-      }
-      qdot -= cl.p_dv_;
-      ++rep.iterations;
-    }
-    forwardKinematics(model, q, qdot, ws);
-    return rep;
+  } else {
+    cl.factor(model, ws);
+    rep.dependent = cl.info.dependent;
   }
-  cl.factor(model, ws);
-  rep.dependent = cl.info.dependent;
-  const bool near = cl.passage_ref && cl.passageNear();  // (to round-off, as the positions)
   double previous_step = HUGE_VAL;
   int extra = 0;
   for (;;) {
-    rep.residual = cl.velocityResidual(qdot, &reference);
+    if (passage) {  // (judged as velocityResidual judges, without the held components)
+      cl.velocityRows(qdot, &reference, r, cl.vt_);
+      rep.residual = cl.passageResidual(r, cl.vt_);
+    } else {
+      rep.residual = cl.velocityResidual(qdot, &reference);
+    }
     rep.converged = rep.residual <= tol;
-    if (rep.converged && (!near || extra >= kPassageRoundoffSteps)) break;
+    if (rep.converged && (!passage || !cl.passageNear() || extra >= kPassageRoundoffSteps)) break;
     if (rep.iterations >= max_iterations) break;
-    r.noalias() = cl.G * qdot;
-    r -= cl.nu;
-    cl.solve(r, x);
-    cl.dv_v_.noalias() = cl.Y * x;
-    if (rep.converged) {
+    if (passage) {
+      cl.passageRhs(r, cl.p_g_);
+      cl.p_least_norm_.solve(cl.p_g_, cl.p_mu_);
+      dv.noalias() = cl.p_Y_ * cl.p_mu_;
+    } else {
+      r.noalias() = cl.G * qdot;
+      r -= cl.nu;
+      cl.solve(r, x);
+      dv.noalias() = cl.Y * x;
+    }
+    if (rep.converged) {  // past the tolerance: a step only while it is round-off-sized and halving
       double step = 0.0, V = sys.velocity_scale;
       for (int k = 0; k < cl.nv; ++k) {
-        step = std::max(step, std::fabs(cl.dv_v_(k)) * cl.unit_(k));
+        step = std::max(step, std::fabs(dv(k)) * cl.unit_(k));
         V = std::max(V, std::fabs(qdot(k)) * cl.unit_(k));
       }
       if (!(step < 0.5 * previous_step) || step == 0.0 || step > kRoundoffStepBound * V) break;
       previous_step = step;
       ++extra;
     }
-    qdot -= cl.dv_v_;
+    qdot -= dv;
     ++rep.iterations;
   }
   forwardKinematics(model, q, qdot, ws);
