@@ -247,6 +247,7 @@ void JointStepper::finish(const System& sys, State& s, const Inputs& in) {
   for (size_t pass = 0; pass < sys.limits.size() && closures_.releasePullingLimits(sys, s.limit_side.data()) > 0;
        ++pass)
     accelerations(sys, s, in, s.t, s.q, s.qdot, s.qddot);
+  if (!model_.cut_joints.empty()) s.qddot_ref = a_ref_;
   writeAbsolute(sys, s);
 }
 
@@ -316,6 +317,8 @@ void JointStepper::settle(const System& sys, State& s, const Inputs& in) {
     throw;
   }
   closures_.passage_hold = true;
+  // (a stage 1 computed again at this state holds what these accelerations have)
+  if (!model_.cut_joints.empty()) s.qddot_ref = s.qddot;
 }
 
 void JointStepper::step(const System& sys, State& s, const Inputs& in, double h) {
@@ -326,9 +329,9 @@ void JointStepper::step(const System& sys, State& s, const Inputs& in, double h)
   q0_ = s.q;
   v0_ = s.qdot;
   // branch passages (branch_passage.cpp): a stage 1 computed again below holds what the
-  // State's own accelerations hold (so a restored State steps as the run it came from)
+  // State's own accelerations held (so a restored State steps as the run it came from)
   if (!model_.cut_joints.empty()) {
-    a_ref_ = s.qddot;
+    a_ref_ = s.qddot_ref.size() == model_.nv ? s.qddot_ref : s.qddot;
     closures_.passage_ref = &a_ref_;
   }
   const double t0 = s.t;

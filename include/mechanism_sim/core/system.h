@@ -175,6 +175,10 @@ struct State {
   // The joint formulation's state (joint_stepper.h; empty in the absolute formulation):
   // joint positions, rates and accelerations (x, u, acc above are written from them).
   Eigen::VectorXd q, qdot, qddot;
+  // what a branch passage of a loop held when qddot was computed (branch_passage.cpp: the
+  // accelerations at the start of the step that led here), so a restored State computes
+  // qddot again to the same bits
+  Eigen::VectorXd qddot_ref;
   EvalContext context() const { return EvalContext{tracked.data(), limit_side.data(), t, drive.data()}; }
 };
 
