@@ -7,8 +7,8 @@ usage: bench/work_precision.py [-o FILE.png] [--harness PATH] [--peers RUN.txt] 
 For the pendulum (position error against its exact motion), the 50-link chain (tip error
 against the same formulation at dt 1e-4, bench_harness's metric) and the ten-loop four-bar
 (crank tip against its exact motion), runs bench_harness at each step for every
-integrator (rk4, rk3, rk2) and formulation (absolute; joint where it runs: not the
-four-bar's loops yet) and draws one panel a mechanism, log-log: CPU seconds per simulated
+integrator (rk4, rk3, rk2) and formulation (absolute and joint; the four-bar's loops in
+joint coordinates since its branch passages, 2026-11-26) and draws one panel a mechanism, log-log: CPU seconds per simulated
 second (us/step CPU / dt) across, error up. With --peers, a run file of
 ../shared/peers/run_all.sh (bench/peer_runs/*.txt), MuJoCo's Euler and RK4 rows of the same
 mechanisms are drawn as well, marked with the run they come from (a different run: compare
