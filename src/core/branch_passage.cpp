@@ -47,7 +47,8 @@ bool LoopClosures::findPassage() {
   p_band_ = 0;
   p_near_ = false;
   p_r_ = 0;
-  bool reduce = false;
+  bool& reduce = p_reduce_;
+  reduce = false;
   if (m == 0) return false;
   if (p_P_.rows() != m || p_P_.cols() != m) {
     p_P_.setZero(m, m), p_R_.setZero(m, nv), p_w_.setZero(m, m), p_z_.setZero(m, m);

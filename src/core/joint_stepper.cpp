@@ -98,6 +98,7 @@ JointStepper::JointStepper(const System& sys) : model_(sys), ws_(model_), closur
   kin_.assign(sys.bodies.size(), BodyKin());
   setDamping(sys);
   fric_e_.setZero(model_.nv), fric_y_.setZero(model_.nv);
+  for (int j : model_.cut_joints) cut_constraints_.push_back(sys.joint_constraint[j]);
 }
 
 void JointStepper::setDamping(const System& sys) {
@@ -212,18 +213,9 @@ void JointStepper::writeAbsolute(const System& sys, State& s) {
       if (slot >= 0) s.tracked[L.ptr->id()][slot] = s.q[L.iq + k];
     }
   }
-  if (!model_.cut_joints.empty()) {
-    loadKinematics(sys, s.x.data(), s.u.data(), kin_);
-    const EvalContext ctx = s.context();
-    const BodyKin* ptrs[kMaxConstraintBodies];
-    for (int j : model_.cut_joints) {
-      const int c = sys.joint_constraint[j];
-      const Constraint& C = *sys.constraints[c];
-      for (size_t b = 0; b < C.bodies().size(); ++b) ptrs[b] = &kin_[C.bodies()[b]];
-      Tracked tr = s.tracked[c], rate;
-      C.track(ptrs, ctx, tr, rate);
-      s.tracked[c] = tr;
-    }
+  if (!cut_constraints_.empty()) {
+    closures_.setContext(s.context());
+    closures_.track(ws_, cut_constraints_, s.tracked);
   }
   q_end_ = s.q;
   v_end_ = s.qdot;
@@ -348,12 +340,9 @@ void JointStepper::step(const System& sys, State& s, const Inputs& in, double h)
     frictionFor(sys, s, h);
     accelerations(sys, s, in, s.t, q0_, v0_, s.qddot);
   }
-  // branch passages of loops (branch_passage.cpp): what the solves hold across a branch is
+  // branch passages of loops (branch_passage.cpp): what the stages hold across a branch is
   // the acceleration at the step's start
-  if (!model_.cut_joints.empty()) {
-    a_ref_ = s.qddot;
-    closures_.passage_ref = &a_ref_;
-  }
+  if (!model_.cut_joints.empty()) a_ref_ = s.qddot;
   positionRates(model_, q0_, v0_, kq_[0]);
   kv_[0] = s.qddot;
   for (int k = 1; k < T.stages; ++k) {

@@ -585,17 +585,23 @@ void ScaledLeastNorm::solve(const Eigen::VectorXd& b, Eigen::VectorXd& x) const 
   x = d_.cwiseProduct(x);
 }
 
-void LoopClosures::track(const TreeWorkspace& ws) {
+void LoopClosures::track(const TreeWorkspace& ws, const std::vector<int>& which, std::vector<Tracked>& tracked) {
   loadKin(ws);
   const EvalContext ctx = context();
   const BodyKin* ptrs[kMaxConstraintBodies];
-  for (int c = 0; c < sys_->numConstraints(); ++c) {
+  for (int c : which) {
     const Constraint& C = *sys_->constraints[c];
     for (size_t s = 0; s < C.bodies().size(); ++s) ptrs[s] = &kin_[C.bodies()[s]];
     Tracked tr = tracked[c], rate;
     C.track(ptrs, ctx, tr, rate);
     tracked[c] = tr;
   }
+}
+
+double LoopClosures::correctionSize(const Eigen::VectorXd& dv) const {
+  double size = 0.0;
+  for (int k = 0; k < nv; ++k) size = std::max(size, std::fabs(dv(k)) * unit_(k));
+  return size;
 }
 
 // RBDA 8.3: q_ddot = q_ddot_free - M^-1 G^T lambda with (G M^-1 G^T) lambda =
@@ -696,8 +702,7 @@ ClosureProjectionReport projectClosurePositions(const TreeModel& model, const Sy
       dv.noalias() = -cl.Y * x;
     }
     if (rep.converged) {  // past the tolerance, near a passage: to round-off
-      double step = 0.0;
-      for (int k = 0; k < cl.nv; ++k) step = std::max(step, std::fabs(dv(k)) * cl.unit_(k));
+      const double step = cl.correctionSize(dv);
       // (a step that is not round-off-sized is what a nearly dependent row does to a residual
       // that is round-off: not taken)
       if (!(step < 0.5 * previous_step) || step == 0.0 || step > kRoundoffStepBound * sys.length_scale) break;
@@ -726,7 +731,8 @@ ClosureProjectionReport projectClosureVelocities(const TreeModel& model, const S
   // in a branch passage (branch_passage.cpp) the regular directions onto their equations,
   // the held rates as the integration carried them, and near it on to round-off (as the
   // positions)
-  const bool passage = cl.passage_ref && cl.findPassage();
+  // (evaluated_at_q: the position projection's last findPassage() was at this evaluation)
+  const bool passage = cl.passage_ref && (evaluated_at_q ? cl.passageFound() : cl.findPassage());
   if (passage) {
     cl.passageFactor(model, ws);
     rep.dependent = cl.m - cl.p_r_;
@@ -757,11 +763,7 @@ ClosureProjectionReport projectClosureVelocities(const TreeModel& model, const S
       dv.noalias() = cl.Y * x;
     }
     if (rep.converged) {  // past the tolerance: a step only while it is round-off-sized and halving
-      double step = 0.0, V = sys.velocity_scale;
-      for (int k = 0; k < cl.nv; ++k) {
-        step = std::max(step, std::fabs(dv(k)) * cl.unit_(k));
-        V = std::max(V, std::fabs(qdot(k)) * cl.unit_(k));
-      }
+      const double step = cl.correctionSize(dv), V = std::max(sys.velocity_scale, cl.correctionSize(qdot));
       if (!(step < 0.5 * previous_step) || step == 0.0 || step > kRoundoffStepBound * V) break;
       previous_step = step;
       ++extra;

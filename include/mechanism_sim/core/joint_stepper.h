@@ -109,6 +109,7 @@ class JointStepper {
   };
   std::vector<Damped> damped_;  // every damped tree coordinate
   std::vector<int> cut_damped_;  // cut joints with damping (efforts: accelerations())
+  std::vector<int> cut_constraints_;  // the cut joints' System constraints (their tracked angles)
   std::vector<char> stiff_;     // per damped_: integrated implicitly (classifyDamping)
   std::vector<int> stiff_list_;  // indices into damped_ of the stiff ones
   Eigen::MatrixXd damp_Y_;       // M^-1 e_iv per damped_ entry: of the checked ones at q0

@@ -247,12 +247,13 @@ class LoopClosures {
   // Whether the last findPassage() saw a direction below kPassageNear (a passage, or one
   // close): the projections then go on to round-off past their tolerance.
   bool passageNear() const { return p_near_; }
+  // What the last findPassage() returned (at the last evaluate()).
+  bool passageFound() const { return p_reduce_; }
 
-  // The closure's own tracked angles (of every constraint, tree joints' included, as they
-  // are the branch references of couplers, drives and limits on those joints) moved to
-  // ws's kinematics (Constraint::track), after an accepted step. With setContext() the
-  // caller tracks its State instead.
-  void track(const TreeWorkspace& ws);
+  // The tracked angles of the System constraints `which` (tracked: indexed by System
+  // constraint, e.g. State::tracked) moved to ws's kinematics (Constraint::track, reading
+  // context()), after an accepted step: the joint stepper's cut joints.
+  void track(const TreeWorkspace& ws, const std::vector<int>& which, std::vector<Tracked>& tracked);
 
  private:
   void loadKin(const TreeWorkspace& ws);
@@ -287,7 +288,9 @@ class LoopClosures {
   std::vector<int> p_rows_, p_cols_;
   Eigen::JacobiSVD<Eigen::MatrixXd> p_svd_;
   int p_r_ = 0, p_band_ = 0;
-  bool p_near_ = false;
+  bool p_near_ = false, p_reduce_ = false;
+  // max_k |dv_k| unit_k: a correction's size as a length (positions) or speed (rates)
+  double correctionSize(const Eigen::VectorXd& dv) const;
   long p_met_ = 0;
   ScaledLeastNorm p_least_norm_;  // of R M^-1 R^T (rows of different closures may depend)
   // R, M^-1 R^T and the factor of R M^-1 R^T at ws (after findPassage() > 0)
