@@ -12,6 +12,7 @@
 #include <random>
 
 #include "bodies.h"
+#include "compare.h"
 #include "mechanism_sim/core/models.h"
 #include "pendulum.h"
 
@@ -93,12 +94,7 @@ double treeDifference(unsigned seed, double h, double T) {
   EXPECT_STREQ(j.formulation(), "joint");
   EXPECT_STREQ(a.formulation(), "absolute");
   for (long k = 0, n = std::lround(T / h); k < n; ++k) a.step(h), j.step(h);
-  double worst = 0;
-  for (int k = 0; k < a.numJoints(); ++k)
-    for (int c = 0; c < a.joint(k).dof(); ++c)
-      worst = std::max(worst, std::fabs(a.jointPosition(k, c) - j.jointPosition(k, c)));
-  for (int b = 1; b < a.numBodies(); ++b) worst = std::max(worst, (a.position(b) - j.position(b)).norm());
-  return worst;
+  return test_util::difference(a, j);
 }
 
 // The two formulations are two discretizations of the same equations: their difference

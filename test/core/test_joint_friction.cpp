@@ -23,6 +23,7 @@
 #include <string>
 
 #include "bodies.h"
+#include "compare.h"
 #include "mechanism_sim/core/mechanism.h"
 #include "mechanism_sim/core/models.h"
 
@@ -52,15 +53,7 @@ void buildIn(Mechanism& m, const char* f, const std::function<void(Mechanism&)>&
   ASSERT_STREQ(m.formulation(), f) << m.formulationReason();
 }
 
-// The largest difference of joint coordinates and body positions between two runs.
-double difference(const Mechanism& a, const Mechanism& b) {
-  double worst = 0;
-  for (int k = 0; k < a.numJoints(); ++k)
-    for (int c = 0; c < a.joint(k).dof(); ++c)
-      worst = std::max(worst, std::fabs(a.jointPosition(k, c) - b.jointPosition(k, c)));
-  for (int i = 1; i < a.numBodies(); ++i) worst = std::max(worst, (a.position(i) - b.position(i)).norm());
-  return worst;
-}
+using test_util::difference;  // (compare.h)
 
 // ---- damping on spherical joints
 
