@@ -62,28 +62,47 @@ bool LoopClosures::findPassage() {
   // they touch): the crossing of a loop's branches takes a rank from that loop's rows. (Rows
   // of different closures that become dependent on each other are not a passage here: the
   // least-norm solve takes them, as outside a passage.)
+  // slot j of closure c: its entries are in c's rows (P) and coordinates (R) only
+  auto clearSlot = [&](int j, size_t c, int n) {
+    for (int e = row[c]; e < row[c] + n; ++e) p_P_(j, e) = 0.0;
+    for (int k : ccols_[c]) p_R_(j, k) = 0.0;
+  };
+  // (R's rows sit in slots: closure c's directions at rows row[c], row[c] + 1, ... of R, so
+  // that R has G's block structure for the sparse solve; unused slots are zero, not kept)
   for (size_t c = 0; c < constraints.size(); ++c) {
     const int n = sys_->constraints[constraints[c]]->size();
+    const int used_before = p_used_[c];
+    p_used_[c] = 0;
+    for (int e = row[c]; e < row[c] + n; ++e) p_keep_(e) = 0.0, p_held_[e] = 0;
     p_rows_.clear();
     p_cols_.clear();
     for (int e = row[c]; e < row[c] + n; ++e) {
       bool zero = true;
-      for (int k = 0; k < nv && zero; ++k)
-        if (std::fabs(G(e, k)) > kClosureZeroEntry * Gabs(e, k)) zero = false;
+      for (int k : ccols_[c])
+        if (std::fabs(G(e, k)) > kClosureZeroEntry * Gabs(e, k)) {
+          zero = false;
+          break;
+        }
       if (!zero) p_rows_.push_back(e);
     }
-    if (p_rows_.empty()) continue;
+    if (p_rows_.empty()) {
+      for (int j = row[c]; j < row[c] + used_before; ++j) clearSlot(j, c, n);
+      continue;
+    }
     // The columns that move the closure's bodies relative to each other: not those of a
     // link that carries the whole loop (an arm holding a gripper's four-bar), where G is
     // round-off but Gbound is not (it would shrink every singular value by the loop's size
     // over the distance to that link).
-    for (int k = 0; k < nv; ++k) {
+    for (int k : ccols_[c]) {
       bool used = false;
       for (int e : p_rows_) used = used || std::fabs(G(e, k)) > kClosureZeroEntry * Gabs(e, k);
       if (used) p_cols_.push_back(k);
     }
     const int kr = static_cast<int>(p_rows_.size()), kc = static_cast<int>(p_cols_.size());
-    if (kc == 0) continue;
+    if (kc == 0) {
+      for (int j = row[c]; j < row[c] + used_before; ++j) clearSlot(j, c, n);
+      continue;
+    }
     p_W_.resize(kr, kc);
     Eigen::VectorXd& dr = p_dr_;
     dr.resize(kr);
@@ -105,13 +124,14 @@ bool LoopClosures::findPassage() {
       const double s = sigma(d);
       if (!(s >= kPassageDependent)) continue;  // dependent: dropped
       if (s < kPassageGate) reduce = true;
-      const int j = p_r_++;
+      const int j = row[c] + p_used_[c]++;
+      ++p_r_;
+      p_keep_(j) = 1.0;
       const bool held = passage_hold && s < kPassageBand;
       p_near_ = p_near_ || s < kPassageNear;
       p_held_[j] = held;
       // R_j = (1/s) u^T D_r G = (v o unit)^T, P(j, e) = D_r(e) u_e / s
-      p_P_.row(j).setZero();
-      p_R_.row(j).setZero();
+      clearSlot(j, c, n);
       for (int i = 0; i < kr; ++i) p_P_(j, p_rows_[i]) = dr(i) * U(i, d) / s;
       for (int q = 0; q < kc; ++q) p_R_(j, p_cols_[q]) = V(q, d) * unit_(p_cols_[q]);
       if (held) {
@@ -124,28 +144,39 @@ bool LoopClosures::findPassage() {
         ++p_band_;
       }
     }
+    for (int j = row[c] + p_used_[c]; j < row[c] + used_before; ++j) clearSlot(j, c, n);
   }
   if (p_band_ > 0) ++p_met_;
   return reduce;
 }
 
 void LoopClosures::passageFactor(const TreeModel& model, const TreeWorkspace& ws) {
-  const int r = p_r_;
-  for (int j = 0; j < r; ++j) {
-    tau_ = p_R_.row(j).transpose();
-    applyInverseMass(model, ws, tau_.data(), p_Y_.col(j).data());
-  }
-  // R M^-1 R^T on the leading r x r block; rows past r are held at mu = 0
-  p_A_.setZero();
-  p_A_.topLeftCorner(r, r).noalias() = p_R_.topRows(r) * p_Y_.leftCols(r);
-  p_least_norm_.factor(p_A_);
+  // R M^-1 R^T over the kept slots (closure_solver.h); the others are held at mu = 0
+  massFactor(model, ws);
+  p_solver_.factor(mass_, p_R_, p_keep_, p_least_norm_, p_A_);
 }
 
 void LoopClosures::passageRhs(const Eigen::VectorXd& b, Eigen::VectorXd& g, bool accel) const {
   g.setZero();
-  for (int j = 0; j < p_r_; ++j) {
-    if (!p_held_[j]) g(j) = p_P_.row(j).dot(b);
-    else if (accel && passage_ref) g(j) = p_R_.row(j).dot(*passage_ref);
+  for (int j = 0; j < m; ++j) {
+    if (p_keep_(j) == 0.0) continue;
+    const int c = cl_of_[j];
+    double s = 0.0;
+    if (!p_held_[j]) {
+      for (int e = row[c]; e < row[c] + sys_->constraints[constraints[c]]->size(); ++e) s += p_P_(j, e) * b(e);
+    } else if (accel && passage_ref) {
+      for (int k : ccols_[c]) s += p_R_(j, k) * (*passage_ref)(k);
+    }
+    g(j) = s;
+  }
+}
+
+void LoopClosures::passageMultipliers(const Eigen::VectorXd& mu) {
+  lambda.setZero();
+  for (int j = 0; j < m; ++j) {
+    if (mu(j) == 0.0) continue;
+    const int c = cl_of_[j];
+    for (int e = row[c]; e < row[c] + sys_->constraints[constraints[c]]->size(); ++e) lambda(e) += p_P_(j, e) * mu(j);
   }
 }
 

@@ -587,6 +587,40 @@ void inverseDynamics(const TreeModel& model, const System& sys, const Eigen::Vec
   }
 }
 
+// Composite-rigid-body algorithm, RBDA 6.2, table 6.2, in body coordinates: I^c_i = I_i +
+// sum over children X^T I^c X; F = I^c_i S_i, H_ii = S_i^T F, then F moves to each ancestor
+// j (F = X^T F) for H_ij = F^T S_j.
+void jointSpaceInertia(const TreeModel& model, const System& sys, const TreeWorkspace& ws,
+                       AlignedVector<Matrix6d>& Ic, Eigen::MatrixXd& H) {
+  Ic.resize(model.nb);
+  for (int b : model.order) {
+    const Body& B = sys.bodies[b];
+    Matrix6d& I = Ic[b - 1];
+    I.setZero();
+    I.topLeftCorner<3, 3>() = B.Jp;
+    I.bottomRightCorner<3, 3>().diagonal().setConstant(B.m);
+  }
+  for (int n = model.nb - 1; n >= 0; --n) {
+    const int k = model.order[n] - 1;
+    const TreeLink& L = model.links[k];
+    if (L.parent != 0) addTransformedInertia(ws.E[k], ws.rho[k], Ic[k], Ic[L.parent - 1]);
+  }
+  for (int n = 0; n < model.nb; ++n) {
+    const int k = model.order[n] - 1;
+    const TreeLink& L = model.links[k];
+    if (L.nv == 0) continue;
+    MotionSubspace F = Ic[k] * ws.S[k];
+    H.block(L.iv, L.iv, L.nv, L.nv).noalias() = ws.S[k].transpose() * F;
+    for (int j = k; model.links[j].parent != 0;) {
+      for (int c = 0; c < L.nv; ++c) F.col(c) = transformForceBack(ws.E[j], ws.rho[j], F.col(c));
+      j = model.links[j].parent - 1;
+      const TreeLink& P = model.links[j];
+      for (int a = 0; a < L.nv; ++a)
+        for (int c = 0; c < P.nv; ++c) H(L.iv + a, P.iv + c) = H(P.iv + c, L.iv + a) = F.col(a).dot(ws.S[j].col(c));
+    }
+  }
+}
+
 void jointEfforts(const TreeModel& model, const Inputs& in, Eigen::VectorXd& tau) {
   tau.setZero(model.nv);
   for (size_t j = 0; j < model.joint_link.size(); ++j) {

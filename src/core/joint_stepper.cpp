@@ -331,6 +331,8 @@ void JointStepper::step(const System& sys, State& s, const Inputs& in, double h)
   // stage 1: the accelerations the last step (or settle) left, when they are of this state
   // under these inputs; else computed here (with friction: without it, frictionFor's)
   const bool friction = clearFriction(sys, s);
+  // friction and stiff damping read the closures' M^-1 G^T (the solves themselves do not)
+  closures_.form_Y = friction || !damped_.empty();
   if (friction || !(fresh_ && q_end_ == s.q && v_end_ == s.qdot)) accelerations(sys, s, in, s.t, q0_, v0_, s.qddot);
   // (ws_ holds q0's articulated factors now); stage 1 again if the stiff set changed
   if (!damped_.empty() && classifyDamping(sys, s, h)) accelerations(sys, s, in, s.t, q0_, v0_, s.qddot);

@@ -124,6 +124,64 @@ LoopClosures::LoopClosures(const TreeModel& model, const System& sys) : model_(&
   A_.setZero(m, m);
   least_norm_ = ScaledLeastNorm(m);
   info.rows = m;
+  // The closures' blocks for the sparse solves (closure_solver.h): each closure's rows touch
+  // the coordinates of its bodies' paths to the root (a direct row: its coordinates' links'
+  // paths), an ancestor-closed set.
+  std::vector<int> first(row);
+  first.push_back(m);
+  std::vector<std::vector<int>> cols(constraints.size());
+  auto addPath = [&](int b, std::vector<int>& out) {
+    for (int a = b; a != 0; a = model.links[a - 1].parent) {
+      const TreeLink& L = model.links[a - 1];
+      for (int k = 0; k < L.nv; ++k) out.push_back(L.iv + k);
+    }
+  };
+  std::vector<int> link_of(nv, 0);
+  for (const TreeLink& L : model.links)
+    for (int k = 0; k < L.nv; ++k) link_of[L.iv + k] = L.body;
+  for (size_t i = 0; i < constraints.size(); ++i) {
+    if (direct_[i].n > 0) {
+      for (int k = 0; k < direct_[i].n; ++k) addPath(link_of[direct_[i].col[k]], cols[i]);
+    } else {
+      for (int b : sys.constraints[constraints[i]]->bodies()) addPath(b, cols[i]);
+    }
+  }
+  mass_ = TreeMassFactor(model);
+  solver_ = ClosureSolver(model, first, cols);
+  ccols_.resize(constraints.size());
+  cl_of_.assign(m, 0);
+  for (size_t i = 0; i < constraints.size(); ++i) {
+    ccols_[i] = solver_.blockCols(static_cast<int>(i));
+    for (int e = first[i]; e < first[i + 1]; ++e) cl_of_[e] = static_cast<int>(i);
+  }
+  p_solver_ = solver_;
+  p_keep_.setZero(m);
+  p_used_.assign(constraints.size(), 0);
+}
+
+void LoopClosures::rowsTimes(const Eigen::MatrixXd& R, const Eigen::VectorXd& v, Eigen::VectorXd& out) const {
+  for (int e = 0; e < m; ++e) {
+    double s = 0.0;
+    for (int k : ccols_[cl_of_[e]]) s += R(e, k) * v(k);
+    out(e) = s;
+  }
+}
+
+void LoopClosures::inverseMassRowsT(const Eigen::MatrixXd& R, const Eigen::VectorXd& x, Eigen::VectorXd& out) const {
+  out.setZero();
+  bool any = false;
+  for (int e = 0; e < m; ++e) {
+    if (x(e) == 0.0) continue;
+    any = true;
+    for (int k : ccols_[cl_of_[e]]) out(k) += R(e, k) * x(e);
+  }
+  if (any) mass_.solve(out.data());  // (x = 0: every row dropped, the mass perhaps not factored)
+}
+
+void LoopClosures::massFactor(const TreeModel& model, const TreeWorkspace& ws) {
+  if (mass_ready_) return;
+  mass_.compute(model, *sys_, ws);
+  mass_ready_ = true;
 }
 
 // The twist a unit rate of column `col` of link a gives body b (centre r_b, rotation A_b),
@@ -247,6 +305,7 @@ void LoopClosures::clearRows() {
 
 void LoopClosures::evaluate(const TreeModel& model, const System& sys, const TreeWorkspace& ws) {
   cleared_ = false;
+  mass_ready_ = false;
   loadKin(ws);
   // a0: spatial accelerations at q_ddot = 0 (RBDA table 7.1's a'_i without the S q_ddot)
   for (int b : model.order) {
@@ -256,9 +315,10 @@ void LoopClosures::evaluate(const TreeModel& model, const System& sys, const Tre
     if (L.parent != 0) a0_[k] += transformMotion(ws.E[k], ws.rho[k], a0_[L.parent - 1]);
   }
   const EvalContext ctx = context();
-  G.setZero();
-  Gabs.setZero();
-  Gbound.setZero();
+  // (G, Gabs and Gbound are zero off each closure's coordinates: only those are cleared)
+  for (size_t i = 0; i < constraints.size(); ++i)
+    for (int e = row[i]; e < row[i] + sys.constraints[constraints[i]]->size(); ++e)
+      for (int k : ccols_[i]) G(e, k) = Gabs(e, k) = Gbound(e, k) = 0.0;
   const BodyKin* ptrs[kMaxConstraintBodies];
   for (size_t i = 0; i < constraints.size(); ++i) {
     const Constraint& C = *sys.constraints[constraints[i]];
@@ -364,7 +424,7 @@ void LoopClosures::velocityRows(const Eigen::VectorXd& qdot, const Eigen::Vector
   for (size_t i = 0; i < constraints.size(); ++i) {
     for (int e = row[i]; e < row[i] + sys_->constraints[constraints[i]]->size(); ++e) {
       double s = -nu(e), sc = std::fabs(nu(e));
-      for (int k = 0; k < nv; ++k) {
+      for (int k : ccols_[i]) {
         s += G(e, k) * qdot(k);
         sc += Gabs(e, k) * (std::fabs(qdot(k)) + (reference ? std::fabs((*reference)(k)) : 0.0));
       }
@@ -433,8 +493,11 @@ void LoopClosures::factor(const TreeModel& model, const TreeWorkspace& ws) {
   int zero_rows = 0;
   for (int e = 0; e < m; ++e) {
     bool zero = true;
-    for (int k = 0; k < nv && zero; ++k)
-      if (std::fabs(G(e, k)) > kClosureZeroEntry * Gabs(e, k)) zero = false;
+    for (int k : ccols_[cl_of_[e]])
+      if (std::fabs(G(e, k)) > kClosureZeroEntry * Gabs(e, k)) {
+        zero = false;
+        break;
+      }
     keep_(e) = zero ? 0.0 : 1.0;
     zero_rows += zero;
   }
@@ -446,27 +509,12 @@ void LoopClosures::factor(const TreeModel& model, const TreeWorkspace& ws) {
     return;
   }
   all_zero_ = false;
-  for (int e = 0; e < m; ++e) {
-    if (keep_(e) == 0.0) {  // (an inactive limit's row, a structurally zero one: no pass)
-      Y.col(e).setZero();
-      continue;
-    }
-    for (int k = 0; k < nv; ++k) tau_(k) = G(e, k);
-    applyInverseMass(model, ws, tau_.data(), Y.col(e).data());
-  }
-  if (m - zero_rows <= ScaledLeastNorm::kSmall && zero_rows > 0) {  // (the small path reads the kept rows only)
-    for (int e = 0; e < m; ++e) {
-      if (keep_(e) == 0.0) {
-        A_(e, e) = 0.0;
-        continue;
-      }
-      for (int f = 0; f < m; ++f)
-        if (keep_(f) != 0.0) A_(e, f) = G.row(e).dot(Y.col(f));
-    }
-  } else {
-    A_.noalias() = G * Y;
-  }
-  info.rank = least_norm_.factor(A_, &keep_) - zero_rows;
+  // Y = M^-1 G^T and G M^-1 G^T from the factored joint-space inertia, sparse where the
+  // closures are (closure_solver.h)
+  mass_ready_ = false;  // (at ws as it is now)
+  massFactor(model, ws);
+  info.rank = solver_.factor(mass_, G, keep_, least_norm_, A_) - zero_rows;
+  if (form_Y) solver_.formY(mass_, Y);
   info.dependent = m - info.rank;
 }
 
@@ -476,7 +524,7 @@ void LoopClosures::solve(const Eigen::VectorXd& b, Eigen::VectorXd& x) const {
     x.setZero();
     return;
   }
-  least_norm_.solve(b, x);
+  solver_.solve(least_norm_, b, x);
 }
 
 ScaledLeastNorm::ScaledLeastNorm(int n)
@@ -631,20 +679,22 @@ ClosureSolveInfo constrainedForwardDynamics(const TreeModel& model, const System
     // the held ones at passage_ref's acceleration across the branch
     cl.passageFactor(model, ws);
     cl.passageRhs(cl.gamma_q, cl.p_g_, true);
-    cl.p_mu_.noalias() = cl.p_R_ * qddot;
+    cl.rowsTimes(cl.p_R_, qddot, cl.p_mu_);
     cl.p_mu_ -= cl.p_g_;
-    cl.p_least_norm_.solve(cl.p_mu_, cl.p_mu_);
-    qddot.noalias() -= cl.p_Y_ * cl.p_mu_;
+    cl.passageSolve(cl.p_mu_, cl.p_mu_);
+    cl.inverseMassRowsT(cl.p_R_, cl.p_mu_, cl.qdd_cut_);
+    qddot -= cl.qdd_cut_;
     // G^T lambda = R^T mu with R = P G: lambda = P^T mu per closure row
-    cl.lambda.noalias() = cl.p_P_.transpose() * cl.p_mu_;
-    cl.gamma_q.noalias() = cl.G * qddot;
+    cl.passageMultipliers(cl.p_mu_);
+    cl.rowsTimes(cl.G, qddot, cl.gamma_q);
     return cl.info;
   }
-  cl.lambda.noalias() = cl.G * qddot;  // (the right-hand side, solved in place)
+  cl.rowsTimes(cl.G, qddot, cl.lambda);  // (the right-hand side, solved in place)
   cl.lambda -= cl.gamma_q;
   cl.solve(cl.lambda, cl.lambda);
-  qddot.noalias() -= cl.Y * cl.lambda;
-  cl.gamma_q.noalias() = cl.G * qddot;  // G q_ddot = gamma_q for the result
+  cl.inverseMassRowsT(cl.G, cl.lambda, cl.qdd_cut_);
+  qddot -= cl.qdd_cut_;
+  cl.rowsTimes(cl.G, qddot, cl.gamma_q);  // G q_ddot = gamma_q for the result
   return cl.info;
 }
 
@@ -692,14 +742,16 @@ ClosureProjectionReport projectClosurePositions(const TreeModel& model, const Sy
     if (passage) {
       cl.passageFactor(model, ws);
       cl.passageRhs(cl.Phi, cl.p_g_);
-      cl.p_least_norm_.solve(cl.p_g_, cl.p_mu_);
-      dv.noalias() = -cl.p_Y_ * cl.p_mu_;
+      cl.passageSolve(cl.p_g_, cl.p_mu_);
+      cl.inverseMassRowsT(cl.p_R_, cl.p_mu_, dv);
+      dv = -dv;
       rep.dependent = cl.m - cl.p_r_;
     } else {
       cl.factor(model, ws);
       rep.dependent = cl.info.dependent;
       cl.solve(cl.Phi, x);
-      dv.noalias() = -cl.Y * x;
+      cl.inverseMassRowsT(cl.G, x, dv);
+      dv = -dv;
     }
     if (rep.converged) {  // past the tolerance, near a passage: to round-off
       const double step = cl.correctionSize(dv);
@@ -754,13 +806,13 @@ ClosureProjectionReport projectClosureVelocities(const TreeModel& model, const S
     if (rep.iterations >= max_iterations) break;
     if (passage) {
       cl.passageRhs(r, cl.p_g_);
-      cl.p_least_norm_.solve(cl.p_g_, cl.p_mu_);
-      dv.noalias() = cl.p_Y_ * cl.p_mu_;
+      cl.passageSolve(cl.p_g_, cl.p_mu_);
+      cl.inverseMassRowsT(cl.p_R_, cl.p_mu_, dv);
     } else {
-      r.noalias() = cl.G * qdot;
+      cl.rowsTimes(cl.G, qdot, r);
       r -= cl.nu;
       cl.solve(r, x);
-      dv.noalias() = cl.Y * x;
+      cl.inverseMassRowsT(cl.G, x, dv);
     }
     if (rep.converged) {  // past the tolerance: a step only while it is round-off-sized and halving
       const double step = cl.correctionSize(dv), V = std::max(sys.velocity_scale, cl.correctionSize(qdot));

@@ -43,6 +43,7 @@
 #include <Eigen/QR>
 #include <Eigen/SVD>
 
+#include "mechanism_sim/core/closure_solver.h"
 #include "mechanism_sim/core/joint_space.h"
 
 namespace mechanism_sim {
@@ -159,7 +160,8 @@ class LoopClosures {
   std::vector<Eigen::MatrixXd> Jc;  // per closure: Phi_x (size x 6 slots)
 
   // ---- solves
-  Eigen::MatrixXd Y;       // M^-1 G^T (nv x m)
+  Eigen::MatrixXd Y;       // M^-1 G^T (nv x m), formed by factor() when form_Y
+  bool form_Y = true;      // (the solves themselves do not need it: a caller that reads Y)
   Eigen::VectorXd lambda;  // multipliers per closure row (absolute sign convention)
   ClosureSolveInfo info;   // of the last solve
 
@@ -301,10 +303,30 @@ class LoopClosures {
   mutable Eigen::VectorXd vr_, vt_;
   // g = P b, 0 on the held rows; with accel, R_j passage_ref on the held rows
   void passageRhs(const Eigen::VectorXd& b, Eigen::VectorXd& g, bool accel = false) const;
+  // lambda = P^T mu (G^T lambda = R^T mu)
+  void passageMultipliers(const Eigen::VectorXd& mu);
   // max_e |b'_e| / scale_e, b' = b without its components on the held directions
   double passageResidual(const Eigen::VectorXd& b, const Eigen::VectorXd& scale_e);
-  Eigen::MatrixXd A_;               // scaled G M^-1 G^T
-  ScaledLeastNorm least_norm_;      // its factorization
+  Eigen::MatrixXd A_;               // G M^-1 G^T (the dense solve's; scaled in place)
+  ScaledLeastNorm least_norm_;      // its dense factorization (closure_solver.h: the fallback)
+  // the joint-space inertia factored (closure_solver.h) once per evaluate(), for G's
+  // solve and the passages'; the sparse solves of G and of the passages' rows R (slot
+  // e of R: the closure of row e of G)
+  TreeMassFactor mass_;
+  bool mass_ready_ = false;
+  ClosureSolver solver_, p_solver_;
+  Eigen::VectorXd p_keep_;          // per slot of R: 1 for a direction kept
+  std::vector<int> p_used_;         // per closure: its slots used at the last findPassage()
+  void massFactor(const TreeModel& model, const TreeWorkspace& ws);
+  std::vector<std::vector<int>> ccols_;  // per closure: the coordinates its rows can touch
+  std::vector<int> cl_of_;               // per row: its closure
+  // out = G v over each row's coordinates (G is zero elsewhere)
+  void rowsTimes(const Eigen::MatrixXd& R, const Eigen::VectorXd& v, Eigen::VectorXd& out) const;
+  // out = M^-1 R^T x, R laid out as G (rows in the closures' slots), by the factored mass
+  void inverseMassRowsT(const Eigen::MatrixXd& R, const Eigen::VectorXd& x, Eigen::VectorXd& out) const;
+  void passageSolve(const Eigen::VectorXd& b, Eigen::VectorXd& x) const {
+    p_solver_.solve(p_least_norm_, b, x);
+  }
   const TreeModel* model_ = nullptr;
   const System* sys_ = nullptr;
   EvalContext external_;

@@ -1,0 +1,105 @@
+// The closures' linear algebra on the joint-space tree, sparse where the tree and the
+// closures are (loop_closure.h uses it for G and for the branch passages' reduced rows R).
+//
+//   TreeMassFactor  the joint-space inertia matrix H (jointSpaceInertia: CRBA) factored as
+//                   H = L^T D L in the order of the tree (Featherstone, "Rigid Body Dynamics
+//                   Algorithms" (RBDA), 2008, 6.5, table 6.3, "LTDL"): L has the branch-induced
+//                   sparsity of H (L_ij != 0 only for j an ancestor coordinate of i), so the
+//                   factorization costs O(n d^2) and L^-T g touches only g's ancestors (d the
+//                   depth of the tree).
+//   ClosureSolver   for rows R (m x nv) grouped in blocks (a closure's rows), each block
+//                   touching only an ancestor-closed set of coordinates (the paths of its
+//                   bodies to the root): Y = H^-1 R^T and the multipliers' matrix
+//                   A = R H^-1 R^T = Z^T D^-1 Z with Z = L^-T R^T (RBDA 8.5, "sparse
+//                   factorization" for closed loops). A is sparse where blocks share no
+//                   coordinate: a chain of four-bars gives a block-tridiagonal A, a humanoid's
+//                   mimic couplers small blocks. The Jacobi-scaled A (unit diagonal) is
+//                   factored by a sparse LDL^T (sparse_ldlt.h) with a fill-reducing order
+//                   (AMD, Eigen's AMDOrdering) found once; if a pivot falls below
+//                   kClosureSparsePivot (rows dependent, or nearly), the rank-revealing dense
+//                   solve (ScaledLeastNorm) takes over, so dependent rows get the least-norm
+//                   multipliers as before. At most ScaledLeastNorm::kSmall kept rows go to the
+//                   dense solve directly (a few active limits on an arm).
+#pragma once
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "mechanism_sim/core/joint_space.h"
+#include "mechanism_sim/core/sparse_ldlt.h"
+
+namespace mechanism_sim {
+
+class ScaledLeastNorm;
+
+// A pivot of the Jacobi-scaled A (unit diagonal) below this sends the solve to the
+// rank-revealing dense path (whose threshold, kClosureRankThreshold, is smaller: a
+// marginal pivot is decided there, not here).
+constexpr double kClosureSparsePivot = 1e-8;
+
+class TreeMassFactor {
+ public:
+  TreeMassFactor() = default;
+  explicit TreeMassFactor(const TreeModel& model);
+  // H at ws's kinematics (forwardKinematics or forwardDynamics), factored.
+  void compute(const TreeModel& model, const System& sys, const TreeWorkspace& ws);
+  // z = L^-T z in place, over z's entries (velocity coordinates); only the coordinates in
+  // `set` (ancestor-closed, in the tree's order) are read and written.
+  void solveLT(double* z, const std::vector<int>& set) const;
+  // x = H^-1 b from z = L^-T b (D^-1, then L^-1): every coordinate written.
+  void finish(const double* z, double* x) const;
+  // x = H^-1 x (every coordinate).
+  void solve(double* x) const {
+    solveLT(x, vorder_);
+    finish(x, x);
+  }
+  // per velocity coordinate: the parent coordinate (-1 at a root), and the coordinates
+  // in the tree's order (each after its parent)
+  const std::vector<int>& parent() const { return vparent_; }
+  const std::vector<int>& order() const { return vorder_; }
+  double D(int k) const { return H_(k, k); }
+
+ private:
+  Eigen::MatrixXd H_;  // H, then L (entries (i, j), j an ancestor of i) and D (diagonal)
+  AlignedVector<Matrix6d> Ic_;
+  std::vector<int> vparent_, vorder_, vpos_;  // vpos_: index of a coordinate in vorder_
+};
+
+class ClosureSolver {
+ public:
+  ClosureSolver() = default;
+  // block_first: the first row of each block and m at the end; block_cols: per block its
+  // coordinates (ancestor-closed; any order). Finds the pattern of A and its ordering.
+  ClosureSolver(const TreeModel& model, const std::vector<int>& block_first,
+                const std::vector<std::vector<int>>& block_cols);
+  // The factorization of R H^-1 R^T over the kept rows (keep(e) != 0), at mass's factors.
+  // Returns the rank as ScaledLeastNorm::factor counts it (dropped rows included).
+  int factor(const TreeMassFactor& mass, const Eigen::MatrixXd& R, const Eigen::VectorXd& keep,
+             ScaledLeastNorm& dense, Eigen::MatrixXd& A_dense);
+  // Y = H^-1 R^T of the last factor() (columns of rows not kept: zero).
+  void formY(const TreeMassFactor& mass, Eigen::MatrixXd& Y) const;
+  // Per block, its coordinates in the tree's order (R's entries elsewhere are zero).
+  const std::vector<int>& blockCols(int b) const { return cols_[b]; }
+  // x = A^+ b (dropped rows: x = 0); x may be b. No allocation.
+  void solve(const ScaledLeastNorm& dense, const Eigen::VectorXd& b, Eigen::VectorXd& x) const;
+  // Whether the last factor() took the sparse path.
+  bool sparse() const { return sparse_; }
+
+ private:
+  int m_ = 0, nv_ = 0;
+  std::vector<int> block_, first_;            // per row its block; per block its first row
+  std::vector<std::vector<int>> cols_;        // per block, in the tree's order
+  std::vector<std::pair<int, int>> pairs_;    // blocks sharing a coordinate (a <= b)
+  std::vector<std::vector<int>> shared_;      // per pair: the shared coordinates
+  std::vector<int> Ap_, Ai_;                  // A's pattern (both triangles, columns)
+  std::vector<int> pos_;                      // m x m: where entry (e, f) sits in Ax_ (-1: none)
+  std::vector<double> Ax_;
+  Eigen::MatrixXd Z_;                         // L^-T R^T (nv x m)
+  Eigen::VectorXd kept_rows_;                 // per row: whether the last factor() kept it
+  Eigen::VectorXd d_, work_;                  // Jacobi scale; scratch
+  SparseLDLT ldlt_;
+  bool sparse_ = false;
+  int kept_ = 0;
+};
+
+}  // namespace mechanism_sim
