@@ -152,8 +152,7 @@ bool LoopClosures::findPassage() {
 
 void LoopClosures::passageFactor(const TreeModel& model, const TreeWorkspace& ws) {
   // R M^-1 R^T over the kept slots (closure_solver.h); the others are held at mu = 0
-  massFactor(model, ws);
-  p_solver_.factor(mass_, p_R_, p_keep_, p_least_norm_, p_A_);
+  p_solver_.factor(model, ws, p_R_, p_keep_, p_least_norm_, p_A_);
 }
 
 void LoopClosures::passageRhs(const Eigen::VectorXd& b, Eigen::VectorXd& g, bool accel) const {

@@ -85,22 +85,37 @@ ClosureSolver::ClosureSolver(const TreeModel& model, const std::vector<int>& blo
   coordinateTree(model, order, parent);
   std::vector<int> pos(model.nv, 0);
   for (int i = 0; i < model.nv; ++i) pos[order[i]] = i;
+  std::vector<int> opos(model.nb, 0), link_of(model.nv, 0);  // links' places in model.order
+  for (int n = 0; n < model.nb; ++n) opos[model.order[n] - 1] = n;
+  for (int k = 0; k < model.nb; ++k)
+    for (int i = 0; i < model.links[k].nv; ++i) link_of[model.links[k].iv + i] = k;
   first_.assign(block_first.begin(), block_first.end());
   block_.assign(m_, 0);
   cols_.assign(nblocks, {});
-  std::vector<std::vector<int>> at(model.nv);  // per coordinate: the blocks touching it
+  links_.assign(nblocks, {});
+  std::vector<std::vector<int>> at(model.nb);  // per link with coordinates: the blocks through it
+  std::vector<char> mark(model.nb, 0);
   for (int b = 0; b < nblocks; ++b) {
     for (int e = first_[b]; e < first_[b + 1]; ++e) block_[e] = b;
-    cols_[b] = block_cols[b];
+    // the links on the paths of the block's coordinates to the root (fixed ones too: they
+    // carry the inward pass's force), and their coordinates
+    std::fill(mark.begin(), mark.end(), 0);
+    for (int v : block_cols[b])
+      for (int k = link_of[v]; k >= 0 && !mark[k]; k = model.links[k].parent - 1) mark[k] = 1;
+    for (int k = 0; k < model.nb; ++k) {
+      if (!mark[k]) continue;
+      links_[b].push_back(k);
+      for (int i = 0; i < model.links[k].nv; ++i) cols_[b].push_back(model.links[k].iv + i);
+      if (model.links[k].nv > 0) at[k].push_back(b);
+    }
+    std::sort(links_[b].begin(), links_[b].end(), [&](int x, int y) { return opos[x] > opos[y]; });
     std::sort(cols_[b].begin(), cols_[b].end(), [&](int x, int y) { return pos[x] < pos[y]; });
-    cols_[b].erase(std::unique(cols_[b].begin(), cols_[b].end()), cols_[b].end());
-    for (int v : cols_[b]) at[v].push_back(b);
   }
   std::map<std::pair<int, int>, std::vector<int>> shared;
   for (int b = 0; b < nblocks; ++b) shared[{b, b}];  // (every row has its diagonal)
-  for (int v : order)
-    for (size_t i = 0; i < at[v].size(); ++i)
-      for (size_t j = i; j < at[v].size(); ++j) shared[{at[v][i], at[v][j]}].push_back(v);
+  for (int k = 0; k < model.nb; ++k)
+    for (size_t i = 0; i < at[k].size(); ++i)
+      for (size_t j = i; j < at[k].size(); ++j) shared[{at[k][i], at[k][j]}].push_back(k);
   for (auto& s : shared) {
     pairs_.push_back(s.first);
     shared_.push_back(std::move(s.second));
@@ -142,47 +157,58 @@ ClosureSolver::ClosureSolver(const TreeModel& model, const std::vector<int>& blo
   Z_.setZero(model.nv, m_);
   d_.setZero(m_);
   work_.setZero(m_);
-  kept_rows_.setZero(m_);
+  pa_.assign(model.nb, Vector6d::Zero());
 }
 
-void ClosureSolver::formY(const TreeMassFactor& mass, Eigen::MatrixXd& Y) const {
-  for (int e = 0; e < m_; ++e) {
-    double* y = Y.col(e).data();
-    for (int k = 0; k < nv_; ++k) y[k] = 0.0;
-    if (kept_rows_(e) == 0.0) continue;
-    // H^-1 R_e^T = L^-1 D^-1 z (z zero off the row's coordinates)
-    const double* z = Z_.col(e).data();
-    for (int v : cols_[block_[e]]) y[v] = z[v];
-    mass.finish(y, y);
+double ClosureSolver::product(const TreeModel& model, const TreeWorkspace& ws, const std::vector<int>& links, int e,
+                              int f) const {
+  const double* ze = Z_.col(e).data();
+  const double* zf = Z_.col(f).data();
+  double s = 0.0;
+  for (int k : links) {
+    const TreeLink& L = model.links[k];
+    if (L.nv == 1) {
+      s += ze[L.iv] * ws.Dinv[k](0, 0) * zf[L.iv];
+    } else {
+      for (int i = 0; i < L.nv; ++i)
+        for (int j = 0; j < L.nv; ++j) s += ze[L.iv + i] * ws.Dinv[k](i, j) * zf[L.iv + j];
+    }
   }
+  return s;
 }
 
-int ClosureSolver::factor(const TreeMassFactor& mass, const Eigen::MatrixXd& R, const Eigen::VectorXd& keep,
-                          ScaledLeastNorm& dense, Eigen::MatrixXd& A_dense) {
-  // Z = L^-T R^T on each kept row's coordinates, and the diagonal of A
+// Z's column of row e: the articulated-body algorithm's inward pass with zero velocity on
+// tau = R_e^T (RBDA table 7.1, applyInverseMass): u_k = tau_k - S_k^T p_k, then
+// p_parent += X^T (p_k + U_k D_k^-1 u_k). It is L^-T tau for M = L^T D L with D_k =
+// S_k^T I^A_k S_k; p_k is zero off the row's paths, so only those links are visited.
+int ClosureSolver::factor(const TreeModel& model, const TreeWorkspace& ws, const Eigen::MatrixXd& R,
+                          const Eigen::VectorXd& keep, ScaledLeastNorm& dense, Eigen::MatrixXd& A_dense) {
   kept_ = 0;
   for (int e = 0; e < m_; ++e) {
     d_(e) = 0.0;
-    kept_rows_(e) = keep(e);
     if (keep(e) == 0.0) continue;
-    const std::vector<int>& cols = cols_[block_[e]];
+    const std::vector<int>& links = links_[block_[e]];
     double* z = Z_.col(e).data();
-    for (int v : cols) z[v] = R(e, v);
-    mass.solveLT(z, cols);
-    double a = 0.0;
-    for (int v : cols) a += z[v] * z[v] / mass.D(v);
+    for (int k : links) pa_[k].setZero();
+    for (int k : links) {
+      const TreeLink& L = model.links[k];
+      Vector6d pa = pa_[k];
+      for (int i = 0; i < L.nv; ++i) z[L.iv + i] = R(e, L.iv + i) - ws.S[k].col(i).dot(pa);
+      if (L.parent == 0) continue;
+      if (L.nv == 1) {
+        pa += ws.U[k].col(0) * (ws.Dinv[k](0, 0) * z[L.iv]);
+      } else if (L.nv > 0) {
+        const SmallVector u = Eigen::Map<const SmallVector>(z + L.iv, L.nv);
+        pa += ws.U[k] * (ws.Dinv[k] * u);
+      }
+      pa_[L.parent - 1] += transformForceBack(ws.E[k], ws.rho[k], pa);
+    }
+    const double a = product(model, ws, links, e, e);
     if (a > 0.0) {
       d_(e) = 1.0 / std::sqrt(a);
       ++kept_;
     }
   }
-  auto entry = [&](size_t p, int e, int f) {
-    double s = 0.0;
-    const double* ze = Z_.col(e).data();
-    const double* zf = Z_.col(f).data();
-    for (int v : shared_[p]) s += ze[v] * zf[v] / mass.D(v);
-    return s;
-  };
   sparse_ = kept_ > ScaledLeastNorm::kSmall;
   if (sparse_) {
     std::fill(Ax_.begin(), Ax_.end(), 0.0);
@@ -194,7 +220,7 @@ int ClosureSolver::factor(const TreeMassFactor& mass, const Eigen::MatrixXd& R, 
         if (d_(e) == 0.0) continue;
         for (int f = a == b ? e : first_[b]; f < first_[b + 1]; ++f) {
           if (d_(f) == 0.0) continue;
-          const double s = entry(p, e, f) * d_(e) * d_(f);
+          const double s = product(model, ws, shared_[p], e, f) * d_(e) * d_(f);
           Ax_[pos_[static_cast<size_t>(f) * m_ + e]] = s;
           Ax_[pos_[static_cast<size_t>(e) * m_ + f]] = s;
         }
@@ -213,7 +239,7 @@ int ClosureSolver::factor(const TreeMassFactor& mass, const Eigen::MatrixXd& R, 
       if (d_(e) == 0.0) continue;
       for (int f = first_[b]; f < first_[b + 1]; ++f) {
         if (d_(f) == 0.0) continue;
-        A_dense(e, f) = A_dense(f, e) = entry(p, e, f);
+        A_dense(e, f) = A_dense(f, e) = product(model, ws, shared_[p], e, f);
       }
     }
   }

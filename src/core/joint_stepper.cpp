@@ -99,6 +99,7 @@ JointStepper::JointStepper(const System& sys) : model_(sys), ws_(model_), closur
   setDamping(sys);
   fric_e_.setZero(model_.nv), fric_y_.setZero(model_.nv);
   for (int j : model_.cut_joints) cut_constraints_.push_back(sys.joint_constraint[j]);
+  closures_.form_Y = false;  // (only implicitDamping reads M^-1 G^T whole)
 }
 
 void JointStepper::setDamping(const System& sys) {
@@ -331,8 +332,6 @@ void JointStepper::step(const System& sys, State& s, const Inputs& in, double h)
   // stage 1: the accelerations the last step (or settle) left, when they are of this state
   // under these inputs; else computed here (with friction: without it, frictionFor's)
   const bool friction = clearFriction(sys, s);
-  // friction and stiff damping read the closures' M^-1 G^T (the solves themselves do not)
-  closures_.form_Y = friction || !damped_.empty();
   if (friction || !(fresh_ && q_end_ == s.q && v_end_ == s.qdot)) accelerations(sys, s, in, s.t, q0_, v0_, s.qddot);
   // (ws_ holds q0's articulated factors now); stage 1 again if the stiff set changed
   if (!damped_.empty() && classifyDamping(sys, s, h)) accelerations(sys, s, in, s.t, q0_, v0_, s.qddot);
@@ -391,6 +390,7 @@ bool JointStepper::clearFriction(const System& sys, State& s) const {
 // from the articulated factors at q0 (ws_), less M^-1 G^T (G M^-1 G^T)^+ G M^-1 with the
 // closures (their factorization at q0: stage 1 ran there), as classifyDamping's.
 void JointStepper::frictionFor(const System& sys, State& s, double h) {
+  bool mass = false;  // the joint-space inertia factored at q0 (once)
   for (const TreeLink& L : model_.links) {
     if (L.joint < 0) continue;
     const std::array<double, 3>& f = sys.friction[L.joint];
@@ -399,13 +399,15 @@ void JointStepper::frictionFor(const System& sys, State& s, double h) {
     for (int k = 0; k < L.nv; ++k) {
       if (!(f[k] > 0.0)) continue;
       rate[k] = s.qdot(L.iv + k) / h + s.qddot(L.iv + k);
-      fric_e_.setZero();
-      fric_e_(L.iv + k) = 1.0;
-      closures_.applyInverseMass(model_, ws_, fric_e_.data(), fric_y_.data());
+      if (!mass) closures_.factorMass(model_, ws_), mass = true;
+      fric_y_.setZero();
+      fric_y_(L.iv + k) = 1.0;
+      closures_.inverseMass(fric_y_.data());
       if (closures_.m > 0) {
-        damp_r_.noalias() = closures_.G * fric_y_;
+        closures_.timesG(fric_y_, damp_r_);
         closures_.solve(damp_r_, damp_mu_);
-        fric_y_.noalias() -= closures_.Y * damp_mu_;
+        closures_.inverseMassGT(damp_mu_, fric_e_);
+        fric_y_ -= fric_e_;
       }
       for (int l = 0; l < L.nv; ++l)
         if (f[l] > 0.0) gPg[l][k] = fric_y_(L.iv + l);
@@ -423,7 +425,7 @@ void JointStepper::frictionFor(const System& sys, State& s, double h) {
 // exceeds stiff_bound, (M^-1) e_k itself (one articulated-body pass at q0).
 bool JointStepper::classifyDamping(const System& sys, const State& s, double h) {
   const double bound = tableau_->stiff_bound;
-  bool kinematics = false;
+  bool kinematics = false, mass = false;
   bool changed = false;
   stiff_list_.clear();
   for (size_t i = 0; i < damped_.size(); ++i) {
@@ -452,17 +454,21 @@ bool JointStepper::classifyDamping(const System& sys, const State& s, double h) 
     // column below counts every damped coordinate)
     bool stiff = false;
     if (h * sum > bound / 4) {
-      damp_e_.setZero();
-      damp_e_(d.iv) = 1.0;
-      closures_.applyInverseMass(model_, ws_, damp_e_.data(), damp_Y_.col(i).data());
+      // M^-1 e_k by the factored joint-space inertia (once a step: a unit vector's solve
+      // touches its ancestors, then one outward pass)
+      if (!mass) closures_.factorMass(model_, ws_), mass = true;
+      damp_Y_.col(i).setZero();
+      damp_Y_(d.iv, i) = 1.0;
+      closures_.inverseMass(damp_Y_.col(i).data());
       // with closures, the constrained inverse mass P e_k = y - M^-1 G^T (G M^-1 G^T)^+ G y
       // (the absolute formulation's P): a finger coupled to its hand is not stiff when the
       // hand carries it (closures_ holds q0's factorization: stage 1 ran there)
       damp_c_ = damp_Y_.col(i);
       if (closures_.m > 0) {
-        damp_r_.noalias() = closures_.G * damp_c_;
+        closures_.timesG(damp_c_, damp_r_);
         closures_.solve(damp_r_, damp_mu_);
-        damp_c_.noalias() -= closures_.Y * damp_mu_;
+        closures_.inverseMassGT(damp_mu_, damp_e_);
+        damp_c_ -= damp_e_;
       }
       double exact = 0.0;
       for (const Damped& o : damped_) exact += std::sqrt(d.c * o.c) * std::fabs(damp_c_(o.iv));
@@ -514,7 +520,9 @@ void JointStepper::implicitDamping(const System& sys, State& s, double h) {
     ctx.t = s.t + h;
     closures_.setContext(ctx);
     closures_.evaluate(model_, sys, ws_);  // G and nu at s.q (ws_: s.q at rest)
+    closures_.form_Y = true;
     closures_.factor(model_, ws_);         // closures_.Y = M^-1 G^T
+    closures_.form_Y = false;
     const int m = closures_.m;
     damp_Z_ = closures_.Y;
     for (int e = 0; e < m; ++e) {

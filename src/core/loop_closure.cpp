@@ -167,21 +167,28 @@ void LoopClosures::rowsTimes(const Eigen::MatrixXd& R, const Eigen::VectorXd& v,
   }
 }
 
-void LoopClosures::inverseMassRowsT(const Eigen::MatrixXd& R, const Eigen::VectorXd& x, Eigen::VectorXd& out) const {
+void LoopClosures::inverseMassRowsT(const TreeModel& model, const TreeWorkspace& ws, const Eigen::MatrixXd& R,
+                                    const Eigen::VectorXd& x, Eigen::VectorXd& out) {
+  tau_.setZero();
+  bool any = false;
+  for (int e = 0; e < m; ++e) {
+    if (x(e) == 0.0) continue;
+    any = true;
+    for (int k : ccols_[cl_of_[e]]) tau_(k) += R(e, k) * x(e);
+  }
+  if (any) applyInverseMass(model, ws, tau_.data(), out.data());
+  else out.setZero();
+}
+
+void LoopClosures::inverseMassGT(const Eigen::VectorXd& x, Eigen::VectorXd& out) const {
   out.setZero();
   bool any = false;
   for (int e = 0; e < m; ++e) {
     if (x(e) == 0.0) continue;
     any = true;
-    for (int k : ccols_[cl_of_[e]]) out(k) += R(e, k) * x(e);
+    for (int k : ccols_[cl_of_[e]]) out(k) += G(e, k) * x(e);
   }
-  if (any) mass_.solve(out.data());  // (x = 0: every row dropped, the mass perhaps not factored)
-}
-
-void LoopClosures::massFactor(const TreeModel& model, const TreeWorkspace& ws) {
-  if (mass_ready_) return;
-  mass_.compute(model, *sys_, ws);
-  mass_ready_ = true;
+  if (any) mass_.solve(out.data());
 }
 
 // The twist a unit rate of column `col` of link a gives body b (centre r_b, rotation A_b),
@@ -305,7 +312,6 @@ void LoopClosures::clearRows() {
 
 void LoopClosures::evaluate(const TreeModel& model, const System& sys, const TreeWorkspace& ws) {
   cleared_ = false;
-  mass_ready_ = false;
   loadKin(ws);
   // a0: spatial accelerations at q_ddot = 0 (RBDA table 7.1's a'_i without the S q_ddot)
   for (int b : model.order) {
@@ -511,10 +517,16 @@ void LoopClosures::factor(const TreeModel& model, const TreeWorkspace& ws) {
   all_zero_ = false;
   // Y = M^-1 G^T and G M^-1 G^T from the factored joint-space inertia, sparse where the
   // closures are (closure_solver.h)
-  mass_ready_ = false;  // (at ws as it is now)
-  massFactor(model, ws);
-  info.rank = solver_.factor(mass_, G, keep_, least_norm_, A_) - zero_rows;
-  if (form_Y) solver_.formY(mass_, Y);
+  info.rank = solver_.factor(model, ws, G, keep_, least_norm_, A_) - zero_rows;
+  if (form_Y)
+    for (int e = 0; e < m; ++e) {
+      if (!solver_.kept(e)) {
+        Y.col(e).setZero();
+        continue;
+      }
+      for (int k = 0; k < nv; ++k) tau_(k) = G(e, k);
+      applyInverseMass(model, ws, tau_.data(), Y.col(e).data());
+    }
   info.dependent = m - info.rank;
 }
 
@@ -682,7 +694,7 @@ ClosureSolveInfo constrainedForwardDynamics(const TreeModel& model, const System
     cl.rowsTimes(cl.p_R_, qddot, cl.p_mu_);
     cl.p_mu_ -= cl.p_g_;
     cl.passageSolve(cl.p_mu_, cl.p_mu_);
-    cl.inverseMassRowsT(cl.p_R_, cl.p_mu_, cl.qdd_cut_);
+    cl.inverseMassRowsT(model, ws, cl.p_R_, cl.p_mu_, cl.qdd_cut_);
     qddot -= cl.qdd_cut_;
     // G^T lambda = R^T mu with R = P G: lambda = P^T mu per closure row
     cl.passageMultipliers(cl.p_mu_);
@@ -692,7 +704,7 @@ ClosureSolveInfo constrainedForwardDynamics(const TreeModel& model, const System
   cl.rowsTimes(cl.G, qddot, cl.lambda);  // (the right-hand side, solved in place)
   cl.lambda -= cl.gamma_q;
   cl.solve(cl.lambda, cl.lambda);
-  cl.inverseMassRowsT(cl.G, cl.lambda, cl.qdd_cut_);
+  cl.inverseMassRowsT(model, ws, cl.G, cl.lambda, cl.qdd_cut_);
   qddot -= cl.qdd_cut_;
   cl.rowsTimes(cl.G, qddot, cl.gamma_q);  // G q_ddot = gamma_q for the result
   return cl.info;
@@ -743,14 +755,14 @@ ClosureProjectionReport projectClosurePositions(const TreeModel& model, const Sy
       cl.passageFactor(model, ws);
       cl.passageRhs(cl.Phi, cl.p_g_);
       cl.passageSolve(cl.p_g_, cl.p_mu_);
-      cl.inverseMassRowsT(cl.p_R_, cl.p_mu_, dv);
+      cl.inverseMassRowsT(model, ws, cl.p_R_, cl.p_mu_, dv);
       dv = -dv;
       rep.dependent = cl.m - cl.p_r_;
     } else {
       cl.factor(model, ws);
       rep.dependent = cl.info.dependent;
       cl.solve(cl.Phi, x);
-      cl.inverseMassRowsT(cl.G, x, dv);
+      cl.inverseMassRowsT(model, ws, cl.G, x, dv);
       dv = -dv;
     }
     if (rep.converged) {  // past the tolerance, near a passage: to round-off
@@ -807,12 +819,12 @@ ClosureProjectionReport projectClosureVelocities(const TreeModel& model, const S
     if (passage) {
       cl.passageRhs(r, cl.p_g_);
       cl.passageSolve(cl.p_g_, cl.p_mu_);
-      cl.inverseMassRowsT(cl.p_R_, cl.p_mu_, dv);
+      cl.inverseMassRowsT(model, ws, cl.p_R_, cl.p_mu_, dv);
     } else {
       cl.rowsTimes(cl.G, qdot, r);
       r -= cl.nu;
       cl.solve(r, x);
-      cl.inverseMassRowsT(cl.G, x, dv);
+      cl.inverseMassRowsT(model, ws, cl.G, x, dv);
     }
     if (rep.converged) {  // past the tolerance: a step only while it is round-off-sized and halving
       const double step = cl.correctionSize(dv), V = std::max(sys.velocity_scale, cl.correctionSize(qdot));

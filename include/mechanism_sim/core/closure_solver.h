@@ -1,7 +1,8 @@
 // The closures' linear algebra on the joint-space tree, sparse where the tree and the
 // closures are (loop_closure.h uses it for G and for the branch passages' reduced rows R).
 //
-//   TreeMassFactor  the joint-space inertia matrix H (jointSpaceInertia: CRBA) factored as
+//   TreeMassFactor  (M^-1 of many vectors at one state: the damping's and friction's
+//                   columns) the joint-space inertia matrix H (jointSpaceInertia: CRBA) factored as
 //                   H = L^T D L in the order of the tree (Featherstone, "Rigid Body Dynamics
 //                   Algorithms" (RBDA), 2008, 6.5, table 6.3, "LTDL"): L has the branch-induced
 //                   sparsity of H (L_ij != 0 only for j an ancestor coordinate of i), so the
@@ -9,9 +10,13 @@
 //                   depth of the tree).
 //   ClosureSolver   for rows R (m x nv) grouped in blocks (a closure's rows), each block
 //                   touching only an ancestor-closed set of coordinates (the paths of its
-//                   bodies to the root): Y = H^-1 R^T and the multipliers' matrix
-//                   A = R H^-1 R^T = Z^T D^-1 Z with Z = L^-T R^T (RBDA 8.5, "sparse
-//                   factorization" for closed loops). A is sparse where blocks share no
+//                   bodies to the root): the multipliers' matrix A = R M^-1 R^T = Z^T D^-1 Z
+//                   (RBDA 8.5, "sparse factorization" for closed loops), with M = L^T D L the
+//                   factorization the articulated-body algorithm carries out (D_k =
+//                   S_k^T I^A_k S_k, ws.Dinv): Z = L^-T R^T is its inward pass with zero
+//                   velocity (applyInverseMass's first half) on the row alone, which touches
+//                   only the links on the row's paths (O(depth) a row, no mass matrix).
+//                   A is sparse where blocks share no
 //                   coordinate: a chain of four-bars gives a block-tridiagonal A, a humanoid's
 //                   mimic couplers small blocks. The Jacobi-scaled A (unit diagonal) is
 //                   factored by a sparse LDL^T (sparse_ldlt.h) with a fill-reducing order
@@ -68,38 +73,42 @@ class TreeMassFactor {
 class ClosureSolver {
  public:
   ClosureSolver() = default;
-  // block_first: the first row of each block and m at the end; block_cols: per block its
-  // coordinates (ancestor-closed; any order). Finds the pattern of A and its ordering.
+  // block_first: the first row of each block and m at the end; block_cols: per block the
+  // coordinates its rows can touch (their links' paths to the root are taken). Finds the
+  // pattern of A and its ordering.
   ClosureSolver(const TreeModel& model, const std::vector<int>& block_first,
                 const std::vector<std::vector<int>>& block_cols);
-  // The factorization of R H^-1 R^T over the kept rows (keep(e) != 0), at mass's factors.
-  // Returns the rank as ScaledLeastNorm::factor counts it (dropped rows included).
-  int factor(const TreeMassFactor& mass, const Eigen::MatrixXd& R, const Eigen::VectorXd& keep,
+  // The factorization of R M^-1 R^T over the kept rows (keep(e) != 0), at the articulated
+  // factors in ws (forwardDynamics at the same q). Returns the rank as
+  // ScaledLeastNorm::factor counts it (dropped rows included).
+  int factor(const TreeModel& model, const TreeWorkspace& ws, const Eigen::MatrixXd& R, const Eigen::VectorXd& keep,
              ScaledLeastNorm& dense, Eigen::MatrixXd& A_dense);
-  // Y = H^-1 R^T of the last factor() (columns of rows not kept: zero).
-  void formY(const TreeMassFactor& mass, Eigen::MatrixXd& Y) const;
-  // Per block, its coordinates in the tree's order (R's entries elsewhere are zero).
-  const std::vector<int>& blockCols(int b) const { return cols_[b]; }
   // x = A^+ b (dropped rows: x = 0); x may be b. No allocation.
   void solve(const ScaledLeastNorm& dense, const Eigen::VectorXd& b, Eigen::VectorXd& x) const;
-  // Whether the last factor() took the sparse path.
+  // Whether the last factor() took the sparse path; whether it kept row e.
   bool sparse() const { return sparse_; }
+  bool kept(int e) const { return d_(e) != 0.0; }
+  // Per block, its coordinates in the tree's order (R's entries elsewhere are zero).
+  const std::vector<int>& blockCols(int b) const { return cols_[b]; }
 
  private:
   int m_ = 0, nv_ = 0;
   std::vector<int> block_, first_;            // per row its block; per block its first row
-  std::vector<std::vector<int>> cols_;        // per block, in the tree's order
-  std::vector<std::pair<int, int>> pairs_;    // blocks sharing a coordinate (a <= b)
-  std::vector<std::vector<int>> shared_;      // per pair: the shared coordinates
+  std::vector<std::vector<int>> cols_;        // per block: coordinates, in the tree's order
+  std::vector<std::vector<int>> links_;       // per block: links (body - 1) on its paths, leaves first
+  std::vector<std::pair<int, int>> pairs_;    // blocks sharing a link with coordinates (a <= b)
+  std::vector<std::vector<int>> shared_;      // per pair: those links
   std::vector<int> Ap_, Ai_;                  // A's pattern (both triangles, columns)
   std::vector<int> pos_;                      // m x m: where entry (e, f) sits in Ax_ (-1: none)
   std::vector<double> Ax_;
-  Eigen::MatrixXd Z_;                         // L^-T R^T (nv x m)
-  Eigen::VectorXd kept_rows_;                 // per row: whether the last factor() kept it
-  Eigen::VectorXd d_, work_;                  // Jacobi scale; scratch
+  Eigen::MatrixXd Z_;                         // L^-T R^T (nv x m): the inward pass's u
+  Eigen::VectorXd d_, work_;                  // Jacobi scale (0: dropped); scratch
+  AlignedVector<Vector6d> pa_;                // the inward pass's forces
   SparseLDLT ldlt_;
   bool sparse_ = false;
   int kept_ = 0;
+  // z_e^T D^-1 z_f over the links of a list (D_k = S_k^T I^A_k S_k, ws.Dinv)
+  double product(const TreeModel& model, const TreeWorkspace& ws, const std::vector<int>& links, int e, int f) const;
 };
 
 }  // namespace mechanism_sim

@@ -193,6 +193,15 @@ class LoopClosures {
   // out = M^-1 tau by articulated-body passes with zero velocity and gravity on the
   // articulated inertias in ws (forwardDynamics at the same q computed them).
   void applyInverseMass(const TreeModel& model, const TreeWorkspace& ws, const double* tau, double* out);
+  // The same by the joint-space inertia factored at ws (closure_solver.h): factorMass(model,
+  // ws) once (O(n d^2)), then each inverseMass(x) (x = M^-1 x in place) costs O(n d), less
+  // for a unit vector. The closures' own solves factor it themselves.
+  void factorMass(const TreeModel& model, const TreeWorkspace& ws) { mass_.compute(model, *sys_, ws); }
+  void inverseMass(double* x) const { mass_.solve(x); }
+  // out = G v, and out = M^-1 G^T x at factorMass()'s factors, over each closure row's
+  // coordinates (G is zero elsewhere)
+  void timesG(const Eigen::VectorXd& v, Eigen::VectorXd& out) const { rowsTimes(G, v, out); }
+  void inverseMassGT(const Eigen::VectorXd& x, Eigen::VectorXd& out) const;
   // Y = M^-1 G^T and the factorization of G M^-1 G^T (after evaluate() and forwardDynamics).
   void factor(const TreeModel& model, const TreeWorkspace& ws);
   // Whether every closure is a limit and every limit is free in context(): then every
@@ -309,21 +318,20 @@ class LoopClosures {
   double passageResidual(const Eigen::VectorXd& b, const Eigen::VectorXd& scale_e);
   Eigen::MatrixXd A_;               // G M^-1 G^T (the dense solve's; scaled in place)
   ScaledLeastNorm least_norm_;      // its dense factorization (closure_solver.h: the fallback)
-  // the joint-space inertia factored (closure_solver.h) once per evaluate(), for G's
-  // solve and the passages'; the sparse solves of G and of the passages' rows R (slot
-  // e of R: the closure of row e of G)
+  // the joint-space inertia factored (factorMass); the sparse solves of G and of the
+  // passages' rows R (slot e of R: the closure of row e of G)
   TreeMassFactor mass_;
-  bool mass_ready_ = false;
   ClosureSolver solver_, p_solver_;
   Eigen::VectorXd p_keep_;          // per slot of R: 1 for a direction kept
   std::vector<int> p_used_;         // per closure: its slots used at the last findPassage()
-  void massFactor(const TreeModel& model, const TreeWorkspace& ws);
   std::vector<std::vector<int>> ccols_;  // per closure: the coordinates its rows can touch
   std::vector<int> cl_of_;               // per row: its closure
   // out = G v over each row's coordinates (G is zero elsewhere)
   void rowsTimes(const Eigen::MatrixXd& R, const Eigen::VectorXd& v, Eigen::VectorXd& out) const;
-  // out = M^-1 R^T x, R laid out as G (rows in the closures' slots), by the factored mass
-  void inverseMassRowsT(const Eigen::MatrixXd& R, const Eigen::VectorXd& x, Eigen::VectorXd& out) const;
+  // out = M^-1 R^T x, R laid out as G (rows in the closures' slots), by an inverse-mass
+  // pass at ws (applyInverseMass)
+  void inverseMassRowsT(const TreeModel& model, const TreeWorkspace& ws, const Eigen::MatrixXd& R,
+                        const Eigen::VectorXd& x, Eigen::VectorXd& out);
   void passageSolve(const Eigen::VectorXd& b, Eigen::VectorXd& x) const {
     p_solver_.solve(p_least_norm_, b, x);
   }
