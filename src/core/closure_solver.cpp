@@ -130,19 +130,14 @@ ClosureSolver::ClosureSolver(const TreeModel& model, const std::vector<int>& blo
       }
   Ap_.assign(m_ + 1, 0);
   Ai_.clear();
-  pos_.assign(static_cast<size_t>(m_) * m_, -1);
   for (int f = 0; f < m_; ++f) {
     std::sort(colrows[f].begin(), colrows[f].end());
     colrows[f].erase(std::unique(colrows[f].begin(), colrows[f].end()), colrows[f].end());
-    for (int e : colrows[f]) {
-      pos_[static_cast<size_t>(f) * m_ + e] = static_cast<int>(Ai_.size());
-      Ai_.push_back(e);
-    }
+    for (int e : colrows[f]) Ai_.push_back(e);
     Ap_[f + 1] = static_cast<int>(Ai_.size());
   }
-  Ax_.assign(Ai_.size(), 0.0);
-  // fill-reducing order, once (Eigen's AMD on the pattern)
-  std::vector<int> perm;
+  // fill-reducing order, once (Eigen's AMD on the whole pattern; a subset of the rows is
+  // factored in the same order)
   if (m_ > 0) {
     Eigen::SparseMatrix<double, Eigen::ColMajor, int> P(m_, m_);
     std::vector<Eigen::Triplet<double, int>> t;
@@ -151,13 +146,43 @@ ClosureSolver::ClosureSolver(const TreeModel& model, const std::vector<int>& blo
     P.setFromTriplets(t.begin(), t.end());
     Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> Pinv;
     Eigen::AMDOrdering<int>()(P, Pinv);
-    perm.assign(Pinv.indices().data(), Pinv.indices().data() + m_);
+    perm_.assign(Pinv.indices().data(), Pinv.indices().data() + m_);
   }
-  ldlt_.analyze(m_, Ap_, Ai_, perm);
+  // storage for the largest pattern (every row kept), analysed once so that a later
+  // analysis of fewer rows (whose fill is a subset) allocates nothing
+  analyzed_.assign(m_, 1);
+  index_.assign(m_, 0);
+  cAp_.reserve(m_ + 1), cAi_.reserve(Ai_.size()), cperm_.reserve(m_);
+  pos_.assign(static_cast<size_t>(m_) * m_, -1);
+  Ax_.assign(Ai_.size(), 0.0);
+  x_.assign(m_, 0.0);
+  analyzeKept();
   Z_.setZero(model.nv, m_);
   d_.setZero(m_);
   work_.setZero(m_);
   pa_.assign(model.nb, Vector6d::Zero());
+}
+
+void ClosureSolver::analyzeKept() {
+  int k = 0;
+  for (int e = 0; e < m_; ++e) index_[e] = analyzed_[e] ? k++ : -1;
+  cAp_.assign(1, 0);
+  cAi_.clear();
+  for (int f = 0; f < m_; ++f) {
+    if (index_[f] < 0) continue;
+    for (int p = Ap_[f]; p < Ap_[f + 1]; ++p) {
+      const int e = Ai_[p];
+      if (index_[e] < 0) continue;
+      pos_[static_cast<size_t>(f) * m_ + e] = static_cast<int>(cAi_.size());
+      cAi_.push_back(index_[e]);
+    }
+    cAp_.push_back(static_cast<int>(cAi_.size()));
+  }
+  cperm_.clear();
+  for (int e : perm_)
+    if (index_[e] >= 0) cperm_.push_back(index_[e]);
+  ldlt_.analyze(k, cAp_, cAi_, cperm_);
+  kc_ = k;
 }
 
 double ClosureSolver::product(const TreeModel& model, const TreeWorkspace& ws, const std::vector<int>& links, int e,
@@ -211,9 +236,13 @@ int ClosureSolver::factor(const TreeModel& model, const TreeWorkspace& ws, const
   }
   sparse_ = kept_ > ScaledLeastNorm::kSmall;
   if (sparse_) {
-    std::fill(Ax_.begin(), Ax_.end(), 0.0);
-    for (int e = 0; e < m_; ++e)
-      if (d_(e) == 0.0) Ax_[pos_[static_cast<size_t>(e) * m_ + e]] = 1.0;  // dropped: unit diagonal
+    bool same = kept_ == kc_;
+    for (int e = 0; e < m_ && same; ++e) same = analyzed_[e] == (d_(e) != 0.0);
+    if (!same) {
+      for (int e = 0; e < m_; ++e) analyzed_[e] = d_(e) != 0.0;
+      analyzeKept();
+    }
+    std::fill(Ax_.begin(), Ax_.begin() + cAp_[kc_], 0.0);
     for (size_t p = 0; p < pairs_.size(); ++p) {
       const int a = pairs_[p].first, b = pairs_[p].second;
       for (int e = first_[a]; e < first_[a + 1]; ++e) {
@@ -252,9 +281,11 @@ void ClosureSolver::solve(const ScaledLeastNorm& dense, const Eigen::VectorXd& b
     dense.solve(b, x);
     return;
   }
-  for (int e = 0; e < m_; ++e) x(e) = d_(e) * b(e);
-  ldlt_.solve(x.data());
-  for (int e = 0; e < m_; ++e) x(e) *= d_(e);
+  double* y = x_.data();
+  for (int e = 0; e < m_; ++e)
+    if (index_[e] >= 0) y[index_[e]] = d_(e) * b(e);
+  ldlt_.solve(y);
+  for (int e = 0; e < m_; ++e) x(e) = index_[e] >= 0 ? d_(e) * y[index_[e]] : 0.0;
 }
 
 }  // namespace mechanism_sim

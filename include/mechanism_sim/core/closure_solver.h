@@ -98,9 +98,16 @@ class ClosureSolver {
   std::vector<std::vector<int>> links_;       // per block: links (body - 1) on its paths, leaves first
   std::vector<std::pair<int, int>> pairs_;    // blocks sharing a link with coordinates (a <= b)
   std::vector<std::vector<int>> shared_;      // per pair: those links
-  std::vector<int> Ap_, Ai_;                  // A's pattern (both triangles, columns)
-  std::vector<int> pos_;                      // m x m: where entry (e, f) sits in Ax_ (-1: none)
+  std::vector<int> Ap_, Ai_, perm_;           // A's pattern (both triangles, columns), its order
+  // The factored pattern: the kept rows' (analysed again when they change: a limit that
+  // becomes active, a planar loop's rows that are zero), compact indices; pos_ (m x m):
+  // where entry (e, f) of two kept rows sits in Ax_.
+  std::vector<char> analyzed_;                // per row: kept at the last analysis
+  std::vector<int> index_, cAp_, cAi_, cperm_, pos_;
   std::vector<double> Ax_;
+  mutable std::vector<double> x_;
+  int kc_ = -1;                               // kept rows at the last analysis (-1: none yet)
+  void analyzeKept();
   Eigen::MatrixXd Z_;                         // L^-T R^T (nv x m): the inward pass's u
   Eigen::VectorXd d_, work_;                  // Jacobi scale (0: dropped); scratch
   AlignedVector<Vector6d> pa_;                // the inward pass's forces
