@@ -4,7 +4,7 @@
 // two frames coincide (joint coordinates zero), so the initial pose is assembled.
 #include <gtest/gtest.h>
 
-#include "bodies.h"
+#include "random_loops.h"
 
 #include <algorithm>
 #include <chrono>
@@ -22,44 +22,12 @@
 namespace mechanism_sim {
 namespace {
 
-double uniform(std::mt19937& rng, double lo, double hi) { return std::uniform_real_distribution<double>(lo, hi)(rng); }
-Matrix3d randomRotation(std::mt19937& rng) {
-  std::normal_distribution<double> n(0.0, 1.0);
-  return Quaterniond(n(rng), n(rng), n(rng), n(rng)).normalized().toRotationMatrix();
-}
-
-// Bodies at given poses; joints at a global point with global axes (frames coincide now).
-struct Builder {
-  std::unique_ptr<System> sys = std::make_unique<System>();
-  double length = 1.0;
-  Builder(double L, double gravity_factor) : length(L) {
-    sys->gravity = Vector3d(0, 0, -9.81 * gravity_factor);
-    Body ground;
-    ground.name = "ground";
-    sys->bodies.push_back(ground);
-  }
-  int addBody(double m, const Vector3d& moments, const Vector3d& r, const Matrix3d& R) {
-    Body b = body("b" + std::to_string(sys->bodies.size()), m,
-                  R * (m * length * length * moments).asDiagonal() * R.transpose(), r);
-    b.p = Quaterniond(R);
-    sys->bodies.push_back(b);
-    return static_cast<int>(sys->bodies.size()) - 1;
-  }
-  JointFrame frameOn(int b, const Vector3d& P, const Matrix3d& axes) const {
-    JointFrame f;
-    const Matrix3d A = b == 0 ? Matrix3d::Identity() : sys->bodies[b].p.toRotationMatrix();
-    const Vector3d r = b == 0 ? Vector3d::Zero() : sys->bodies[b].r;
-    f.sp_B = A.transpose() * (P - r);
-    f.Rp = A.transpose() * axes;
-    return f;
-  }
-  void addJoint(const std::string& type, int bi, int bj, const Vector3d& P, const Matrix3d& axes) {
-    auto j = makeJoint(type, type + std::to_string(sys->joints.size()), bi, frameOn(bi, P, axes), bj, frameOn(bj, P, axes));
-    sys->joints.push_back(j.get());
-    sys->joint_constraint.push_back(sys->numConstraints());
-    sys->constraints.push_back(std::shared_ptr<Constraint>(std::move(j)));
-  }
-};
+using test_util::absoluteFromJoint;
+using test_util::Builder;
+using test_util::isTranslation;
+using test_util::randomLoops;
+using test_util::randomRotation;
+using test_util::uniform;
 
 Matrix3d axesWithZ(const Vector3d& z) {  // a right-handed frame with bz = z
   const Vector3d zn = z.normalized();
@@ -110,51 +78,6 @@ Builder rssr(double L, double g) {
   return b;
 }
 
-// A random tree of n bodies (random poses, joints of random types at random points) closed
-// by `loops` random joints between two random bodies (or a body and ground).
-Builder randomLoops(unsigned seed, int n, int loops, double L, double g) {
-  static const char* const kTree[] = {"revolute", "prismatic", "cylindrical", "universal", "spherical", "planar", "screw"};
-  static const char* const kClose[] = {"spherical", "revolute", "universal", "cylindrical"};
-  std::mt19937 rng(seed);
-  Builder b(L, g);
-  std::vector<int> parent(n + 1, 0);
-  for (int k = 1; k <= n; ++k) {
-    const Vector3d r = L * Vector3d(uniform(rng, -1, 1), uniform(rng, -1, 1), uniform(rng, -1, 1));
-    b.addBody(uniform(rng, 0.5, 2.0), Vector3d(uniform(rng, 0.05, 0.1), uniform(rng, 0.05, 0.1), uniform(rng, 0.05, 0.1)), r,
-              randomRotation(rng));
-  }
-  for (int k = 1; k <= n; ++k) {
-    parent[k] = static_cast<int>(rng() % k);
-    const Vector3d P = L * Vector3d(uniform(rng, -1, 1), uniform(rng, -1, 1), uniform(rng, -1, 1));
-    const std::string type = kTree[rng() % 7];
-    if (rng() % 2) b.addJoint(type, parent[k], k, P, randomRotation(rng));
-    else b.addJoint(type, k, parent[k], P, randomRotation(rng));
-  }
-  for (int l = 0; l < loops; ++l) {
-    int a = 0, c = 0;
-    while (a == c || parent[c] == a || parent[a] == c) a = static_cast<int>(rng() % (n + 1)), c = static_cast<int>(rng() % (n + 1));
-    const Vector3d P = L * Vector3d(uniform(rng, -1, 1), uniform(rng, -1, 1), uniform(rng, -1, 1));
-    b.addJoint(kClose[rng() % 4], a, c, P, randomRotation(rng));
-  }
-  return b;
-}
-
-// The absolute State of a joint state (tree joints' tracked angles at their coordinates).
-State absoluteFromJoint(const System& sys, const TreeModel& model, TreeWorkspace& ws, const Eigen::VectorXd& q,
-                        const Eigen::VectorXd& qd) {
-  forwardKinematics(model, q, qd, ws);
-  State s = initialState(sys);
-  absoluteState(model, ws, s.x, s.u);
-  for (int j = 0; j < sys.numJoints(); ++j) {
-    if (model.joint_link[j] < 0) continue;
-    const Joint& J = *sys.joints[j];
-    const TreeLink& L = model.links[model.joint_link[j]];
-    for (int k = 0; k < J.dof(); ++k)
-      if (J.trackedSlot(k) >= 0) s.tracked[sys.joint_constraint[j]][J.trackedSlot(k)] = q(L.iq + k);
-  }
-  return s;
-}
-
 // Relative to the largest acceleration, and at least to |g| (a mechanism its closures lock
 // has accelerations of round-off size).
 double accelerationDifference(const Eigen::VectorXd& acc1, const Eigen::VectorXd& acc2, int nb, double length,
@@ -194,9 +117,7 @@ LoopComparison compare(Builder& b, unsigned seed, const char* label) {
   Eigen::VectorXd q = model.neutralPositions(sys), qd(model.nv);
   for (const TreeLink& Lk : model.links)
     for (int k = 0; k < Lk.nv; ++k) {
-      const bool translation = Lk.kind == TreeJointKind::kPrismatic || (Lk.kind == TreeJointKind::kCylindrical && k == 1) ||
-                               (Lk.kind == TreeJointKind::kPlanar && k < 2);
-      qd(Lk.iv + k) = uniform(rng, -2, 2) * (translation ? L : 1.0);
+      qd(Lk.iv + k) = uniform(rng, -2, 2) * (isTranslation(Lk, k) ? L : 1.0);
     }
   forwardKinematics(model, q, qd, ws);
   cl.evaluate(model, sys, ws);
