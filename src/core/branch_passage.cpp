@@ -44,7 +44,7 @@
 namespace mechanism_sim {
 
 bool LoopClosures::findPassage() {
-  p_band_ = 0;
+  p_band_ = p_excl_ = 0;
   p_near_ = false;
   p_r_ = 0;
   bool& reduce = p_reduce_;
@@ -113,16 +113,35 @@ bool LoopClosures::findPassage() {
       dr(i) = 1.0 / std::sqrt(n2);
       for (int j = 0; j < kc; ++j) p_W_(i, j) = G(e, p_cols_[j]) / unit_(p_cols_[j]) * dr(i);
     }
-    p_svd_.compute(p_W_, Eigen::ComputeThinU | Eigen::ComputeThinV);
+    // (U in full: with more rows than columns the rows' left null space is dependent too)
+    p_svd_.compute(p_W_, Eigen::ComputeFullU | Eigen::ComputeThinV);
     const auto& sigma = p_svd_.singularValues();
     const auto& U = p_svd_.matrixU();
     const auto& V = p_svd_.matrixV();
     int rank = 0;
     for (Eigen::Index d = 0; d < sigma.size(); ++d) rank += sigma(d) >= kPassageDependent;
     if (rank < kr) reduce = true;  // rows dependent without being zero
+    // A dependent direction is dropped, and its component of a residual is not judged: the
+    // rows' own terms can be round-off there while their normalization (Gbound) is not, so
+    // the component is round-off of the normalized rows, not of the row (onshape's planar
+    // 2-dof closes its loop by a ball: the out-of-plane row is round-off, 1 of 3 rows over
+    // 2 columns, and the velocity projection stalled at 0.06 judging it).
+    auto exclude = [&](Eigen::Index d) {
+      p_w_.row(p_excl_).setZero();
+      p_z_.row(p_excl_).setZero();
+      for (int i = 0; i < kr; ++i) {
+        p_w_(p_excl_, p_rows_[i]) = dr(i) * U(i, d);
+        p_z_(p_excl_, p_rows_[i]) = U(i, d) / dr(i);
+      }
+      ++p_excl_;
+    };
+    for (Eigen::Index d = sigma.size(); d < kr; ++d) exclude(d);
     for (Eigen::Index d = 0; d < sigma.size(); ++d) {
       const double s = sigma(d);
-      if (!(s >= kPassageDependent)) continue;  // dependent: dropped
+      if (!(s >= kPassageDependent)) {  // dependent: dropped
+        exclude(d);
+        continue;
+      }
       if (s < kPassageGate) reduce = true;
       const int j = row[c] + p_used_[c]++;
       ++p_r_;
@@ -135,12 +154,7 @@ bool LoopClosures::findPassage() {
       for (int i = 0; i < kr; ++i) p_P_(j, p_rows_[i]) = dr(i) * U(i, d) / s;
       for (int q = 0; q < kc; ++q) p_R_(j, p_cols_[q]) = V(q, d) * unit_(p_cols_[q]);
       if (held) {
-        p_w_.row(p_band_).setZero();
-        p_z_.row(p_band_).setZero();
-        for (int i = 0; i < kr; ++i) {
-          p_w_(p_band_, p_rows_[i]) = dr(i) * U(i, d);
-          p_z_(p_band_, p_rows_[i]) = U(i, d) / dr(i);
-        }
+        exclude(d);
         ++p_band_;
       }
     }
@@ -181,7 +195,7 @@ void LoopClosures::passageMultipliers(const Eigen::VectorXd& mu) {
 
 double LoopClosures::passageResidual(const Eigen::VectorXd& b, const Eigen::VectorXd& scale_e) {
   p_b_ = b;
-  for (int h = 0; h < p_band_; ++h) p_b_ -= p_z_.row(h).transpose() * p_w_.row(h).dot(b);
+  for (int h = 0; h < p_excl_; ++h) p_b_ -= p_z_.row(h).transpose() * p_w_.row(h).dot(b);
   double worst = 0.0;
   for (int e = 0; e < m; ++e) worst = std::max(worst, relative(p_b_(e), scale_e(e)));
   return worst;

@@ -502,7 +502,11 @@ void forwardDynamics(const TreeModel& model, const System& sys, const Eigen::Vec
     Vector6d pa = ws.pA[k];
     if (L.nv == 1) {  // the common case without the small-matrix machinery
       const Vector6d U = IA * ws.S[k].col(0);
-      const double Dinv = 1.0 / ws.S[k].col(0).dot(U);
+      const double D = ws.S[k].col(0).dot(U);
+      if (!(D > 0.0))
+        throw SimulationError("joint-space dynamics: the subtree at body '" + sys.bodies[L.body].name +
+                              "' has no inertia along its joint");
+      const double Dinv = 1.0 / D;
       const double u = tau(L.iv) - ws.S[k].col(0).dot(pa);
       ws.U[k].col(0) = U;
       ws.Dinv[k](0, 0) = Dinv;

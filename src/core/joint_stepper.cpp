@@ -26,6 +26,23 @@ std::string jointFormulationUnsupported(const System& sys) {
     for (int k = 0; k < sys.joints[j]->dof(); ++k)
       if (j < static_cast<int>(sys.friction.size()) && sys.friction[j][k] != 0.0)
         return "joint '" + sys.joints[j]->name() + "' closes a loop: the joint formulation has no Coulomb friction on it";
+  // A link whose whole subtree has neither mass nor inertia (a motor's rotor of mass 0,
+  // whose inertia the loader drops, turned by a coupler) has no inertia along its joint:
+  // the articulated-body recursion divides by it. The absolute formulation runs it (its
+  // motion comes from the closures alone).
+  std::vector<char> moves_mass(tree.nb, 0);
+  for (int n = tree.nb - 1; n >= 0; --n) {
+    const int b = tree.order[n];
+    const Body& B = sys.bodies[b];
+    if (B.m > 0.0 || !B.Jp.isZero(0.0)) moves_mass[b - 1] = 1;
+    const int p = tree.links[b - 1].parent;
+    if (p != 0 && moves_mass[b - 1]) moves_mass[p - 1] = 1;
+  }
+  for (const TreeLink& L : tree.links)
+    if (L.nv > 0 && !moves_mass[L.body - 1])
+      return "body '" + sys.bodies[L.body].name + "' and the bodies it carries have neither mass nor inertia: " +
+             (L.joint >= 0 ? "joint '" + sys.joints[L.joint]->name() + "'" : std::string("its free motion")) +
+             " moves no mass, which the joint formulation's recursion cannot take";
   return why;
 }
 

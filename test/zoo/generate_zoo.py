@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Writes the robot zoo (test/zoo/*.urdf): URDF files shaped like the robots users have
 (a 7-dof arm, an arm with a gripper, a UR-style arm with a four-bar gripper written with
-<mimic> and as a loop, a humanoid, a quadruped, a wheeled base, a five-bar), with this
+<mimic> and as a loop, a humanoid, a quadruped, a wheeled base, a five-bar, the five-bar as onshape exports it), with this
 project's own numbers. Standard library only. Run: python3 test/zoo/generate_zoo.py
 """
 import math
@@ -69,8 +69,9 @@ class Robot:
 
     def joint(self, name, type_, parent, child, xyz=(0, 0, 0), rpy=(0, 0, 0), axis=None, limit=None,
               damping=None, mimic=None):
+        # (rpy as a string is written as it is: a CAD exporter's round-off)
         s = '  <joint name="%s" type="%s">\n    <parent link="%s"/><child link="%s"/>\n    <origin xyz="%s" rpy="%s"/>' % (
-            name, type_, parent, child, v3(xyz), v3(rpy))
+            name, type_, parent, child, v3(xyz), rpy if isinstance(rpy, str) else v3(rpy))
         if axis is not None:
             s += '\n    <axis xyz="%s"/>' % v3(axis)
         if limit is not None:  # (lower, upper, effort, velocity) or (effort, velocity)
@@ -368,10 +369,20 @@ def wheeled_base():
 
 
 # ---------------------------------------------------------------- five-bar
-def five_bar():
+def five_bar(ball=False):
     a, l1, l2 = 0.08, 0.16, 0.22   # half the base, proximal and distal lengths
-    r = Robot("five_bar", "planar five-bar parallel robot in a horizontal plane (axes vertical), two motors on "
-              "the base; the distal links meet at the end effector, closed by a mechanism_sim:joint", extension=True)
+    if ball:
+        r = Robot("five_bar_ball", "the planar five-bar in a vertical plane (axes horizontal), as onshape-to-robot "
+                  "exports it: joint origins with a CAD exporter's round-off, the loop closed by a ball (a spherical "
+                  "mechanism_sim:joint) whose out-of-plane row is round-off", extension=True)
+    else:
+        r = Robot("five_bar", "planar five-bar parallel robot in a horizontal plane (axes vertical), two motors on "
+                  "the base; the distal links meet at the end effector, closed by a mechanism_sim:joint", extension=True)
+    # (onshape's planar 2-dof, ../shared/robots: pi/2 as the exporter writes it, and the
+    # elbows' residue of its matrix-to-rpy conversion)
+    motor_rpy = "1.57079632679489678 -0 0" if ball else (0, 0, 0)
+    elbow_rpy = {"left": "0 -4.8148248609680896326e-34 -1.3877787807814456755e-17",
+                 "right": "-4.1402727141222208915e-16 -5.0706060260327139801e-17 2.7755575615628106161e-17"}
     r.link("base")
     # zero pose: proximal links at 70 deg from the base line, distal links meeting above the middle
     th = math.radians(70)
@@ -384,22 +395,26 @@ def five_bar():
         ang_p, ang_d = math.atan2(py, px), math.atan2(dy, dx)
         mp, md = 0.25, 0.18
         r.link(side + "_proximal", inertial(mp, (px / 2, py / 2, 0), rod(mp, l1, 0.01, 0), (0, 0, ang_p)))
-        r.joint(side + "_motor", "revolute", "base", side + "_proximal", (s * a, 0, 0), axis=(0, 0, 1),
+        r.joint(side + "_motor", "revolute", "base", side + "_proximal", (s * a, 0, 0), motor_rpy, axis=(0, 0, 1),
                 limit=(-1.2, 1.2, 8, 6), damping=0.05)
         r.link(side + "_distal", inertial(md, (dx / 2, dy / 2, 0.01), rod(md, l2, 0.008, 0), (0, 0, ang_d)))
-        r.joint(side + "_elbow", "continuous", side + "_proximal", side + "_distal", (px, py, 0.01), axis=(0, 0, 1),
-                damping=0.01)
+        r.joint(side + "_elbow", "continuous", side + "_proximal", side + "_distal", (px, py, 0.01),
+                elbow_rpy[side] if ball else (0, 0, 0), axis=(0, 0, 1), damping=0.01)
         if side == "left":
             r.link("end_effector", inertial(0.1, (0, 0, 0.01), box(0.1, 0.03, 0.03, 0.03)))
             r.joint("end_effector_joint", "fixed", "left_distal", "end_effector", (dx, dy, 0))
             r.link("tool_frame")
             r.joint("tool_joint", "fixed", "end_effector", "tool_frame", (0, 0, 0.03))
-    r.raw(_five_bar_loop(a, l1, l2, th, ee_y))
+    r.raw(_five_bar_loop(a, l1, l2, th, ee_y, ball))
     r.write()
 
 
-def _five_bar_loop(a, l1, l2, th, ee_y):
+def _five_bar_loop(a, l1, l2, th, ee_y, ball=False):
     ex, ey = a + l1 * math.cos(th), l1 * math.sin(th)
+    if ball:
+        return ('  <mechanism_sim:joint name="end_effector_ball" type="spherical">\n'
+                '    <parent link="end_effector"/><child link="right_distal"/>\n'
+                '    <origin xyz="0 0 0"/><child_origin xyz="%s"/>\n  </mechanism_sim:joint>' % v3((0 - ex, ee_y - ey, 0)))
     return ('  <mechanism_sim:joint name="end_effector_loop" type="revolute">\n'
             '    <parent link="end_effector"/><child link="right_distal"/>\n'
             '    <origin xyz="0 0 0"/><child_origin xyz="%s"/>\n    <axis xyz="0 0 1"/>\n'
@@ -415,3 +430,4 @@ if __name__ == "__main__":
     quadruped()
     wheeled_base()
     five_bar()
+    five_bar(ball=True)

@@ -290,8 +290,8 @@ class LoopClosures {
   Eigen::VectorXd zero_v_, qdd_v_, dv_v_, ref_v_, r_m_, x_m_;  // the projections' scratch
   // branch passages (branch_passage.cpp). Per reduced row j (one per direction of a
   // closure's decomposition that is not dependent): R_j = sum_e P(j, e) G_e (= (v_j o unit)^T),
-  // held_[j] whether it is held by the motion. Per held direction: w = D_r u, z = D_r^-1 u
-  // over the System rows (the component b' = b - z (w . b) is not judged).
+  // held_[j] whether it is held by the motion. Per held or dependent direction: w = D_r u,
+  // z = D_r^-1 u over the System rows (the component b' = b - z (w . b) is not judged).
   Eigen::MatrixXd p_P_, p_R_, p_Y_, p_A_, p_w_, p_z_;
   std::vector<char> p_held_;
   Eigen::VectorXd p_b_, p_g_, p_mu_, p_dv_, p_t_, p_dr_;
@@ -299,6 +299,7 @@ class LoopClosures {
   std::vector<int> p_rows_, p_cols_;
   Eigen::JacobiSVD<Eigen::MatrixXd> p_svd_;
   int p_r_ = 0, p_band_ = 0;
+  int p_excl_ = 0;  // rows of p_w_, p_z_: the held directions and the dependent ones
   bool p_near_ = false, p_reduce_ = false;
   // max_k |dv_k| unit_k: a correction's size as a length (positions) or speed (rates)
   double correctionSize(const Eigen::VectorXd& dv) const;
