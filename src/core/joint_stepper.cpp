@@ -536,7 +536,7 @@ void JointStepper::implicitDamping(const System& sys, State& s, double h) {
     EvalContext ctx = s.context();
     ctx.t = s.t + h;
     closures_.setContext(ctx);
-    closures_.evaluate(model_, sys, ws_);  // G and nu at s.q (ws_: s.q at rest)
+    closures_.evaluate(model_, sys, ws_, s.q);  // G and nu at s.q (ws_: s.q at rest)
     closures_.form_Y = true;
     closures_.factor(model_, ws_);         // closures_.Y = M^-1 G^T
     closures_.form_Y = false;

@@ -74,14 +74,16 @@ LoopClosures::LoopClosures(const TreeModel& model, const System& sys) : model_(&
   }
   // limits and couplers on tree coordinates: rows directly on q
   direct_.assign(constraints.size(), DirectRow());
-  auto coordinate = [&](const Joint& J, int k, int* col) {
+  auto coordinate = [&](const Joint& J, int k, DirectRow& d, int slot) {
     int link = -1;
     for (int j = 0; j < sys.numJoints(); ++j)
       if (&*sys.joints[j] == &J) link = model.joint_link[j];
     if (link < 0) return false;
     const TreeLink& L = model.links[link];
     if (L.kind == TreeJointKind::kSpherical || L.kind == TreeJointKind::kFree || L.ptr != &J) return false;
-    *col = L.iv + k;
+    d.col[slot] = L.iv + k;
+    d.qcol[slot] = L.iq + k;
+    d.angle[slot] = J.trackedSlot(k) >= 0;
     return true;
   };
   for (size_t i = 0; i < constraints.size(); ++i) {
@@ -89,11 +91,10 @@ LoopClosures::LoopClosures(const TreeModel& model, const System& sys) : model_(&
     DirectRow d;
     if (C.limit() >= 0) {
       const LimitSpec& spec = sys.limits[C.limit()];
-      if (coordinate(*sys.joints[spec.joint], spec.k, &d.col[0])) d.n = 1, d.coef[0] = 1.0;
+      if (coordinate(*sys.joints[spec.joint], spec.k, d, 0)) d.n = 1, d.coef[0] = 1.0, d.limit = C.limit();
     } else if (const auto* cc = dynamic_cast<const CoordinateCoupler*>(&C)) {
-      if (coordinate(cc->jointA(), cc->coordinateA(), &d.col[0]) &&
-          coordinate(cc->jointB(), cc->coordinateB(), &d.col[1]))
-        d.n = 2, d.coef[0] = 1.0, d.coef[1] = -cc->multiplier();
+      if (coordinate(cc->jointA(), cc->coordinateA(), d, 0) && coordinate(cc->jointB(), cc->coordinateB(), d, 1))
+        d.n = 2, d.coef[0] = 1.0, d.coef[1] = -cc->multiplier(), d.offset = cc->offset();
     }
     direct_[i] = d;
   }
@@ -332,6 +333,31 @@ void LoopClosures::evaluate(const TreeModel& model, const System& sys, const Tre
     if (inactiveLimit(C, ctx)) {  // a free limit: a zero row (as Constraint::evaluate gives it), no mapping
       Phi.segment(r0, n).setZero(), gamma.segment(r0, n).setZero(), scale.segment(r0, n).setZero();
       Jc[i].setZero();
+      continue;
+    }
+    if (q_ && direct_[i].n > 0) {  // Phi from q itself (evaluate(..., q)); scale: the size of its terms
+      const DirectRow& d = direct_[i];
+      double phi = 0.0, sc = 0.0;
+      for (int k = 0; k < d.n; ++k) {
+        const double qk = (*q_)(d.qcol[k]);
+        phi += d.coef[k] * qk;
+        sc += std::fabs(d.coef[k]) * (std::fabs(qk) + (d.angle[k] ? 1.0 : sys.length_scale));
+      }
+      if (d.limit >= 0) {
+        const LimitSpec& spec = sys.limits[d.limit];
+        const double bound = ctx.limit_side[d.limit] < 0 ? spec.lower : spec.upper;
+        phi -= bound;
+        sc += std::fabs(bound);
+      } else {
+        phi -= d.offset;
+        sc += std::fabs(d.offset);
+      }
+      Phi(r0) = phi, gamma(r0) = 0.0, scale(r0) = sc;
+      for (int k = 0; k < d.n; ++k) {
+        G(r0, d.col[k]) += d.coef[k];
+        Gabs(r0, d.col[k]) += std::fabs(d.coef[k]);
+        Gbound(r0, d.col[k]) += std::fabs(d.coef[k]);
+      }
       continue;
     }
     const auto& bodies = C.bodies();
@@ -687,7 +713,7 @@ ClosureSolveInfo constrainedForwardDynamics(const TreeModel& model, const System
     cl.clearRows();
     return cl.info;
   }
-  cl.evaluate(model, sys, ws);
+  cl.evaluate(model, sys, ws, q);
   cl.factor(model, ws);
   if (cl.passage_ref && cl.findPassage()) {
     // a branch passage (branch_passage.cpp): the regular directions by their equations,
@@ -746,7 +772,7 @@ ClosureProjectionReport projectClosurePositions(const TreeModel& model, const Sy
   int extra = 0;
   for (;;) {
     forwardDynamics(model, sys, q, zero, zero, ws, qdd);  // kinematics and the articulated factors
-    cl.evaluate(model, sys, ws);
+    cl.evaluate(model, sys, ws, q);
     // in a branch passage the held directions are the integration's: not judged, not moved
     const bool passage = cl.passage_ref && cl.findPassage();
     rep.residual = passage ? cl.passageResidual(cl.Phi, cl.scale) : cl.positionResidual();
@@ -790,7 +816,7 @@ ClosureProjectionReport projectClosureVelocities(const TreeModel& model, const S
   Eigen::VectorXd &qdd = cl.qdd_v_, &r = cl.r_m_, &x = cl.x_m_;
   if (!evaluated_at_q) {
     forwardDynamics(model, sys, q, zero, zero, ws, qdd);
-    cl.evaluate(model, sys, ws);  // G depends on q only
+    cl.evaluate(model, sys, ws, q);  // G depends on q only
   }
   Eigen::VectorXd& reference = cl.ref_v_;
   reference = qdot;

@@ -23,6 +23,7 @@ class CoordinateCoupler : public Constraint {
   int coordinateA() const { return k_a_; }
   int coordinateB() const { return k_b_; }
   double multiplier() const { return multiplier_; }
+  double offset() const { return offset_; }
   // the joint (of the two) whose body j is b
   const Joint* jointOn(int b) const override {
     const Joint& on = b_.bodyJ() == b ? b_ : a_;

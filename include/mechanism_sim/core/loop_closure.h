@@ -168,6 +168,16 @@ class LoopClosures {
   // Phi, Jc, G, Gabs, gamma_q at ws's kinematics (forwardKinematics or forwardDynamics at
   // (q, q_dot): gamma_q needs q_dot).
   void evaluate(const TreeModel& model, const System& sys, const TreeWorkspace& ws);
+  // The same with the tree's coordinates q of ws's kinematics: the direct rows (limits and
+  // couplers on tree coordinates) then take Phi from q itself (q_a - r q_b - offset,
+  // q - bound), not from their absolute equations (the joints' coordinates at the poses,
+  // which are the same numbers: q_k is Joint::coordinates' Phi), and their absolute gamma
+  // is not computed (0).
+  void evaluate(const TreeModel& model, const System& sys, const TreeWorkspace& ws, const Eigen::VectorXd& q) {
+    q_ = &q;
+    evaluate(model, sys, ws);
+    q_ = nullptr;
+  }
   // The same with the caller's context (setContext(ctx), then evaluate).
   void evaluate(const TreeModel& model, const System& sys, const TreeWorkspace& ws, const EvalContext& ctx) {
     setContext(ctx);
@@ -274,8 +284,13 @@ class LoopClosures {
   struct DirectRow {
     int n = 0;           // entries (0: not direct)
     int col[2] = {0, 0};  // velocity coordinates
+    int qcol[2] = {0, 0};  // their position coordinates
     double coef[2] = {0.0, 0.0};
+    double offset = 0.0;  // a coupler's: Phi = sum coef q - offset
+    int limit = -1;       // a limit's (System limit index): Phi = q - its bound on the active side
+    bool angle[2] = {false, false};
   };
+  const Eigen::VectorXd* q_ = nullptr;  // evaluate()'s q, for the direct rows' Phi
   std::vector<DirectRow> direct_;  // per closure
   std::vector<int> limit_col_;     // per sys limit: its velocity coordinate (a direct row), or -1
   Eigen::VectorXd unit_;           // per velocity coordinate: length scale (an angle) or 1
