@@ -6,6 +6,7 @@
 
 #include <Eigen/Cholesky>
 
+#include "mechanism_sim/core/couplers.h"
 #include "mechanism_sim/core/evaluation.h"
 #include "mechanism_sim/core/projection.h"
 
@@ -57,46 +58,56 @@ Formulation chooseFormulation(const System& sys, Formulation asked, std::string*
     if (why) *why = "joint coordinates, as asked";
     return Formulation::kJoint;
   }
-  // The cost model (bench/RESULTS.md). On a tree with no equations besides its joints'
-  // the joint formulation costs 3 to 5 times less a step (pendulum 0.84 against 3.41 us,
-  // the 50-link chain 68 against 203). A free limit costs it nothing (a zero row, not
-  // evaluated); each equation that is always on (a coupler, a drive) costs an O(n)
-  // inverse-mass pass a stage and a dense solve: with one coupler on 9 coordinates (the
-  // panda of ../shared/robots) it was still the faster (real-time factor 19.9 against
-  // 18.5), with 34 on 42 (nao) it was not (1.6 against 2.9). auto takes joint coordinates
-  // while such equations are at most one per 8 coordinates.
-  int always_on = 0;
-  {
-    std::vector<char> tree_joint(sys.numConstraints(), 0);
-    for (int c : sys.joint_constraint) tree_joint[c] = 1;
-    for (int c = 0; c < sys.numConstraints(); ++c)
-      if (!tree_joint[c] && sys.constraints[c]->limit() < 0) always_on += sys.constraints[c]->size();
-  }
+  // The cost model (bench/RESULTS.md, "2026-11-26 (2)"). On a tree with no equations
+  // besides its joints' the joint formulation costs 2 to 5 times less a step (pendulum
+  // 0.84 against 3.41 us, the 50-link chain 68 against 203). Limits and couplers on tree
+  // coordinates are rows on q itself, solved sparsely (closure_solver.h: O(depth) a row):
+  // the humanoid's 13 mimic couplers 154 against 358 us a step, the panda-like arm's
+  // gripper 28 against 58. Drives (and couplers on spherical joints or cut joints) go
+  // through their absolute equations: with one on every coordinate (arm7 driven at all 7
+  // joints) the joint formulation cost 1.2 times the absolute one; auto takes it while they
+  // are at most one per 2 coordinates. Loops: their closures cost the joint formulation
+  // 1.2 to 1.8 times the absolute one a step (the four-bars 1/10/50 11/94/437 against
+  // 11/81/352 us), which converges through their flat passages where the absolute one does
+  // not (bench/RESULTS.md): auto keeps them in absolute coordinates, cheaper a step.
+  int mapped = 0;  // always-on rows through the absolute equations
   int nv = 0;
   if (unsupported.empty()) {
     const TreeModel tree(sys);
     nv = tree.nv;
-    // Loops run in joint coordinates when asked (their closures on the tree, passages of
-    // branches held by the motion: branch_passage.cpp); auto keeps them in absolute ones,
-    // where a loop's closure costs less today (dense G M^-1 G^T and a decomposition near a
-    // passage: the ten-loop four-bar 300 against 80 us a step, bench/RESULTS.md).
     if (!tree.cut_joints.empty()) {
       if (why)
         *why = "absolute coordinates (auto: joint '" + sys.joints[tree.cut_joints[0]]->name() +
-               "' closes a loop; loops run in joint coordinates when asked, at a higher cost today)";
+               "' closes a loop; loops run in joint coordinates when asked, at 1.2 to 1.8 times the cost a step)";
       return Formulation::kAbsolute;
     }
+    auto onTree = [&](const Joint& J) {
+      for (int j = 0; j < sys.numJoints(); ++j)
+        if (&*sys.joints[j] == &J) {
+          const int link = tree.joint_link[j];
+          return link >= 0 && tree.links[link].kind != TreeJointKind::kSpherical &&
+                 tree.links[link].kind != TreeJointKind::kFree;
+        }
+      return false;
+    };
+    std::vector<char> tree_joint(sys.numConstraints(), 0);
+    for (int c : sys.joint_constraint) tree_joint[c] = 1;
+    for (int c = 0; c < sys.numConstraints(); ++c) {
+      const Constraint& C = *sys.constraints[c];
+      if (tree_joint[c] || C.limit() >= 0) continue;
+      if (const auto* cc = dynamic_cast<const CoordinateCoupler*>(&C))
+        if (onTree(cc->jointA()) && onTree(cc->jointB())) continue;
+      mapped += C.size();
+    }
   }
-  if (unsupported.empty() && 8 * always_on <= nv) {
+  if (unsupported.empty() && 2 * mapped <= nv) {
     if (why)
-      *why = always_on == 0 ? "joint coordinates (auto: a tree whose other equations are limits at most, O(n) a stage)"
-                            : "joint coordinates (auto: a tree with few couplers or drives, at most one per 8 coordinates)";
+      *why = mapped == 0 ? "joint coordinates (auto: a tree whose other equations are limits and couplers at most)"
+                         : "joint coordinates (auto: a tree with few drives, at most one per 2 coordinates)";
     return Formulation::kJoint;
   }
   if (unsupported.empty()) {
-    if (why)
-      *why = "absolute coordinates (auto: more than one coupler or drive per 8 coordinates cost more as joint-space "
-             "closures today)";
+    if (why) *why = "absolute coordinates (auto: more than one drive per 2 coordinates cost more as joint-space closures)";
     return Formulation::kAbsolute;
   }
   if (why) *why = "absolute coordinates (auto: " + unsupported + ")";

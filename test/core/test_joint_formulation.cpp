@@ -339,17 +339,18 @@ TEST(JointFormulation, TheChoiceIsExplainedAndRefusalsAreClear) {
   chain.build();
   EXPECT_STREQ(chain.formulation(), "joint") << chain.formulationReason();
 
-  // limits cost the joint formulation nothing while free, and one coupler on 8
-  // coordinates little: auto keeps joint coordinates; a second coupler tips it over
-  for (int couplers : {1, 2}) {
+  // limits cost the joint formulation nothing while free, and couplers on tree coordinates
+  // are rows on q itself: auto keeps joint coordinates with 4 on 8 coordinates; drives go
+  // through their absolute equations: 4 on 8 still joint, a fifth tips it over
+  for (int drives : {0, 4, 5}) {
     Mechanism arm;
     models::pendulumChain(arm, 8);
     for (int k = 0; k < 8; ++k) arm.setJointLimits(k, 0, -1.0, 1.0);
-    arm.addCoupler("mimic1", 7, 0, 6, 0, 1.0, 0.0);
-    if (couplers == 2) arm.addCoupler("mimic2", 5, 0, 4, 0, 1.0, 0.0);
+    for (int k = 0; k < 4; ++k) arm.addCoupler("mimic" + std::to_string(k), 2 * k + 1, 0, 2 * k, 0, 1.0, 0.0);
+    for (int k = 0; k < drives; ++k) arm.addDrive(k, 0, DriveProfile::velocity(0.0));
     arm.setIntegrator(formulation("auto"));
     arm.build();
-    EXPECT_STREQ(arm.formulation(), couplers == 1 ? "joint" : "absolute") << arm.formulationReason();
+    EXPECT_STREQ(arm.formulation(), drives <= 4 ? "joint" : "absolute") << drives << ": " << arm.formulationReason();
   }
 
   Mechanism loop;
@@ -383,9 +384,10 @@ TEST(JointFormulation, TheChoiceIsExplainedAndRefusalsAreClear) {
     EXPECT_LT(a.positionViolation(), 1e-12);
     EXPECT_NEAR(std::fabs(a.state().friction[0][0]), 0.1, 1e-15) << "sliding: friction at its limit";
   }
-  // a drive added while running: an equation on the joint coordinates, followed. auto
-  // turns to absolute coordinates (a drive is a closure on the tree, cheaper there today
-  // when there are more than one per 8 coordinates: here one on 2); joint keeps them.
+  // drives added while running: equations on the joint coordinates, followed. auto turns
+  // to absolute coordinates (a drive is a closure on the tree through its absolute
+  // equation, cheaper there when there are more than one per 2 coordinates: here 2 on 2);
+  // joint keeps them.
   for (auto [asked, runs] : {std::make_pair("auto", "absolute"), std::make_pair("joint", "joint")}) {
     Mechanism d;
     models::pendulumChain(d, 2);
@@ -394,6 +396,8 @@ TEST(JointFormulation, TheChoiceIsExplainedAndRefusalsAreClear) {
     d.assemble();
     for (int k = 0; k < 10; ++k) d.step(1e-3);
     const int drive = d.addDrive(0, 0, DriveProfile::velocity(0.0));
+    EXPECT_STREQ(d.formulation(), "joint") << asked << ": one drive on 2 coordinates: " << d.formulationReason();
+    d.addDrive(1, 0, DriveProfile::velocity(0.0));
     EXPECT_STREQ(d.formulation(), runs) << asked << ": " << d.formulationReason();
     if (std::string(asked) == "auto")
       EXPECT_NE(d.formulationReason().find("drive"), std::string::npos) << d.formulationReason();
