@@ -43,6 +43,46 @@
 
 namespace mechanism_sim {
 
+// Closure c's rows that are not round-off (p_rows_), the columns that move its bodies
+// relative to each other (p_cols_), and its term-normalized rows W (p_W_, scales p_dr_).
+// false: no such rows or columns.
+bool LoopClosures::closureRows(size_t c) {
+  const int n = sys_->constraints[constraints[c]]->size();
+  p_rows_.clear();
+  p_cols_.clear();
+  for (int e = row[c]; e < row[c] + n; ++e) {
+    bool zero = true;
+    for (int k : ccols_[c])
+      if (std::fabs(G(e, k)) > kClosureZeroEntry * Gabs(e, k)) {
+        zero = false;
+        break;
+      }
+    if (!zero) p_rows_.push_back(e);
+  }
+  if (p_rows_.empty()) return false;
+  // The columns that move the closure's bodies relative to each other: not those of a
+  // link that carries the whole loop (an arm holding a gripper's four-bar), where G is
+  // round-off but Gbound is not (it would shrink every singular value by the loop's size
+  // over the distance to that link).
+  for (int k : ccols_[c]) {
+    bool used = false;
+    for (int e : p_rows_) used = used || std::fabs(G(e, k)) > kClosureZeroEntry * Gabs(e, k);
+    if (used) p_cols_.push_back(k);
+  }
+  const int kr = static_cast<int>(p_rows_.size()), kc = static_cast<int>(p_cols_.size());
+  if (kc == 0) return false;
+  p_W_.resize(kr, kc);
+  p_dr_.resize(kr);
+  for (int i = 0; i < kr; ++i) {
+    const int e = p_rows_[i];
+    double n2 = 0.0;
+    for (int k : p_cols_) n2 += (Gbound(e, k) / unit_(k)) * (Gbound(e, k) / unit_(k));
+    p_dr_(i) = 1.0 / std::sqrt(n2);
+    for (int j = 0; j < kc; ++j) p_W_(i, j) = G(e, p_cols_[j]) / unit_(p_cols_[j]) * p_dr_(i);
+  }
+  return true;
+}
+
 bool LoopClosures::findPassage() {
   p_band_ = p_excl_ = 0;
   p_near_ = false;
@@ -67,6 +107,33 @@ bool LoopClosures::findPassage() {
     for (int e = row[c]; e < row[c] + n; ++e) p_P_(j, e) = 0.0;
     for (int k : ccols_[c]) p_R_(j, k) = 0.0;
   };
+  // Away from every passage nothing reduces: each closure's smallest singular value is
+  // above kPassageGate and it has no dependent rows. The smallest eigenvalue of W W^T (at
+  // most 6 x 6) says so without the decomposition: its error, eps |W|^2, is far below
+  // kPassageGate^2. (Where some closure is near a passage, every closure is decomposed
+  // below: the reduced solve takes all of them.)
+  {
+    bool clear = true;
+    for (size_t c = 0; c < constraints.size() && clear; ++c) {
+      if (!closureRows(c)) continue;
+      if (p_W_.rows() > p_W_.cols() || p_W_.rows() > 6) {
+        clear = false;
+        break;
+      }
+      p_gram_.noalias() = p_W_ * p_W_.transpose();
+      p_eig_.compute(p_gram_, Eigen::EigenvaluesOnly);
+      clear = p_eig_.eigenvalues()(0) >= kPassageGate * kPassageGate;
+    }
+    if (clear) {
+      for (size_t c = 0; c < constraints.size(); ++c) {
+        const int n = sys_->constraints[constraints[c]]->size();
+        for (int j = row[c]; j < row[c] + p_used_[c]; ++j) clearSlot(j, c, n);
+        for (int e = row[c]; e < row[c] + n; ++e) p_keep_(e) = 0.0, p_held_[e] = 0;
+        p_used_[c] = 0;
+      }
+      return false;
+    }
+  }
   // (R's rows sit in slots: closure c's directions at rows row[c], row[c] + 1, ... of R, so
   // that R has G's block structure for the sparse solve; unused slots are zero, not kept)
   for (size_t c = 0; c < constraints.size(); ++c) {
@@ -74,45 +141,12 @@ bool LoopClosures::findPassage() {
     const int used_before = p_used_[c];
     p_used_[c] = 0;
     for (int e = row[c]; e < row[c] + n; ++e) p_keep_(e) = 0.0, p_held_[e] = 0;
-    p_rows_.clear();
-    p_cols_.clear();
-    for (int e = row[c]; e < row[c] + n; ++e) {
-      bool zero = true;
-      for (int k : ccols_[c])
-        if (std::fabs(G(e, k)) > kClosureZeroEntry * Gabs(e, k)) {
-          zero = false;
-          break;
-        }
-      if (!zero) p_rows_.push_back(e);
-    }
-    if (p_rows_.empty()) {
+    if (!closureRows(c)) {
       for (int j = row[c]; j < row[c] + used_before; ++j) clearSlot(j, c, n);
       continue;
-    }
-    // The columns that move the closure's bodies relative to each other: not those of a
-    // link that carries the whole loop (an arm holding a gripper's four-bar), where G is
-    // round-off but Gbound is not (it would shrink every singular value by the loop's size
-    // over the distance to that link).
-    for (int k : ccols_[c]) {
-      bool used = false;
-      for (int e : p_rows_) used = used || std::fabs(G(e, k)) > kClosureZeroEntry * Gabs(e, k);
-      if (used) p_cols_.push_back(k);
     }
     const int kr = static_cast<int>(p_rows_.size()), kc = static_cast<int>(p_cols_.size());
-    if (kc == 0) {
-      for (int j = row[c]; j < row[c] + used_before; ++j) clearSlot(j, c, n);
-      continue;
-    }
-    p_W_.resize(kr, kc);
-    Eigen::VectorXd& dr = p_dr_;
-    dr.resize(kr);
-    for (int i = 0; i < kr; ++i) {
-      const int e = p_rows_[i];
-      double n2 = 0.0;
-      for (int k : p_cols_) n2 += (Gbound(e, k) / unit_(k)) * (Gbound(e, k) / unit_(k));
-      dr(i) = 1.0 / std::sqrt(n2);
-      for (int j = 0; j < kc; ++j) p_W_(i, j) = G(e, p_cols_[j]) / unit_(p_cols_[j]) * dr(i);
-    }
+    const Eigen::VectorXd& dr = p_dr_;
     // (U in full: with more rows than columns the rows' left null space is dependent too)
     p_svd_.compute(p_W_, Eigen::ComputeFullU | Eigen::ComputeThinV);
     const auto& sigma = p_svd_.singularValues();

@@ -40,6 +40,7 @@
 
 #include <Eigen/Core>
 #include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
 #include <Eigen/QR>
 #include <Eigen/SVD>
 
@@ -311,6 +312,10 @@ class LoopClosures {
   std::vector<char> p_held_;
   Eigen::VectorXd p_b_, p_g_, p_mu_, p_dv_, p_t_, p_dr_;
   Eigen::MatrixXd p_W_;  // one closure's normalized rows, over its columns
+  using Small6 = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 6, 6>;
+  Small6 p_gram_;        // W W^T, and its eigenvalues (findPassage's test away from passages)
+  Eigen::SelfAdjointEigenSolver<Small6> p_eig_;
+  bool closureRows(size_t c);
   std::vector<int> p_rows_, p_cols_;
   Eigen::JacobiSVD<Eigen::MatrixXd> p_svd_;
   int p_r_ = 0, p_band_ = 0;
