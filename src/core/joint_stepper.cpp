@@ -66,21 +66,16 @@ Formulation chooseFormulation(const System& sys, Formulation asked, std::string*
   // gripper 28 against 58. Drives (and couplers on spherical joints or cut joints) go
   // through their absolute equations: with one on every coordinate (arm7 driven at all 7
   // joints) the joint formulation cost 1.2 times the absolute one; auto takes it while they
-  // are at most one per 2 coordinates. Loops: their closures cost the joint formulation
-  // 1.2 to 1.8 times the absolute one a step (the four-bars 1/10/50 11/94/437 against
-  // 11/81/352 us), which converges through their flat passages where the absolute one does
-  // not (bench/RESULTS.md): auto keeps them in absolute coordinates, cheaper a step.
+  // are at most one per 2 coordinates. Loops run in joint coordinates too: their closures
+  // cost it 0.8 to 1.5 times the absolute formulation a step (the four-bars 1/10/50 9 / 71 /
+  // 341 against 12 / 82 / 377 us, the zoo's loop robots 1.1 to 1.4 times), and it converges
+  // through their branches' flat passages, where the absolute one does not (the ten-loop
+  // four-bar 2.7e-11 against 5.5e-8 m at 1 ms, bench/RESULTS.md).
   int mapped = 0;  // always-on rows through the absolute equations
   int nv = 0;
   if (unsupported.empty()) {
     const TreeModel tree(sys);
     nv = tree.nv;
-    if (!tree.cut_joints.empty()) {
-      if (why)
-        *why = "absolute coordinates (auto: joint '" + sys.joints[tree.cut_joints[0]]->name() +
-               "' closes a loop; loops run in joint coordinates when asked, at 1.2 to 1.8 times the cost a step)";
-      return Formulation::kAbsolute;
-    }
     auto onTree = [&](const Joint& J) {
       for (int j = 0; j < sys.numJoints(); ++j)
         if (&*sys.joints[j] == &J) {
@@ -101,9 +96,14 @@ Formulation chooseFormulation(const System& sys, Formulation asked, std::string*
     }
   }
   if (unsupported.empty() && 2 * mapped <= nv) {
-    if (why)
-      *why = mapped == 0 ? "joint coordinates (auto: a tree whose other equations are limits and couplers at most)"
-                         : "joint coordinates (auto: a tree with few drives, at most one per 2 coordinates)";
+    if (why) {
+      const TreeModel tree(sys);
+      *why = !tree.cut_joints.empty()
+                 ? "joint coordinates (auto: joint '" + sys.joints[tree.cut_joints[0]]->name() +
+                       "' closes a loop, a closure on the tree; drives at most one per 2 coordinates)"
+             : mapped == 0 ? "joint coordinates (auto: a tree whose other equations are limits and couplers at most)"
+                           : "joint coordinates (auto: a tree with few drives, at most one per 2 coordinates)";
+    }
     return Formulation::kJoint;
   }
   if (unsupported.empty()) {
@@ -131,6 +131,7 @@ JointStepper::JointStepper(const System& sys) : model_(sys), ws_(model_), closur
 }
 
 void JointStepper::setDamping(const System& sys) {
+  closures_.rebind(sys);  // (a Mechanism's System is copied on write)
   damped_.clear();
   cut_damped_.clear();
   for (const TreeLink& L : model_.links) {
@@ -280,7 +281,7 @@ void JointStepper::project(const System& sys, State& s) {
   stats_.countPositionProjection(p.converged, p.residual);
   if (!p.converged && p.residual > kFailureResidual) {
     std::ostringstream os;
-    os << "at t = " << s.t << " s: the step left the constraints on the joint coordinates (relative residual "
+    os << "the step left the constraints on the joint coordinates (relative residual "
        << fmt(p.residual) << "); try a smaller step";
     throw StepFailure(os.str());
   }
@@ -290,13 +291,14 @@ void JointStepper::project(const System& sys, State& s) {
   stats_.countVelocityProjection(v.converged, v.residual);
   if (!v.converged && v.residual > kFailureResidual) {
     std::ostringstream os;
-    os << "at t = " << s.t << " s: the velocities cannot be brought onto the constraints (relative residual "
+    os << "the velocities cannot be brought onto the constraints (relative residual "
        << fmt(v.residual) << ")";
     throw StepFailure(os.str());
   }
 }
 
 void JointStepper::settle(const System& sys, State& s, const Inputs& in) {
+  closures_.rebind(sys);  // (a Mechanism's System is copied on write)
   // A settled state has no motion before it: the closures' decomposition applies
   // (branch_passage.cpp: dependent rows dropped by geometry) but nothing is held by the motion.
   if (!model_.cut_joints.empty()) {
@@ -343,6 +345,7 @@ void JointStepper::settle(const System& sys, State& s, const Inputs& in) {
 }
 
 void JointStepper::step(const System& sys, State& s, const Inputs& in, double h) {
+  closures_.rebind(sys);  // (a Mechanism's System is copied on write)
   if (!(h > 0) || !std::isfinite(h)) throw UsageError("step must be positive and finite");
   if (s.q.size() != model_.nq || s.qdot.size() != model_.nv)
     throw UsageError("JointStepper::step: the State has no joint state (settle() first)");
@@ -374,12 +377,16 @@ void JointStepper::step(const System& sys, State& s, const Inputs& in, double h)
   if (!model_.cut_joints.empty()) a_ref_ = s.qddot;
   positionRates(model_, q0_, v0_, kq_[0]);
   kv_[0] = s.qddot;
+  // (the later stages need no ordinary closure factorization where a passage's is taken:
+  // only friction and damping at the step's start read it)
+  closures_.regular_factor = false;
   for (int k = 1; k < T.stages; ++k) {
     combineStages(h, T.a[k], k, T.a_den[k], q0_, kq_, sum_q_, qs_);
     combineStages(h, T.a[k], k, T.a_den[k], v0_, kv_, sum_v_, vs_);
     accelerations(sys, s, in, s.t + T.c[k] * h, qs_, vs_, kv_[k]);
     positionRates(model_, qs_, vs_, kq_[k]);
   }
+  closures_.regular_factor = true;
   combineStages(h, T.b, T.stages, T.b_den, q0_, kq_, sum_q_, s.q);
   combineStages(h, T.b, T.stages, T.b_den, v0_, kv_, sum_v_, s.qdot);
   normalizeQuaternions(model_, s.q);

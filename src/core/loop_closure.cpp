@@ -714,10 +714,12 @@ ClosureSolveInfo constrainedForwardDynamics(const TreeModel& model, const System
     return cl.info;
   }
   cl.evaluate(model, sys, ws, q);
-  cl.factor(model, ws);
-  if (cl.passage_ref && cl.findPassage()) {
+  const bool passage = cl.passage_ref && cl.findPassage();
+  if (!passage || cl.regular_factor) cl.factor(model, ws);
+  if (passage) {
     // a branch passage (branch_passage.cpp): the regular directions by their equations,
     // the held ones at passage_ref's acceleration across the branch
+    if (!cl.regular_factor) cl.info = ClosureSolveInfo{cl.m, cl.p_r_, cl.m - cl.p_r_};
     cl.passageFactor(model, ws);
     cl.passageRhs(cl.gamma_q, cl.p_g_, true);
     cl.rowsTimes(cl.p_R_, qddot, cl.p_mu_);

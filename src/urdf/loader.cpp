@@ -578,10 +578,11 @@ class ModelBuilder {
 
   void setGravityAndIntegrator(const Extension& ext) {
     if (ext.gravity) mech().setGravity(*ext.gravity);
-    if (options_.integrator.empty() && options_.formulation.empty()) return;
     IntegratorOptions io = mech().integrator();
     if (!options_.integrator.empty()) io.method = options_.integrator;
-    if (!options_.formulation.empty()) io.formulation = options_.formulation;
+    // a URDF's mechanism runs in the formulation auto picks unless asked (doc/method.md,
+    // "Formulations"); the core's own default stays the seed's absolute coordinates
+    io.formulation = options_.formulation.empty() ? "auto" : options_.formulation;
     try {
       mech().setIntegrator(io);
     } catch (const ModelError& e) {

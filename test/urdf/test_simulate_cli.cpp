@@ -98,17 +98,22 @@ TEST(SimulateCli, EffortDrivesTheJoint) {
 TEST(SimulateCli, FormulationIsChosenAndReported) {
   const std::string pendulum = kSource + "/test/urdf/pendulum_point_mass.urdf --duration 1 --output-every 1000 --csv ";
   const std::string a = ::testing::TempDir() + "/pa.csv", j = ::testing::TempDir() + "/pj.csv";
-  const Result ra = run(pendulum + a), rj = run(pendulum + j + " --formulation joint");
+  const Result ra = run(pendulum + a + " --formulation absolute"), rj = run(pendulum + j + " --formulation joint");
   ASSERT_EQ(ra.code, 0) << ra.out;
   ASSERT_EQ(rj.code, 0) << rj.out;
-  EXPECT_NE(ra.out.find("formulation: absolute coordinates"), std::string::npos) << ra.out;
+  EXPECT_NE(ra.out.find("formulation: absolute coordinates, as asked"), std::string::npos) << ra.out;
   EXPECT_NE(rj.out.find("formulation: joint coordinates, as asked"), std::string::npos) << rj.out;
+  // the default is auto: a tree in joint coordinates
+  const Result rd = run(pendulum + j);
+  ASSERT_EQ(rd.code, 0) << rd.out;
+  EXPECT_NE(rd.out.find("formulation: joint coordinates (auto: a tree"), std::string::npos) << rd.out;
   const auto rows_a = readCsv(a), rows_j = readCsv(j);
   ASSERT_EQ(rows_a.back().size(), rows_j.back().size());
   EXPECT_NEAR(std::stod(rows_a.back()[1]), std::stod(rows_j.back()[1]), 1e-9);  // the angle after 1 s
   const Result auto_loop = run(kSource + "/urdf/four_bar.urdf --duration 0.01 --formulation auto");
   ASSERT_EQ(auto_loop.code, 0) << auto_loop.out;
-  EXPECT_NE(auto_loop.out.find("formulation: absolute coordinates (auto: joint"), std::string::npos) << auto_loop.out;
+  EXPECT_NE(auto_loop.out.find("formulation: joint coordinates (auto: joint"), std::string::npos) << auto_loop.out;
+  EXPECT_NE(auto_loop.out.find("closes a loop"), std::string::npos) << auto_loop.out;
   const Result joint_loop = run(kSource + "/urdf/four_bar.urdf --duration 0.01 --formulation joint");
   EXPECT_EQ(joint_loop.code, 0) << joint_loop.out;
   EXPECT_NE(joint_loop.out.find("formulation: joint coordinates, as asked"), std::string::npos) << joint_loop.out;

@@ -124,6 +124,11 @@ class LoopClosures {
  public:
   LoopClosures(const TreeModel& model, const System& sys);
 
+  // The System the closures read between calls (their sizes, the constraints' equations):
+  // one with the same layout as the constructor's. A Mechanism's parameters change by copy
+  // on write (a new System, the constraints shared), so its stepper rebinds on every call.
+  void rebind(const System& sys) { sys_ = &sys; }
+
   // ---- description
   // sys constraint index per closure, ascending: every constraint that is not a tree
   // joint's (cut joints, couplers, drives, limits)
@@ -252,6 +257,10 @@ class LoopClosures {
   // equations exactly (v_i^T a = u_i^T D_r gamma_q / s_i). Outside a passage nothing changes.
   const Eigen::VectorXd* passage_ref = nullptr;
   bool passage_hold = true;  // false: the decomposition applies, nothing is held (a settle)
+  // Whether constrainedForwardDynamics also factors the ordinary closure solve (factor())
+  // where it takes a passage's: solve() and Y read that factorization (the joint stepper's
+  // friction and damping at a step's start); false skips it (the later stages).
+  bool regular_factor = true;
   // After evaluate(): each closure's rows (those that are not round-off) decomposed on their
   // own. true where some closure is near a loss of rank (a singular value below
   // kPassageGate: a passage, or one coming) or has rows that are dependent without being

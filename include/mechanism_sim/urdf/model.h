@@ -30,7 +30,7 @@ struct LoadOptions {
   // overriding the file's <mechanism_sim:initial>.
   std::vector<std::pair<std::string, double>> positions, velocities;
   std::string integrator;  // empty: the core's default
-  std::string formulation;  // "absolute", "joint" or "auto" (IntegratorOptions); empty: the default
+  std::string formulation;  // "absolute", "joint" or "auto" (IntegratorOptions); empty: auto
   // Velocity drives by dof name (simulate --drive), replacing the file's drive of that dof.
   std::vector<std::pair<std::string, double>> drives;
   // "Extended URDF" closures (YAML: closed_loop, type, name_mot; doc/loop_dialects.md).
