@@ -24,12 +24,15 @@ constexpr double kFailureResidual = 1e-6;
 // The projections' scratch, sized once for a System (no allocation in a projection).
 struct Projection {
   Eigen::VectorXd r1, r2, query;
-  std::vector<std::array<double, 2>> body_scale, start_scale;  // per body
+  // per body: the velocity residual's scales, those the velocity projection started from,
+  // and the mechanism's (every body at the largest starting motion of any)
+  std::vector<std::array<double, 2>> body_scale, start_scale, mechanism_scale;
   std::vector<Jacobian> J_frozen;  // the Jacobian H was factored with (frozen Newton)
   Projection() = default;
   explicit Projection(const System& sys)
       : r1(Eigen::VectorXd::Zero(sys.n)), r2(Eigen::VectorXd::Zero(sys.m)), query(Eigen::VectorXd::Zero(sys.m)),
-        body_scale(sys.nb, {0.0, 0.0}), start_scale(sys.nb, {0.0, 0.0}), J_frozen(Evaluation(sys).J) {}
+        body_scale(sys.nb, {0.0, 0.0}), start_scale(sys.nb, {0.0, 0.0}), mechanism_scale(sys.nb, {0.0, 0.0}),
+        J_frozen(Evaluation(sys).J) {}
 };
 
 // Moves s.x onto Phi = 0 (ev evaluated at s on entry and on return). With `frozen` the
