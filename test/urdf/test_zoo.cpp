@@ -66,6 +66,19 @@ TEST_P(Zoo, RunsFiveSecondsDampedWithinTheBoundsAndItsEnergyNeverRises) {
   EXPECT_GT(peak_kinetic, 1e-6) << r.file << ": nothing moved";
   EXPECT_LT(worst_rise, 1e-9 * peak_kinetic) << r.file;
   EXPECT_LT(energy(*m), e0) << r.file;
+  // every solve and projection met its tolerance (a shortfall is only counted: the
+  // absolute velocity projection's gain rule fell short 406 times on five_bar_ball before
+  // it failed outright). Known exception: ur_fourbar_loop in joint coordinates, whose
+  // fingers' loops take the passage's solve at every stage (their out-of-plane rows are
+  // dependent without being round-off), leaves about 1 velocity projection in 6 at 3.8e-14
+  // against the 1e-14 tolerance (doc/limitations.md); held to 1e-13 here.
+  const SolverStats st = m->solverStats();
+  if (r.file == "ur_fourbar_loop.urdf" && std::string(m->mechanism().formulation()) == "joint") {
+    EXPECT_EQ(st.solve_shortfalls + st.position_shortfalls, 0) << st.describe();
+    EXPECT_LT(st.worst_velocity, 1e-13) << st.describe();
+  } else {
+    EXPECT_EQ(st.shortfalls(), 0) << r.file << ": " << st.describe();
+  }
   std::printf("[ zoo ] %-22s damped: |Phi| <= %.1e m, largest step rise %.1e of peak kinetic %.3g J, E %.4g -> %.4g J\n",
               r.file.c_str(), worst_violation, worst_rise / peak_kinetic, peak_kinetic, e0, energy(*m));
 }
