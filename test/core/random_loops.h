@@ -1,5 +1,5 @@
 // Random trees closed by random joints, for the core tests (test_joint_space_loops.cpp,
-// test_random_loop_runs.cpp): bodies at random poses, joints of random types at random
+// test_random_loop_runs.cpp; the Builder also for test_joint_space_closures.cpp): bodies at random poses, joints of random types at random
 // points with random axes, each built where its two frames coincide (joint coordinates
 // zero), so the initial pose is assembled.
 #pragma once
@@ -10,6 +10,8 @@
 #include <vector>
 
 #include "bodies.h"
+#include "mechanism_sim/core/couplers.h"
+#include "mechanism_sim/core/drive.h"
 #include "mechanism_sim/core/joint_space.h"
 #include "mechanism_sim/core/system.h"
 
@@ -49,11 +51,26 @@ struct Builder {
     f.Rp = A.transpose() * axes;
     return f;
   }
-  void addJoint(const std::string& type, int bi, int bj, const Vector3d& P, const Matrix3d& axes) {
+  int addJoint(const std::string& type, int bi, int bj, const Vector3d& P, const Matrix3d& axes) {
     auto j = makeJoint(type, type + std::to_string(sys->joints.size()), bi, frameOn(bi, P, axes), bj, frameOn(bj, P, axes));
     sys->joints.push_back(j.get());
     sys->joint_constraint.push_back(sys->numConstraints());
     sys->constraints.push_back(std::shared_ptr<Constraint>(std::move(j)));
+    return sys->numJoints() - 1;
+  }
+  void addCoupler(int ja, int jb, double multiplier, double offset) {
+    sys->constraints.push_back(std::make_shared<CoordinateCoupler>("mimic", *sys->joints[ja], 0, *sys->joints[jb], 0,
+                                                                   multiplier, offset));
+  }
+  void addLimit(int j, int k, double lower, double upper) {
+    LimitSpec l;
+    l.joint = j, l.k = k, l.lower = lower, l.upper = upper;
+    sys->limits.push_back(l);
+  }
+  void addDrive(int j, int k, const DriveProfile& p, double q0) {
+    DriveSpec d;
+    d.joint = j, d.k = k, d.profile = p, d.q0 = q0;
+    sys->drives.push_back(d);
   }
 };
 

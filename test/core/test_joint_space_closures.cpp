@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include "bodies.h"
+#include "random_loops.h"
 
 #include <algorithm>
 #include <chrono>
@@ -25,7 +26,8 @@
 namespace mechanism_sim {
 namespace {
 
-double uniform(std::mt19937& rng, double lo, double hi) { return std::uniform_real_distribution<double>(lo, hi)(rng); }
+using test_util::Builder;
+using test_util::uniform;
 
 Matrix3d axesWithZ(const Vector3d& z) {  // a right-handed frame with bz = z
   const Vector3d zn = z.normalized();
@@ -35,58 +37,11 @@ Matrix3d axesWithZ(const Vector3d& z) {  // a right-handed frame with bz = z
   return R;
 }
 
-// Bodies at given poses; joints at a global point with global axes (frames coincide now).
-struct Builder {
-  std::unique_ptr<System> sys = std::make_unique<System>();
-  double length = 1.0;
-  explicit Builder(double L) : length(L) {
-    sys->gravity = Vector3d(0, 0, -9.81 * L);
-    Body ground;
-    ground.name = "ground";
-    sys->bodies.push_back(ground);
-  }
-  int addBody(double m, const Vector3d& moments, const Vector3d& r, const Matrix3d& R) {
-    Body b = body("b" + std::to_string(sys->bodies.size()), m,
-                  R * (m * length * length * moments).asDiagonal() * R.transpose(), r);
-    b.p = Quaterniond(R);
-    sys->bodies.push_back(b);
-    return static_cast<int>(sys->bodies.size()) - 1;
-  }
-  JointFrame frameOn(int b, const Vector3d& P, const Matrix3d& axes) const {
-    JointFrame f;
-    const Matrix3d A = b == 0 ? Matrix3d::Identity() : sys->bodies[b].p.toRotationMatrix();
-    const Vector3d r = b == 0 ? Vector3d::Zero() : sys->bodies[b].r;
-    f.sp_B = A.transpose() * (P - r);
-    f.Rp = A.transpose() * axes;
-    return f;
-  }
-  int addJoint(const std::string& type, int bi, int bj, const Vector3d& P, const Matrix3d& axes) {
-    auto j = makeJoint(type, type + std::to_string(sys->joints.size()), bi, frameOn(bi, P, axes), bj, frameOn(bj, P, axes));
-    sys->joints.push_back(j.get());
-    sys->joint_constraint.push_back(sys->numConstraints());
-    sys->constraints.push_back(std::shared_ptr<Constraint>(std::move(j)));
-    return sys->numJoints() - 1;
-  }
-  void addCoupler(int ja, int jb, double multiplier, double offset) {
-    sys->constraints.push_back(std::make_shared<CoordinateCoupler>("mimic", *sys->joints[ja], 0, *sys->joints[jb], 0,
-                                                                   multiplier, offset));
-  }
-  void addLimit(int j, int k, double lower, double upper) {
-    LimitSpec l;
-    l.joint = j, l.k = k, l.lower = lower, l.upper = upper;
-    sys->limits.push_back(l);
-  }
-  void addDrive(int j, int k, const DriveProfile& p, double q0) {
-    DriveSpec d;
-    d.joint = j, d.k = k, d.profile = p, d.q0 = q0;
-    sys->drives.push_back(d);
-  }
-};
 
 // A spatial chain: revolute (y), revolute (z), prismatic (x), revolute (x), revolute (y),
 // each link a rod to the next joint; the 1st joint written parent-last (reversed link).
 Builder chain(double L) {
-  Builder b(L);
+  Builder b(L, L);
   static const char* const kType[] = {"revolute", "revolute", "prismatic", "revolute", "revolute"};
   const Vector3d ax[] = {Vector3d::UnitY(), Vector3d::UnitZ(), Vector3d::UnitX(), Vector3d::UnitX(), Vector3d(0, 1, 1)};
   Vector3d p(0, 0, 0);
@@ -106,7 +61,7 @@ Builder chain(double L) {
 // The planar four-bar in x-z (axes along y), as test_joint_space_loops.cpp; the closing
 // joint (coupler-rocker at C) is the last one.
 Builder fourBar(double L) {
-  Builder b(L);
+  Builder b(L, L);
   const double pi = 3.141592653589793;
   const Vector3d O(0, 0, 0), D(1.0 * L, 0, 0);
   const Vector3d B = O + 0.35 * L * Vector3d(std::cos(1.1), 0, std::sin(1.1));
