@@ -109,11 +109,12 @@ inline bool isTranslation(const TreeLink& link, int k) {
          (link.kind == TreeJointKind::kPlanar && k < 2);
 }
 
-// The absolute State of a joint state (tree joints' tracked angles at their coordinates).
+// The absolute State of a joint state (tree joints' tracked angles at their coordinates),
+// with the context (time, limit sides, drives) of `ctx_from`, or the initial state's.
 inline State absoluteFromJoint(const System& sys, const TreeModel& model, TreeWorkspace& ws, const Eigen::VectorXd& q,
-                               const Eigen::VectorXd& qd) {
+                               const Eigen::VectorXd& qd, const State* ctx_from = nullptr) {
   forwardKinematics(model, q, qd, ws);
-  State s = initialState(sys);
+  State s = ctx_from ? *ctx_from : initialState(sys);
   absoluteState(model, ws, s.x, s.u);
   for (int j = 0; j < sys.numJoints(); ++j) {
     if (model.joint_link[j] < 0) continue;

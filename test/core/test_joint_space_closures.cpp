@@ -82,21 +82,10 @@ Builder fourBar(double L) {
   return b;
 }
 
-// The absolute State of a joint state (tree joints' tracked angles at their coordinates),
-// with the context's time and limit sides of `ctx_from`.
+// The absolute State of a joint state with the context of `ctx_from` (random_loops.h).
 State absoluteFromJoint(const System& sys, const TreeModel& model, TreeWorkspace& ws, const Eigen::VectorXd& q,
                         const Eigen::VectorXd& qd, const State& ctx_from) {
-  forwardKinematics(model, q, qd, ws);
-  State s = ctx_from;
-  absoluteState(model, ws, s.x, s.u);
-  for (int j = 0; j < sys.numJoints(); ++j) {
-    if (model.joint_link[j] < 0) continue;
-    const Joint& J = *sys.joints[j];
-    const TreeLink& L = model.links[model.joint_link[j]];
-    for (int k = 0; k < J.dof(); ++k)
-      if (J.trackedSlot(k) >= 0) s.tracked[sys.joint_constraint[j]][J.trackedSlot(k)] = q(L.iq + k);
-  }
-  return s;
+  return test_util::absoluteFromJoint(sys, model, ws, q, qd, &ctx_from);
 }
 
 double accelerationDifference(const Eigen::VectorXd& acc1, const Eigen::VectorXd& acc2, int nb, double length, double g) {
