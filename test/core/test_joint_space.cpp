@@ -6,7 +6,6 @@
 #include "bodies.h"
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <memory>
@@ -642,34 +641,6 @@ TEST(JointSpace, DampingAndFrictionAreNotTheTreeModelsBusiness) {
 }
 
 // ---- cost
-
-// Per-call cost of forwardDynamics on revolute chains of 10 and 50 links (printed; the
-// bound only catches a gross regression such as an allocation per call on a slow machine).
-TEST(JointSpace, TimingRevoluteChains) {
-  for (int n : {10, 50}) {
-    Mechanism mech;
-    models::pendulumChain(mech, n);
-    mech.build();
-    const System& sys = mech.system();
-    TreeModel model(sys);
-    TreeWorkspace ws(model);
-    Eigen::VectorXd q = Eigen::VectorXd::Constant(model.nv, 0.1), qd = Eigen::VectorXd::Constant(model.nv, 0.2);
-    Eigen::VectorXd tau = Eigen::VectorXd::Zero(model.nv), qdd(model.nv);
-    const int reps = n == 10 ? 20000 : 4000;
-    double best = 1e300;
-    for (int round = 0; round < 5; ++round) {
-      const auto start = std::chrono::steady_clock::now();
-      for (int r = 0; r < reps; ++r) {
-        q(0) += 1e-9;
-        forwardDynamics(model, sys, q, qd, tau, ws, qdd);
-      }
-      const double us = std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - start).count() / reps;
-      best = std::min(best, us);
-    }
-    std::printf("[timing] forwardDynamics, %d-link revolute chain: %.2f us per call (best of 5 rounds)\n", n, best);
-    EXPECT_LT(best, 1000.0);
-  }
-}
 
 }  // namespace
 }  // namespace mechanism_sim

@@ -7,7 +7,6 @@
 #include "random_loops.h"
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <memory>
@@ -320,46 +319,6 @@ TEST(JointSpaceLoops, FourBarIntegratedOneSecondTracksTheAbsoluteFormulation) {
   std::printf("[four-bar 1 s] crank angle %.12f rad (joint space), largest difference to the absolute run %.2e rad\n",
               q(model.links[crank].iq), worst);
   EXPECT_LT(worst, 1e-8);
-}
-
-// Cost of one constrained dynamics evaluation: the four-bar and a 10-link planar chain
-// whose last link is pinned back to ground.
-TEST(JointSpaceLoops, TimingConstrainedDynamics) {
-  for (int n : {3, 10}) {
-    Builder b = n == 3 ? fourBar(1.0, 1.0) : Builder(1.0, 1.0);
-    if (n == 10) {
-      const Matrix3d Y = axesWithZ(Vector3d::UnitY());
-      Vector3d p(0, 0, 0);
-      int prev = 0;
-      for (int k = 0; k < n; ++k) {
-        const Vector3d next = p + 0.3 * Vector3d(std::cos(0.7 * k), 0, std::sin(0.7 * k));
-        const int bb = b.addBody(1.0, Vector3d(0.01, 0.02, 0.02), 0.5 * (p + next), Matrix3d::Identity());
-        b.addJoint("revolute", prev, bb, p, Y);
-        prev = bb, p = next;
-      }
-      b.addJoint("revolute", prev, 0, p, Y);
-    }
-    System& sys = *b.sys;
-    sys.finalize();
-    TreeModel model(sys);
-    TreeWorkspace ws(model);
-    LoopClosures cl(model, sys);
-    Eigen::VectorXd q = model.neutralPositions(sys), qd = Eigen::VectorXd::Constant(model.nv, 0.3), tau = Eigen::VectorXd::Zero(model.nv), qdd(model.nv);
-    projectClosureVelocities(model, sys, cl, q, qd, ws);
-    const int reps = 20000;
-    double best = 1e300;
-    for (int round = 0; round < 5; ++round) {
-      const auto start = std::chrono::steady_clock::now();
-      for (int r = 0; r < reps; ++r) {
-        q(0) += 1e-12;
-        constrainedForwardDynamics(model, sys, cl, q, qd, tau, ws, qdd);
-      }
-      best = std::min(best, std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - start).count() / reps);
-    }
-    std::printf("[timing] constrainedForwardDynamics, %s (%d closure rows, %d dependent): %.2f us per call\n",
-                n == 3 ? "four-bar" : "10-link chain with one loop", cl.m, cl.info.dependent, best);
-    EXPECT_LT(best, 1000.0);
-  }
 }
 
 }  // namespace
