@@ -20,13 +20,7 @@
 
 #include "mechanism_sim/core/models.h"
 
-#if defined(__SANITIZE_ADDRESS__)
-#define MECHANISM_SIM_TEST_ASAN 1
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer)
-#define MECHANISM_SIM_TEST_ASAN 1
-#endif
-#endif
+#include "sanitizers.h"
 
 namespace {
 std::atomic<long> g_allocations{0};
