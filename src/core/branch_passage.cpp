@@ -50,15 +50,8 @@ bool LoopClosures::closureRows(size_t c) {
   const int n = sys_->constraints[constraints[c]]->size();
   p_rows_.clear();
   p_cols_.clear();
-  for (int e = row[c]; e < row[c] + n; ++e) {
-    bool zero = true;
-    for (int k : ccols_[c])
-      if (std::fabs(G(e, k)) > kClosureZeroEntry * Gabs(e, k)) {
-        zero = false;
-        break;
-      }
-    if (!zero) p_rows_.push_back(e);
-  }
+  for (int e = row[c]; e < row[c] + n; ++e)
+    if (!roundoffRow(e)) p_rows_.push_back(e);
   if (p_rows_.empty()) return false;
   // The columns that move the closure's bodies relative to each other: not those of a
   // link that carries the whole loop (an arm holding a gripper's four-bar), where G is
@@ -93,8 +86,8 @@ bool LoopClosures::findPassage() {
   if (p_P_.rows() != m || p_P_.cols() != m) {
     p_P_.setZero(m, m), p_R_.setZero(m, nv), p_w_.setZero(m, m), p_z_.setZero(m, m);
     p_held_.assign(m, 0);
-    p_b_.setZero(m), p_g_.setZero(m), p_mu_.setZero(m), p_t_.setZero(m), p_dv_.setZero(nv);
-    p_Y_.setZero(nv, m), p_A_.setZero(m, m);
+    p_b_.setZero(m), p_g_.setZero(m), p_mu_.setZero(m);
+    p_A_.setZero(m, m);
     p_least_norm_ = ScaledLeastNorm(m);
     p_rows_.reserve(m), p_cols_.reserve(nv);
   }

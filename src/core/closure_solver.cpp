@@ -37,8 +37,6 @@ void coordinateTree(const TreeModel& model, std::vector<int>& order, std::vector
 
 TreeMassFactor::TreeMassFactor(const TreeModel& model) {
   coordinateTree(model, vorder_, vparent_);
-  vpos_.assign(model.nv, 0);
-  for (int i = 0; i < model.nv; ++i) vpos_[vorder_[i]] = i;
   H_.setZero(model.nv, model.nv);
   Ic_.assign(model.nb, Matrix6d::Zero());
 }
@@ -79,7 +77,6 @@ void TreeMassFactor::finish(const double* z, double* x) const {
 ClosureSolver::ClosureSolver(const TreeModel& model, const std::vector<int>& block_first,
                              const std::vector<std::vector<int>>& block_cols) {
   m_ = block_first.empty() ? 0 : block_first.back();
-  nv_ = model.nv;
   const int nblocks = static_cast<int>(block_cols.size());
   std::vector<int> order, parent;
   coordinateTree(model, order, parent);
@@ -214,20 +211,9 @@ int ClosureSolver::factor(const TreeModel& model, const TreeWorkspace& ws, const
     if (keep(e) == 0.0) continue;
     const std::vector<int>& links = links_[block_[e]];
     double* z = Z_.col(e).data();
+    for (int v : cols_[block_[e]]) z[v] = R(e, v);  // (tau = R_e^T, then u in place)
     for (int k : links) pa_[k].setZero();
-    for (int k : links) {
-      const TreeLink& L = model.links[k];
-      Vector6d pa = pa_[k];
-      for (int i = 0; i < L.nv; ++i) z[L.iv + i] = R(e, L.iv + i) - ws.S[k].col(i).dot(pa);
-      if (L.parent == 0) continue;
-      if (L.nv == 1) {
-        pa += ws.U[k].col(0) * (ws.Dinv[k](0, 0) * z[L.iv]);
-      } else if (L.nv > 0) {
-        const SmallVector u = Eigen::Map<const SmallVector>(z + L.iv, L.nv);
-        pa += ws.U[k] * (ws.Dinv[k] * u);
-      }
-      pa_[L.parent - 1] += transformForceBack(ws.E[k], ws.rho[k], pa);
-    }
+    for (int k : links) inverseMassInward(model, ws, k, z, z, pa_);
     const double a = product(model, ws, links, e, e);
     if (a > 0.0) {
       d_(e) = 1.0 / std::sqrt(a);

@@ -73,9 +73,11 @@ Formulation chooseFormulation(const System& sys, Formulation asked, std::string*
   // four-bar 2.7e-11 against 5.5e-8 m at 1 ms, bench/RESULTS.md).
   int mapped = 0;  // always-on rows through the absolute equations
   int nv = 0;
+  std::string loop;  // a joint that closes a loop, if any
   if (unsupported.empty()) {
     const TreeModel tree(sys);
     nv = tree.nv;
+    if (!tree.cut_joints.empty()) loop = sys.joints[tree.cut_joints[0]]->name();
     auto onTree = [&](const Joint& J) {
       for (int j = 0; j < sys.numJoints(); ++j)
         if (&*sys.joints[j] == &J) {
@@ -96,14 +98,12 @@ Formulation chooseFormulation(const System& sys, Formulation asked, std::string*
     }
   }
   if (unsupported.empty() && 2 * mapped <= nv) {
-    if (why) {
-      const TreeModel tree(sys);
-      *why = !tree.cut_joints.empty()
-                 ? "joint coordinates (auto: joint '" + sys.joints[tree.cut_joints[0]]->name() +
+    if (why)
+      *why = !loop.empty()
+                 ? "joint coordinates (auto: joint '" + loop +
                        "' closes a loop, a closure on the tree; drives at most one per 2 coordinates)"
              : mapped == 0 ? "joint coordinates (auto: a tree whose other equations are limits and couplers at most)"
                            : "joint coordinates (auto: a tree with few drives, at most one per 2 coordinates)";
-    }
     return Formulation::kJoint;
   }
   if (unsupported.empty()) {

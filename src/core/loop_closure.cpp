@@ -168,28 +168,25 @@ void LoopClosures::rowsTimes(const Eigen::MatrixXd& R, const Eigen::VectorXd& v,
   }
 }
 
-void LoopClosures::inverseMassRowsT(const TreeModel& model, const TreeWorkspace& ws, const Eigen::MatrixXd& R,
-                                    const Eigen::VectorXd& x, Eigen::VectorXd& out) {
-  tau_.setZero();
-  bool any = false;
-  for (int e = 0; e < m; ++e) {
-    if (x(e) == 0.0) continue;
-    any = true;
-    for (int k : ccols_[cl_of_[e]]) tau_(k) += R(e, k) * x(e);
-  }
-  if (any) applyInverseMass(model, ws, tau_.data(), out.data());
-  else out.setZero();
-}
-
-void LoopClosures::inverseMassGT(const Eigen::VectorXd& x, Eigen::VectorXd& out) const {
+bool LoopClosures::rowsTransposeTimes(const Eigen::MatrixXd& R, const Eigen::VectorXd& x, Eigen::VectorXd& out) const {
   out.setZero();
   bool any = false;
   for (int e = 0; e < m; ++e) {
     if (x(e) == 0.0) continue;
     any = true;
-    for (int k : ccols_[cl_of_[e]]) out(k) += G(e, k) * x(e);
+    for (int k : ccols_[cl_of_[e]]) out(k) += R(e, k) * x(e);
   }
-  if (any) mass_.solve(out.data());
+  return any;
+}
+
+void LoopClosures::inverseMassRowsT(const TreeModel& model, const TreeWorkspace& ws, const Eigen::MatrixXd& R,
+                                    const Eigen::VectorXd& x, Eigen::VectorXd& out) {
+  if (rowsTransposeTimes(R, x, tau_)) applyInverseMass(model, ws, tau_.data(), out.data());
+  else out.setZero();
+}
+
+void LoopClosures::inverseMassGT(const Eigen::VectorXd& x, Eigen::VectorXd& out) const {
+  if (rowsTransposeTimes(G, x, out)) mass_.solve(out.data());  // (x = 0: every row dropped, the mass perhaps not factored)
 }
 
 // The twist a unit rate of column `col` of link a gives body b (centre r_b, rotation A_b),
@@ -483,20 +480,7 @@ double LoopClosures::velocityResidual(const Eigen::VectorXd& qdot, const Eigen::
 // application of RBDA 8.3.
 void LoopClosures::applyInverseMass(const TreeModel& model, const TreeWorkspace& ws, const double* tau, double* out) {
   for (int k = 0; k < model.nb; ++k) pa_[k].setZero();
-  for (int n = model.nb - 1; n >= 0; --n) {
-    const int k = model.order[n] - 1;
-    const TreeLink& L = model.links[k];
-    Vector6d pa = pa_[k];
-    for (int i = 0; i < L.nv; ++i) out[L.iv + i] = tau[L.iv + i] - ws.S[k].col(i).dot(pa);  // u (kept in out)
-    if (L.parent == 0) continue;
-    if (L.nv == 1) {
-      pa += ws.U[k].col(0) * (ws.Dinv[k](0, 0) * out[L.iv]);
-    } else if (L.nv > 0) {
-      const SmallVector u = Eigen::Map<const SmallVector>(out + L.iv, L.nv);
-      pa += ws.U[k] * (ws.Dinv[k] * u);
-    }
-    pa_[L.parent - 1] += transformForceBack(ws.E[k], ws.rho[k], pa);
-  }
+  for (int n = model.nb - 1; n >= 0; --n) inverseMassInward(model, ws, model.order[n] - 1, tau, out, pa_);  // u kept in out
   for (int b : model.order) {
     const int k = b - 1;
     const TreeLink& L = model.links[k];
@@ -527,12 +511,7 @@ void LoopClosures::factor(const TreeModel& model, const TreeWorkspace& ws) {
   // planar loop's out-of-plane rows): dropped, with lambda 0 there.
   int zero_rows = 0;
   for (int e = 0; e < m; ++e) {
-    bool zero = true;
-    for (int k : ccols_[cl_of_[e]])
-      if (std::fabs(G(e, k)) > kClosureZeroEntry * Gabs(e, k)) {
-        zero = false;
-        break;
-      }
+    const bool zero = roundoffRow(e);
     keep_(e) = zero ? 0.0 : 1.0;
     zero_rows += zero;
   }

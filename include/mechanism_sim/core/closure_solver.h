@@ -62,12 +62,11 @@ class TreeMassFactor {
   // in the tree's order (each after its parent)
   const std::vector<int>& parent() const { return vparent_; }
   const std::vector<int>& order() const { return vorder_; }
-  double D(int k) const { return H_(k, k); }
 
  private:
   Eigen::MatrixXd H_;  // H, then L (entries (i, j), j an ancestor of i) and D (diagonal)
   AlignedVector<Matrix6d> Ic_;
-  std::vector<int> vparent_, vorder_, vpos_;  // vpos_: index of a coordinate in vorder_
+  std::vector<int> vparent_, vorder_;
 };
 
 class ClosureSolver {
@@ -85,14 +84,13 @@ class ClosureSolver {
              ScaledLeastNorm& dense, Eigen::MatrixXd& A_dense);
   // x = A^+ b (dropped rows: x = 0); x may be b. No allocation.
   void solve(const ScaledLeastNorm& dense, const Eigen::VectorXd& b, Eigen::VectorXd& x) const;
-  // Whether the last factor() took the sparse path; whether it kept row e.
-  bool sparse() const { return sparse_; }
+  // Whether the last factor() kept row e.
   bool kept(int e) const { return d_(e) != 0.0; }
   // Per block, its coordinates in the tree's order (R's entries elsewhere are zero).
   const std::vector<int>& blockCols(int b) const { return cols_[b]; }
 
  private:
-  int m_ = 0, nv_ = 0;
+  int m_ = 0;
   std::vector<int> block_, first_;            // per row its block; per block its first row
   std::vector<std::vector<int>> cols_;        // per block: coordinates, in the tree's order
   std::vector<std::vector<int>> links_;       // per block: links (body - 1) on its paths, leaves first

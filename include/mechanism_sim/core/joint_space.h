@@ -155,6 +155,26 @@ struct TreeWorkspace {
   AlignedVector<Vector6d> f;        // RNEA: force transmitted by the joint
 };
 
+// One link k of the inverse-mass inward pass (the articulated-body algorithm with zero
+// velocity and no external force, RBDA table 7.1, passes on the factors U, D^-1 in ws):
+// u_k = tau_k - S_k^T p_k into out (tau and out may be the same array), and the parent's
+// p += X^T (p_k + U_k D_k^-1 u_k). The caller visits children before parents with p zeroed
+// first: LoopClosures::applyInverseMass over every link, ClosureSolver over one row's paths.
+inline void inverseMassInward(const TreeModel& model, const TreeWorkspace& ws, int k, const double* tau, double* out,
+                              AlignedVector<Vector6d>& p) {
+  const TreeLink& L = model.links[k];
+  Vector6d pa = p[k];
+  for (int i = 0; i < L.nv; ++i) out[L.iv + i] = tau[L.iv + i] - ws.S[k].col(i).dot(pa);
+  if (L.parent == 0) return;
+  if (L.nv == 1) {
+    pa += ws.U[k].col(0) * (ws.Dinv[k](0, 0) * out[L.iv]);
+  } else if (L.nv > 0) {
+    const SmallVector u = Eigen::Map<const SmallVector>(out + L.iv, L.nv);
+    pa += ws.U[k] * (ws.Dinv[k] * u);
+  }
+  p[L.parent - 1] += transformForceBack(ws.E[k], ws.rho[k], pa);
+}
+
 // Poses and velocities of the bodies for (q, q_dot) into ws (A, r, v and the per-link
 // transforms, subspaces and bias terms the dynamics reuse).
 void forwardKinematics(const TreeModel& model, const Eigen::VectorXd& q, const Eigen::VectorXd& qdot,

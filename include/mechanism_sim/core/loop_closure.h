@@ -317,9 +317,9 @@ class LoopClosures {
   // closure's decomposition that is not dependent): R_j = sum_e P(j, e) G_e (= (v_j o unit)^T),
   // held_[j] whether it is held by the motion. Per held or dependent direction: w = D_r u,
   // z = D_r^-1 u over the System rows (the component b' = b - z (w . b) is not judged).
-  Eigen::MatrixXd p_P_, p_R_, p_Y_, p_A_, p_w_, p_z_;
+  Eigen::MatrixXd p_P_, p_R_, p_A_, p_w_, p_z_;
   std::vector<char> p_held_;
-  Eigen::VectorXd p_b_, p_g_, p_mu_, p_dv_, p_t_, p_dr_;
+  Eigen::VectorXd p_b_, p_g_, p_mu_, p_dr_;
   Eigen::MatrixXd p_W_;  // one closure's normalized rows, over its columns
   using Small6 = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 6, 6>;
   Small6 p_gram_;        // W W^T, and its eigenvalues (findPassage's test away from passages)
@@ -358,6 +358,14 @@ class LoopClosures {
   std::vector<int> cl_of_;               // per row: its closure
   // out = G v over each row's coordinates (G is zero elsewhere)
   void rowsTimes(const Eigen::MatrixXd& R, const Eigen::VectorXd& v, Eigen::VectorXd& out) const;
+  // out = R^T x over each row's coordinates (R laid out as G); false where x = 0
+  bool rowsTransposeTimes(const Eigen::MatrixXd& R, const Eigen::VectorXd& x, Eigen::VectorXd& out) const;
+  // Whether row e of G is round-off against its terms at every coordinate (kClosureZeroEntry)
+  bool roundoffRow(int e) const {
+    for (int k : ccols_[cl_of_[e]])
+      if (std::fabs(G(e, k)) > kClosureZeroEntry * Gabs(e, k)) return false;
+    return true;
+  }
   // out = M^-1 R^T x, R laid out as G (rows in the closures' slots), by an inverse-mass
   // pass at ws (applyInverseMass)
   void inverseMassRowsT(const TreeModel& model, const TreeWorkspace& ws, const Eigen::MatrixXd& R,
