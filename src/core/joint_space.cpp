@@ -261,6 +261,54 @@ TreeModel::TreeModel(const System& sys) {
       L.iq = nq, L.iv = nv;
       nq += L.nq, nv += L.nv;
     }
+  // Welded groups (joint_space.h), parents first: a fixed link's constant pose relative to
+  // its parent (forwardKinematics' Rrel and rho with the joint's identity pose) and, composed
+  // along the fixed links above it, relative to its host.
+  for (int b : order) {
+    TreeLink& L = links[b - 1];
+    const bool parent_fixed = L.parent != 0 && links[L.parent - 1].kind == TreeJointKind::kFixed;
+    if (L.kind != TreeJointKind::kFixed) {
+      L.host = b;
+      L.parent_welded = parent_fixed;
+      L.aparent = parent_fixed ? links[L.parent - 1].host : L.parent;
+      continue;
+    }
+    const Matrix3d Rrel = L.Rp * L.Rc.transpose();
+    L.E0 = Rrel.transpose();
+    L.rho0 = L.sp - Rrel * L.sc;
+    if (parent_fixed) {  // X_{L,h} = X_{L,P} X_{P,h}
+      const TreeLink& P = links[L.parent - 1];
+      L.host = P.host;
+      L.Eh = L.E0 * P.Eh;
+      L.rhoh = P.rhoh + P.Eh.transpose() * L.rho0;
+    } else {
+      L.host = L.parent;
+      L.Eh = L.E0;
+      L.rhoh = L.rho0;
+    }
+  }
+  for (TreeLink& L : links) {
+    if (L.kind == TreeJointKind::kFixed) continue;
+    const Body& B = sys.bodies[L.body];
+    L.Ic0.setZero();
+    L.Ic0.topLeftCorner<3, 3>() = B.Jp;
+    L.Ic0.bottomRightCorner<3, 3>().diagonal().setConstant(B.m);
+    L.mass = B.m;
+  }
+  for (int b : order) {
+    const TreeLink& L = links[b - 1];
+    if (L.kind != TreeJointKind::kFixed || L.host == 0) continue;  // (a body welded to ground stays)
+    TreeLink& H = links[L.host - 1];
+    const Body& B = sys.bodies[b];
+    Matrix6d I = Matrix6d::Zero();
+    I.topLeftCorner<3, 3>() = B.Jp;
+    I.bottomRightCorner<3, 3>().diagonal().setConstant(B.m);
+    addTransformedInertia(L.Eh, L.rhoh, I, H.Ic0);
+    H.composite = true;
+    H.welded.push_back(b);
+    H.mass += B.m;
+    H.mc += B.m * L.rhoh;
+  }
 }
 
 Eigen::VectorXd TreeModel::neutralPositions(const System& sys) const {
@@ -401,6 +449,23 @@ void forwardKinematics(const TreeModel& model, const Eigen::VectorXd& q, const E
   for (int b : model.order) {
     const int k = b - 1;
     const TreeLink& L = model.links[k];
+    if (L.kind == TreeJointKind::kFixed) {  // the constant pose; no joint motion, c = 0
+      ws.cJ[k].setZero();
+      ws.c[k].setZero();
+      ws.E[k] = L.E0;
+      ws.rho[k] = L.rho0;
+      if (L.parent == 0) {
+        ws.A[k] = L.E0.transpose();
+        ws.r[k] = L.rho0;
+        ws.v[k].setZero();
+      } else {
+        const int p = L.parent - 1;
+        ws.A[k].noalias() = ws.A[p] * L.E0.transpose();
+        ws.r[k].noalias() = ws.r[p] + ws.A[p] * L.rho0;
+        ws.v[k] = transformMotion(L.E0, L.rho0, ws.v[p]);
+      }
+      continue;
+    }
     Vector6d vJ, cJ;
     if (L.constant_S) {  // the common case: S constant in the child's frame (set once in ws), c_J = 0
       constantSubspacePose(L, q(L.iq), R, t);
@@ -473,6 +538,44 @@ inline Vector6d externalForce(const System& sys, const TreeWorkspace& ws, int b,
   return f;
 }
 
+// The external force on a moving body and the bodies welded to it, in its coordinates:
+// gravity on the group, (mc x g'; m g') with g' = A^T g (joint_space.h), and the Inputs'
+// forces and torques on each member moved to it by X_{member,h}^T.
+inline Vector6d groupExternalForce(const System& sys, const TreeLink& L, const TreeWorkspace& ws,
+                                   const TreeModel& model, const Inputs* loads) {
+  if (!L.composite) return externalForce(sys, ws, L.body, loads);
+  const Vector3d gh = ws.A[L.body - 1].transpose() * sys.gravity;
+  Vector6d f;
+  f.head<3>() = L.mc.cross(gh);
+  f.tail<3>() = L.mass * gh;
+  if (loads) {
+    f.head<3>() += loads->torque[L.body];
+    f.tail<3>() += ws.A[L.body - 1].transpose() * loads->force[L.body];
+    for (int m : L.welded) {
+      const TreeLink& W = model.links[m - 1];
+      Vector6d fm;
+      fm.head<3>() = loads->torque[m];
+      fm.tail<3>() = ws.A[m - 1].transpose() * loads->force[m];
+      f += transformForceBack(W.Eh, W.rhoh, fm);
+    }
+  }
+  return f;
+}
+
+// The Plucker transform X_{k, aparent} from a moving link's articulated parent (its parent,
+// or the host its parent is welded to) to the link: X_k X_{parent,h} when welded.
+inline void articulatedTransform(const TreeModel& model, const TreeWorkspace& ws, int k, Matrix3d& E,
+                                 Vector3d& rho) {
+  const TreeLink& L = model.links[k];
+  if (!L.parent_welded) {
+    E = ws.E[k], rho = ws.rho[k];
+    return;
+  }
+  const TreeLink& P = model.links[L.parent - 1];
+  E.noalias() = ws.E[k] * P.Eh;
+  rho.noalias() = P.rhoh + P.Eh.transpose() * ws.rho[k];
+}
+
 }  // namespace
 
 // Articulated-body algorithm, RBDA 7.3, table 7.1, in body coordinates: gravity enters as
@@ -483,9 +586,17 @@ void forwardDynamics(const TreeModel& model, const System& sys, const Eigen::Vec
                      Eigen::VectorXd& qddot, const Inputs* loads) {
   // Pass 1 (outward): velocities and the bias c_i (forwardKinematics), then
   // I^A_i = I_i, p^A_i = v_i x* I_i v_i - f^x_i (as table 7.1 starts them).
+  // Welded bodies are in their hosts' I_i and f^x_i (joint_space.h): the passes skip them.
   forwardKinematics(model, q, qdot, ws);
   for (int b : model.order) {
     const int k = b - 1;
+    const TreeLink& L = model.links[k];
+    if (L.kind == TreeJointKind::kFixed) continue;
+    if (L.composite) {
+      ws.IA[k] = L.Ic0;
+      ws.pA[k] = crossForce(ws.v[k], L.Ic0 * ws.v[k]) - groupExternalForce(sys, L, ws, model, loads);
+      continue;
+    }
     const Body& B = sys.bodies[b];
     ws.IA[k].setZero();
     ws.IA[k].topLeftCorner<3, 3>() = B.Jp;
@@ -498,6 +609,7 @@ void forwardDynamics(const TreeModel& model, const System& sys, const Eigen::Vec
   for (int n = model.nb - 1; n >= 0; --n) {
     const int k = model.order[n] - 1;
     const TreeLink& L = model.links[k];
+    if (L.kind == TreeJointKind::kFixed) continue;
     Matrix6d& IA = ws.IA[k];
     Vector6d pa = ws.pA[k];
     if (L.nv == 1) {  // the common case without the small-matrix machinery
@@ -511,7 +623,7 @@ void forwardDynamics(const TreeModel& model, const System& sys, const Eigen::Vec
       ws.U[k].col(0) = U;
       ws.Dinv[k](0, 0) = Dinv;
       ws.u[k](0) = u;
-      if (L.parent == 0) continue;
+      if (L.aparent == 0) continue;
       IA.noalias() -= (U * Dinv) * U.transpose();
       pa += IA * ws.c[k] + U * (Dinv * u);
     } else {
@@ -530,7 +642,7 @@ void forwardDynamics(const TreeModel& model, const System& sys, const Eigen::Vec
         // heap temporary)
         for (int i = 0; i < L.nv; ++i) ws.u[k](i) = tau(L.iv + i) - ws.S[k].col(i).dot(pa);
       }
-      if (L.parent == 0) continue;
+      if (L.aparent == 0) continue;
       if (L.nv > 0) {
         const MotionSubspace UD = U * ws.Dinv[k];
         IA.noalias() -= UD * U.transpose();
@@ -540,9 +652,17 @@ void forwardDynamics(const TreeModel& model, const System& sys, const Eigen::Vec
       }
     }
     // The parent accumulates X^T I^a X and X^T p^a (table 7.1, with X = i_X_lambda(i)).
-    const int p = L.parent - 1;
-    addTransformedInertia(ws.E[k], ws.rho[k], IA, ws.IA[p]);
-    ws.pA[p] += transformForceBack(ws.E[k], ws.rho[k], pa);
+    const int p = L.aparent - 1;
+    if (!L.parent_welded) {
+      addTransformedInertia(ws.E[k], ws.rho[k], IA, ws.IA[p]);
+      ws.pA[p] += transformForceBack(ws.E[k], ws.rho[k], pa);
+    } else {
+      Matrix3d E;
+      Vector3d rho;
+      articulatedTransform(model, ws, k, E, rho);
+      addTransformedInertia(E, rho, IA, ws.IA[p]);
+      ws.pA[p] += transformForceBack(E, rho, pa);
+    }
   }
   // Pass 3 (outward): a'_i = X a_parent + c_i, q_ddot_i = D^-1 (u_i - U_i^T a'_i),
   // a_i = a'_i + S_i q_ddot_i (ground does not accelerate: gravity is a force here).
@@ -596,18 +716,20 @@ void inverseDynamics(const TreeModel& model, const System& sys, const Eigen::Vec
 // j (F = X^T F) for H_ij = F^T S_j.
 void jointSpaceInertia(const TreeModel& model, const System& sys, const TreeWorkspace& ws,
                        AlignedVector<Matrix6d>& Ic, Eigen::MatrixXd& H) {
+  // (welded bodies are in their hosts' Ic0: the composites skip them, joint_space.h; F
+  // still moves through their transforms on the way to an ancestor)
+  (void)sys;
   Ic.resize(model.nb);
-  for (int b : model.order) {
-    const Body& B = sys.bodies[b];
-    Matrix6d& I = Ic[b - 1];
-    I.setZero();
-    I.topLeftCorner<3, 3>() = B.Jp;
-    I.bottomRightCorner<3, 3>().diagonal().setConstant(B.m);
-  }
+  for (int b : model.order)
+    if (model.links[b - 1].kind != TreeJointKind::kFixed) Ic[b - 1] = model.links[b - 1].Ic0;
   for (int n = model.nb - 1; n >= 0; --n) {
     const int k = model.order[n] - 1;
     const TreeLink& L = model.links[k];
-    if (L.parent != 0) addTransformedInertia(ws.E[k], ws.rho[k], Ic[k], Ic[L.parent - 1]);
+    if (L.kind == TreeJointKind::kFixed || L.aparent == 0) continue;
+    Matrix3d E;
+    Vector3d rho;
+    articulatedTransform(model, ws, k, E, rho);
+    addTransformedInertia(E, rho, Ic[k], Ic[L.aparent - 1]);
   }
   for (int n = 0; n < model.nb; ++n) {
     const int k = model.order[n] - 1;

@@ -189,6 +189,9 @@ double accelerationDifference(const Eigen::VectorXd& acc1, const Eigen::VectorXd
 struct Comparison {
   double acc = 0, settle_moved = 0, coord = 0, rate = 0, inverse = 0;
   int links[9][2] = {};  // per TreeJointKind, parent-first and child-first
+  // welded bodies (joint_space.h): a moving link on a welded body, a body welded to a
+  // welded body, a welded body with loads (merged into a moving host)
+  int on_welded = 0, welded_chain = 0, loaded_welded = 0;
 };
 
 // One random tree at one joint state: the absolute solver's accelerations against the ABA's,
@@ -234,7 +237,13 @@ Comparison compareTree(unsigned seed, int n, bool free_body, double length, doub
   bodyAccelerations(model, ws, qdd, acc);
 
   Comparison out;
-  for (const TreeLink& L : model.links) ++out.links[static_cast<int>(L.kind)][L.reversed ? 1 : 0];
+  for (const TreeLink& L : model.links) {
+    ++out.links[static_cast<int>(L.kind)][L.reversed ? 1 : 0];
+    const bool fixed = L.kind == TreeJointKind::kFixed;
+    out.on_welded += !fixed && L.parent_welded && L.aparent != 0;
+    out.welded_chain += fixed && L.parent != 0 && model.link(L.parent).kind == TreeJointKind::kFixed && L.host != 0;
+    out.loaded_welded += fixed && L.host != 0 && loads;
+  }
   const State before = s;
   Stepper stepper(sys);
   stepper.settle(sys, s, in);
@@ -356,7 +365,7 @@ TEST(JointSpace, MotionSubspacesMatchTheRelativePoseDerivatives) {
 // free-floating bodies, random efforts and body wrenches on half of them).
 void runComparisons(double length, double gravity_factor, const char* label) {
   double worst_acc = 0, worst_settle = 0, worst_coord = 0, worst_rate = 0, worst_inverse = 0;
-  int links[9][2] = {};
+  int links[9][2] = {}, on_welded = 0, welded_chain = 0, loaded_welded = 0;
   for (int trial = 0; trial < 24; ++trial) {
     const int n = 2 + trial % 11;
     const Comparison c = compareTree(100 + trial, n, trial % 3 != 1, length, gravity_factor, trial % 2 == 0);
@@ -371,7 +380,12 @@ void runComparisons(double length, double gravity_factor, const char* label) {
     worst_rate = std::max(worst_rate, c.rate);
     worst_inverse = std::max(worst_inverse, c.inverse);
     for (int k = 0; k < 9; ++k) links[k][0] += c.links[k][0], links[k][1] += c.links[k][1];
+    on_welded += c.on_welded, welded_chain += c.welded_chain, loaded_welded += c.loaded_welded;
   }
+  // the merged welded bodies' cases (joint_space.h): each met at least once
+  EXPECT_GE(on_welded, 1) << label << ": no moving link on a welded body";
+  EXPECT_GE(welded_chain, 1) << label << ": no body welded to a welded body";
+  EXPECT_GE(loaded_welded, 1) << label << ": no loaded welded body";
   // every joint type in both orientations, and free bodies
   for (int k = 0; k < 8; ++k) {
     EXPECT_GE(links[k][0], 1) << label << ": no parent-first joint of kind " << k;
@@ -379,8 +393,9 @@ void runComparisons(double length, double gravity_factor, const char* label) {
   }
   EXPECT_GE(links[static_cast<int>(TreeJointKind::kFree)][0], 1) << label << ": no free body";
   std::printf("[%s] 24 random trees: max relative acceleration difference %.3g, settle moved the state by %.3g, "
-              "coordinates %.3g, rates %.3g, RNEA(ABA(tau)) - tau %.3g\n",
-              label, worst_acc, worst_settle, worst_coord, worst_rate, worst_inverse);
+              "coordinates %.3g, rates %.3g, RNEA(ABA(tau)) - tau %.3g; welded: %d links on, %d chained, %d loaded\n",
+              label, worst_acc, worst_settle, worst_coord, worst_rate, worst_inverse, on_welded, welded_chain,
+              loaded_welded);
 }
 
 TEST(JointSpace, RandomTreesAgreeWithTheAbsoluteSolver) { runComparisons(1.0, 1.0, "m"); }

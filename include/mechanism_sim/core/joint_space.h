@@ -32,8 +32,12 @@
 //   (nq/nv: position/velocity coordinates). A generalized effort tau_k is what the
 //   absolute solver takes as Inputs::effort (it acts as G_k^T tau_k); on a free body tau is
 //   (force global, torque in body components) at the centre of mass.
-// Fixed joints are 0-dof links of the recursion (merging the welded bodies into one
-// composite body would save their passes: a later optimisation).
+// Fixed joints are merged: a body welded by fixed joints to a moving body (its host) adds
+// its constant spatial inertia to the host's (TreeLink::Ic0) and its external forces to the
+// host's, and the articulated-body and composite-rigid-body passes skip it; its pose and
+// velocity are still computed (closures, tf and reactions read them) and the recursive
+// Newton-Euler pass still runs over every body, so the reaction at a fixed joint and the
+// merged dynamics check each other (RBDA 6.2/7.3 for one rigid composite body).
 // What the formulation runs is jointSpaceUnsupported()'s answer; the TreeModel itself only
 // refuses what the recursion cannot represent (an unknown joint type on the tree, a joint
 // from a body to itself). It leaves out everything that is not a tree joint: couplers,
@@ -105,6 +109,25 @@ struct TreeLink {
   // forwardKinematics then computes only the pose (RBDA ch. 4: S constant for these).
   bool constant_S = false;
   Vector6d S0 = Vector6d::Zero();
+  // Fixed links: the constant pose of the child relative to the parent (E0: parent -> child
+  // components, rho0: the child's centre relative to the parent's, parent components), and
+  // relative to the host (Eh, rhoh), the moving body (0: ground) the welded group moves with.
+  Matrix3d E0 = Matrix3d::Identity(), Eh = Matrix3d::Identity();
+  Vector3d rho0 = Vector3d::Zero(), rhoh = Vector3d::Zero();
+  int host = 0;  // a fixed link's host; any other link's own body
+  // Moving links: the articulated parent (the parent's host: 0 for ground or a body welded
+  // to ground), and whether the parent is a welded body (the transform to the articulated
+  // parent is then X_k X_parent,h, composed at each pass).
+  int aparent = 0;
+  bool parent_welded = false;
+  // Moving links with welded bodies: the composite spatial inertia at this body's centre in
+  // its axes (its own and theirs, X^T I X), the bodies welded to it, their total mass with
+  // its own and sum m_i rhoh_i (gravity on the group is (mc x g'; m g'), g' in its axes).
+  bool composite = false;
+  Matrix6d Ic0 = Matrix6d::Zero();
+  std::vector<int> welded;
+  double mass = 0.0;
+  Vector3d mc = Vector3d::Zero();
 };
 
 // Empty when the joint-space formulation can run the System; otherwise a sentence naming
