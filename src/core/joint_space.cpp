@@ -39,14 +39,33 @@ inline Vector6d crossForce(const Vector6d& m, const Vector6d& f) {
 // the blocks of X = [E 0; -E rho~ E] written out: with I = [I11 I12; I12^T I22] in A-rotated
 // components (E^T I E), X^T I X = [I11 + rho~ I12^T - I12 rho~ - rho~ I22 rho~, I12 + rho~ I22;
 // .., I22] (all products 3x3: cheaper than the 6x6 product, which multiplies zeros).
+// The products with rho~ are cross products (rho~ M: rho x each column; M rho~: each row
+// crossed with rho, (m^T rho~)^T = m x rho), and the symmetric blocks' rotations fill one
+// triangle (I is symmetric: an articulated or composite inertia).
+inline Matrix3d rotateSymmetric(const Matrix3d& Et, const Matrix3d& S) {  // Et S Et^T
+  const Matrix3d T = Et * S;
+  Matrix3d out;
+  for (int i = 0; i < 3; ++i)
+    for (int j = i; j < 3; ++j) out(i, j) = out(j, i) = T.row(i).dot(Et.row(j));
+  return out;
+}
+
 inline void addTransformedInertia(const Matrix3d& E, const Vector3d& rho, const Matrix6d& I, Matrix6d& target) {
   const Matrix3d Et = E.transpose();
-  const Matrix3d I11 = Et * I.topLeftCorner<3, 3>() * E;
+  const Matrix3d I11 = rotateSymmetric(Et, I.topLeftCorner<3, 3>());
   const Matrix3d I12 = Et * I.topRightCorner<3, 3>() * E;
-  const Matrix3d I22 = Et * I.bottomRightCorner<3, 3>() * E;
-  const Matrix3d R = tilde(rho);
-  const Matrix3d B = I12 + R * I22;               // top-right block
-  const Matrix3d T = I11 + R * I12.transpose() - B * R;  // I11 + rho~ I12^T - I12 rho~ - rho~ I22 rho~
+  const Matrix3d I22 = rotateSymmetric(Et, I.bottomRightCorner<3, 3>());
+  Matrix3d B = I12;  // top-right block: I12 + rho~ I22
+  for (int c = 0; c < 3; ++c) B.col(c) += rho.cross(I22.col(c));
+  // top-left: I11 + rho~ I12^T - B rho~ (= I11 + rho~ I12^T - I12 rho~ - rho~ I22 rho~), symmetric
+  Matrix3d P, Q;  // rho~ I12^T (columns rho x row j of I12) and B rho~ (rows: row i of B x rho)
+  for (int j = 0; j < 3; ++j) {
+    P.col(j) = rho.cross(I12.row(j).transpose());
+    Q.row(j) = B.row(j).transpose().cross(rho).transpose();
+  }
+  Matrix3d T;
+  for (int i = 0; i < 3; ++i)
+    for (int j = i; j < 3; ++j) T(i, j) = T(j, i) = I11(i, j) + P(i, j) - Q(i, j);
   target.topLeftCorner<3, 3>() += T;
   target.topRightCorner<3, 3>() += B;
   target.bottomLeftCorner<3, 3>() += B.transpose();
@@ -121,22 +140,6 @@ void setConstantSubspace(TreeLink& L) {
   const Vector3d w = L.Rc * S.col(0).head<3>();
   L.S0.tail<3>() = L.Rc * S.col(0).tail<3>() + L.sc.cross(w);
   L.S0.head<3>() = w;
-}
-
-// The pose (R, t) of jointTransform for a constant_S link, without S and c.
-inline void constantSubspacePose(const TreeLink& L, double q, Matrix3d& R, Vector3d& t) {
-  t.setZero();
-  if (L.kind == TreeJointKind::kPrismatic) {
-    R.setIdentity();
-    t.z() = q;
-  } else {
-    R = rotZ(q);
-    if (L.kind == TreeJointKind::kScrew) t.z() = L.params.alpha * (q - L.params.phi0);
-  }
-  if (L.reversed) {
-    t = -R.transpose() * t;
-    R.transposeInPlace();
-  }
 }
 
 }  // namespace
@@ -467,8 +470,29 @@ void forwardKinematics(const TreeModel& model, const Eigen::VectorXd& q, const E
       continue;
     }
     Vector6d vJ, cJ;
+    // Child body axes in parent body axes (Rrel = Rp R Rc^T), and the child's centre
+    // relative to the parent's (rho = sp + Rp t - Rrel sc).
+    Matrix3d Rrel;
     if (L.constant_S) {  // the common case: S constant in the child's frame (set once in ws), c_J = 0
-      constantSubspacePose(L, q(L.iq), R, t);
+      // R = Rz(+-q) (revolute, screw) or 1 (prismatic), t along z (jointTransform; reversed,
+      // the inverse pose):
+      // Rp Rz mixes two columns of Rp, the product's first factor done in 12 products
+      const double qk = q(L.iq);
+      double tz = 0.0;
+      if (L.kind == TreeJointKind::kPrismatic) {
+        Rrel.noalias() = L.Rp * L.Rc.transpose();
+        tz = qk;
+      } else {
+        const double angle = L.reversed ? -qk : qk, ca = std::cos(angle), sa = std::sin(angle);
+        Matrix3d M;
+        M.col(0) = ca * L.Rp.col(0) + sa * L.Rp.col(1);
+        M.col(1) = ca * L.Rp.col(1) - sa * L.Rp.col(0);
+        M.col(2) = L.Rp.col(2);
+        Rrel.noalias() = M * L.Rc.transpose();
+        if (L.kind == TreeJointKind::kScrew) tz = L.params.alpha * (qk - L.params.phi0);
+      }
+      if (L.reversed) tz = -tz;  // (the inverse pose: -R^T t, and R^T z = z)
+      ws.rho[k] = L.sp + tz * L.Rp.col(2) - Rrel * L.sc;
       cJ.setZero();
       vJ = L.S0 * qdot(L.iv);
     } else {
@@ -485,12 +509,11 @@ void forwardKinematics(const TreeModel& model, const Eigen::VectorXd& q, const E
       cJ.tail<3>() = L.Rc * cJ.tail<3>() + L.sc.cross(w);
       cJ.head<3>() = w;
       vJ = S * qdot.segment(L.iv, L.nv);
+      Rrel.noalias() = L.Rp * R * L.Rc.transpose();
+      ws.rho[k] = L.sp + L.Rp * t - Rrel * L.sc;
     }
     ws.cJ[k] = cJ;
-    // Child body axes in parent body axes, and the child's centre relative to the parent's.
-    const Matrix3d Rrel = L.Rp * R * L.Rc.transpose();
     ws.E[k] = Rrel.transpose();
-    ws.rho[k] = L.sp + L.Rp * t - Rrel * L.sc;
     if (L.parent == 0) {
       ws.A[k] = Rrel;
       ws.r[k] = ws.rho[k];
@@ -576,6 +599,17 @@ inline void articulatedTransform(const TreeModel& model, const TreeWorkspace& ws
   rho.noalias() = P.rhoh + P.Eh.transpose() * ws.rho[k];
 }
 
+// A joint's articulated inertia S^T I^A S that is not positive definite: a subtree without
+// inertia along the joint, or a state that is no longer finite (an explicit step taken
+// beyond its stability: a whipping chain's rates grow by orders of magnitude a step).
+[[noreturn]] void notPositive(const System& sys, const TreeLink& L, double D) {
+  if (!std::isfinite(D))
+    throw SimulationError("joint-space dynamics: the state is no longer finite at body '" + sys.bodies[L.body].name +
+                          "' (the integration diverged: try a smaller step)");
+  throw SimulationError("joint-space dynamics: the subtree at body '" + sys.bodies[L.body].name +
+                        "' has no inertia along its joint");
+}
+
 }  // namespace
 
 // Articulated-body algorithm, RBDA 7.3, table 7.1, in body coordinates: gravity enters as
@@ -615,9 +649,7 @@ void forwardDynamics(const TreeModel& model, const System& sys, const Eigen::Vec
     if (L.nv == 1) {  // the common case without the small-matrix machinery
       const Vector6d U = IA * ws.S[k].col(0);
       const double D = ws.S[k].col(0).dot(U);
-      if (!(D > 0.0))
-        throw SimulationError("joint-space dynamics: the subtree at body '" + sys.bodies[L.body].name +
-                              "' has no inertia along its joint");
+      if (!(D > 0.0)) notPositive(sys, L, D);
       const double Dinv = 1.0 / D;
       const double u = tau(L.iv) - ws.S[k].col(0).dot(pa);
       ws.U[k].col(0) = U;
@@ -634,9 +666,7 @@ void forwardDynamics(const TreeModel& model, const System& sys, const Eigen::Vec
         // D is symmetric positive definite when the subtree has mass along every joint
         // direction; LLT on at most 6 x 6 in place (no heap).
         Eigen::LLT<SmallMatrix> llt(D);
-        if (llt.info() != Eigen::Success)
-          throw SimulationError("joint-space dynamics: the subtree at body '" + sys.bodies[L.body].name +
-                                "' has no inertia along a joint direction");
+        if (llt.info() != Eigen::Success) notPositive(sys, L, D.sum());
         ws.Dinv[k] = llt.solve(SmallMatrix::Identity(L.nv, L.nv));
         // (element by element: the expression with tau.segment() would evaluate through a
         // heap temporary)

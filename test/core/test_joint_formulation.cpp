@@ -191,6 +191,27 @@ TEST(JointFormulation, PendulumFarFromTheOriginSwingsAsAtTheOrigin) {
   EXPECT_LT(d, 1e-8);
 }
 
+// A step far beyond explicit RK4's stability (a 4-link chain released at 0.3 s steps: its
+// rates grow without bound within a few steps) ends in an error that says so, not in one
+// about the model's inertia (the articulated inertia turns NaN once the state is infinite).
+TEST(JointFormulation, ADivergingIntegrationSaysSo) {
+  Mechanism m;
+  models::pendulumChain(m, 4, 0.5, 1.0, 1.2);
+  m.setIntegrator(formulation("joint"));
+  m.build();
+  m.assemble();
+  std::string what;
+  int k = 0;
+  try {
+    for (; k < 1000; ++k) m.step(0.3);
+  } catch (const Error& e) {
+    what = e.what();
+  }
+  std::printf("[chain at 0.3 s steps] stopped at step %d: %s\n", k, what.c_str());
+  EXPECT_LT(k, 1000);
+  EXPECT_NE(what.find("diverged"), std::string::npos) << what;
+}
+
 // RK4's truncation error: the pendulum at 1 ms is within 1e-10 m of the exact motion after
 // 10 s, and the error falls as h^4.
 TEST(JointFormulation, PendulumReachesRk4sTruncationError) {
