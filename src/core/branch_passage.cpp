@@ -47,7 +47,7 @@ namespace mechanism_sim {
 // relative to each other (p_cols_), and its term-normalized rows W (p_W_, scales p_dr_).
 // false: no such rows or columns.
 bool LoopClosures::closureRows(size_t c) {
-  const int n = sys_->constraints[constraints[c]]->size();
+  const int n = nrows_[c];
   p_rows_.clear();
   p_cols_.clear();
   for (int e = row[c]; e < row[c] + n; ++e)
@@ -101,11 +101,15 @@ bool LoopClosures::findPassage() {
     for (int k : ccols_[c]) p_R_(j, k) = 0.0;
   };
   // Away from every passage nothing reduces: each closure's smallest singular value is
-  // above kPassageGate and it has no dependent rows. The smallest eigenvalue of W W^T (at
-  // most 6 x 6) says so without the decomposition: its error, eps |W|^2, is far below
-  // kPassageGate^2. (Where some closure is near a passage, every closure is decomposed
-  // below: the reduced solve takes all of them.)
+  // above kPassageGate and it has no dependent rows, i.e. W W^T - kPassageGate^2 I (at most
+  // 6 x 6) is positive definite, which its Cholesky factorization decides without the
+  // decomposition (Golub & Van Loan, "Matrix Computations", 4.2: it runs to completion iff
+  // the matrix is positive definite). Its error, eps |W|^2, is far below kPassageGate^2, and
+  // kGateMargin more keeps a pivot at that round-off on the full path, which decides it by
+  // the singular values themselves. (Where some closure is near a passage, every closure is
+  // decomposed below: the reduced solve takes all of them.)
   {
+    constexpr double kGateMargin = 1e-10;
     bool clear = true;
     for (size_t c = 0; c < constraints.size() && clear; ++c) {
       if (!closureRows(c)) continue;
@@ -114,12 +118,13 @@ bool LoopClosures::findPassage() {
         break;
       }
       p_gram_.noalias() = p_W_ * p_W_.transpose();
-      p_eig_.compute(p_gram_, Eigen::EigenvaluesOnly);
-      clear = p_eig_.eigenvalues()(0) >= kPassageGate * kPassageGate;
+      p_gram_.diagonal().array() -= kPassageGate * kPassageGate + kGateMargin;
+      p_llt_.compute(p_gram_);
+      clear = p_llt_.info() == Eigen::Success;
     }
     if (clear) {
       for (size_t c = 0; c < constraints.size(); ++c) {
-        const int n = sys_->constraints[constraints[c]]->size();
+        const int n = nrows_[c];
         for (int j = row[c]; j < row[c] + p_used_[c]; ++j) clearSlot(j, c, n);
         for (int e = row[c]; e < row[c] + n; ++e) p_keep_(e) = 0.0, p_held_[e] = 0;
         p_used_[c] = 0;
@@ -130,7 +135,7 @@ bool LoopClosures::findPassage() {
   // (R's rows sit in slots: closure c's directions at rows row[c], row[c] + 1, ... of R, so
   // that R has G's block structure for the sparse solve; unused slots are zero, not kept)
   for (size_t c = 0; c < constraints.size(); ++c) {
-    const int n = sys_->constraints[constraints[c]]->size();
+    const int n = nrows_[c];
     const int used_before = p_used_[c];
     p_used_[c] = 0;
     for (int e = row[c]; e < row[c] + n; ++e) p_keep_(e) = 0.0, p_held_[e] = 0;
@@ -203,7 +208,7 @@ void LoopClosures::passageRhs(const Eigen::VectorXd& b, Eigen::VectorXd& g, bool
     const int c = cl_of_[j];
     double s = 0.0;
     if (!p_held_[j]) {
-      for (int e = row[c]; e < row[c] + sys_->constraints[constraints[c]]->size(); ++e) s += p_P_(j, e) * b(e);
+      for (int e = row[c]; e < row[c] + nrows_[c]; ++e) s += p_P_(j, e) * b(e);
     } else if (accel && passage_ref) {
       for (int k : ccols_[c]) s += p_R_(j, k) * (*passage_ref)(k);
     }
@@ -216,7 +221,7 @@ void LoopClosures::passageMultipliers(const Eigen::VectorXd& mu) {
   for (int j = 0; j < m; ++j) {
     if (mu(j) == 0.0) continue;
     const int c = cl_of_[j];
-    for (int e = row[c]; e < row[c] + sys_->constraints[constraints[c]]->size(); ++e) lambda(e) += p_P_(j, e) * mu(j);
+    for (int e = row[c]; e < row[c] + nrows_[c]; ++e) lambda(e) += p_P_(j, e) * mu(j);
   }
 }
 

@@ -56,6 +56,7 @@ LoopClosures::LoopClosures(const TreeModel& model, const System& sys) : model_(&
     constraints.push_back(c);
     row.push_back(m);
     const int n = sys.constraints[c]->size();
+    nrows_.push_back(n);
     for (int e = 0; e < n; ++e)
       sys_row.push_back(c < static_cast<int>(sys.layout.size()) ? sys.layout[c].row + e : -1);
     m += n;
@@ -117,6 +118,7 @@ LoopClosures::LoopClosures(const TreeModel& model, const System& sys) : model_(&
   vr_.setZero(m), vt_.setZero(m);
   for (int c : constraints)
     Jc.push_back(Eigen::MatrixXd::Zero(sys.constraints[c]->size(), 6 * static_cast<int>(sys.constraints[c]->bodies().size())));
+  jnorm_.setZero(nrows_.empty() ? 0 : *std::max_element(nrows_.begin(), nrows_.end()), 2);
   kin_.assign(sys.numBodies(), BodyKin());
   pa_.assign(model.nb, Vector6d::Zero());
   a_ = a0_ = pa_;
@@ -321,7 +323,7 @@ void LoopClosures::evaluate(const TreeModel& model, const System& sys, const Tre
   const EvalContext ctx = context();
   // (G, Gabs and Gbound are zero off each closure's coordinates: only those are cleared)
   for (size_t i = 0; i < constraints.size(); ++i)
-    for (int e = row[i]; e < row[i] + sys.constraints[constraints[i]]->size(); ++e)
+    for (int e = row[i]; e < row[i] + nrows_[i]; ++e)
       for (int k : ccols_[i]) G(e, k) = Gabs(e, k) = Gbound(e, k) = 0.0;
   const BodyKin* ptrs[kMaxConstraintBodies];
   for (size_t i = 0; i < constraints.size(); ++i) {
@@ -329,6 +331,7 @@ void LoopClosures::evaluate(const TreeModel& model, const System& sys, const Tre
     const int n = C.size(), r0 = row[i];
     if (inactiveLimit(C, ctx)) {  // a free limit: a zero row (as Constraint::evaluate gives it), no mapping
       Phi.segment(r0, n).setZero(), gamma.segment(r0, n).setZero(), scale.segment(r0, n).setZero();
+      gamma_q.segment(r0, n).setZero();
       Jc[i].setZero();
       continue;
     }
@@ -349,7 +352,7 @@ void LoopClosures::evaluate(const TreeModel& model, const System& sys, const Tre
         phi -= d.offset;
         sc += std::fabs(d.offset);
       }
-      Phi(r0) = phi, gamma(r0) = 0.0, scale(r0) = sc;
+      Phi(r0) = phi, gamma(r0) = gamma_q(r0) = 0.0, scale(r0) = sc;
       for (int k = 0; k < d.n; ++k) {
         G(r0, d.col[k]) += d.coef[k];
         Gabs(r0, d.col[k]) += std::fabs(d.coef[k]);
@@ -361,15 +364,15 @@ void LoopClosures::evaluate(const TreeModel& model, const System& sys, const Tre
     for (size_t s = 0; s < bodies.size(); ++s) ptrs[s] = &kin_[bodies[s]];
     C.evaluate(ptrs, ctx, Phi.segment(r0, n), Jc[i], gamma.segment(r0, n));
     if (C.rheonomic()) C.velocityTerm(ctx, nu.data() + r0);  // (nu stays 0 elsewhere)
+    for (size_t s = 0; s < bodies.size(); ++s) lever_[s] = kin_[bodies[s]].r.cwiseAbs().maxCoeff() + sys.length_scale;
     for (int e = 0; e < n; ++e) {
       double sc = 0;
-      for (size_t s = 0; s < bodies.size(); ++s) {
-        const double lever = kin_[bodies[s]].r.cwiseAbs().maxCoeff() + sys.length_scale;
-        sc += Jc[i].row(e).segment<3>(6 * s).cwiseAbs().sum() * lever + Jc[i].row(e).segment<3>(6 * s + 3).cwiseAbs().sum();
-      }
+      for (size_t s = 0; s < bodies.size(); ++s)
+        sc += Jc[i].row(e).segment<3>(6 * s).cwiseAbs().sum() * lever_[s] + Jc[i].row(e).segment<3>(6 * s + 3).cwiseAbs().sum();
       scale(r0 + e) = sc;
     }
-    if (direct_[i].n > 0) {  // a coordinate row: G = its coefficients, gamma_q = 0 (set below)
+    if (direct_[i].n > 0) {  // a coordinate row: G = its coefficients, gamma_q = 0
+      gamma_q.segment(r0, n).setZero();
       for (int k = 0; k < direct_[i].n; ++k) {
         G(r0, direct_[i].col[k]) += direct_[i].coef[k];
         Gabs(r0, direct_[i].col[k]) += std::fabs(direct_[i].coef[k]);
@@ -377,6 +380,7 @@ void LoopClosures::evaluate(const TreeModel& model, const System& sys, const Tre
       }
       continue;
     }
+    gamma_q.segment(r0, n) = gamma.segment(r0, n);
     for (size_t s = 0; s < bodies.size(); ++s) {
       const int b = bodies[s];
       if (b == 0) continue;
@@ -388,7 +392,9 @@ void LoopClosures::evaluate(const TreeModel& model, const System& sys, const Tre
       Vector6d acc;
       acc.head<3>() = Ab * (a0.tail<3>() + ws.v[b - 1].head<3>().cross(ws.v[b - 1].tail<3>()));
       acc.tail<3>() = a0.head<3>();
-      gamma.segment(r0, n).noalias() -= Jb.topRows(n) * acc;  // (gamma_q assembled below)
+      gamma_q.segment(r0, n).noalias() -= Jb.topRows(n) * acc;
+      // the rows' parts' norms for Gbound, once per body (they do not depend on the column)
+      for (int e = 0; e < n; ++e) jnorm_(e, 0) = Jb.row(e).head<3>().norm(), jnorm_(e, 1) = Jb.row(e).tail<3>().norm();
       for (int a = b; a != 0; a = model.links[a - 1].parent) {
         const TreeLink& L = model.links[a - 1];
         const Matrix3d& Aa = ws.A[a - 1];
@@ -408,30 +414,9 @@ void LoopClosures::evaluate(const TreeModel& model, const System& sys, const Tre
           // the entry vanish, for the branch passages' normalization)
           const double sv = vg.norm() + wg.norm() * lever.norm(), sw = wg.norm();
           for (int e = 0; e < n; ++e)
-            Gbound(r0 + e, L.iv + col) += Jb.row(e).head<3>().norm() * sv + Jb.row(e).tail<3>().norm() * sw;
+            Gbound(r0 + e, L.iv + col) += jnorm_(e, 0) * sv + jnorm_(e, 1) * sw;
         }
       }
-    }
-  }
-  // gamma now holds gamma - Phi_x a0 = gamma_q; restore the absolute gamma alongside
-  gamma_q = gamma;
-  for (size_t i = 0; i < constraints.size(); ++i) {
-    const Constraint& C = *sys.constraints[constraints[i]];
-    if (inactiveLimit(C, ctx)) continue;
-    const int n = C.size(), r0 = row[i];
-    if (direct_[i].n > 0) {  // gamma stayed the absolute one; a coordinate's rate is q_ddot's own
-      gamma_q.segment(r0, n).setZero();
-      continue;
-    }
-    const auto& bodies = C.bodies();
-    for (size_t s = 0; s < bodies.size(); ++s) {
-      const int b = bodies[s];
-      if (b == 0) continue;
-      const Vector6d& a0 = a0_[b - 1];
-      Vector6d acc;
-      acc.head<3>() = ws.A[b - 1] * (a0.tail<3>() + ws.v[b - 1].head<3>().cross(ws.v[b - 1].tail<3>()));
-      acc.tail<3>() = a0.head<3>();
-      gamma.segment(r0, n).noalias() += Jc[i].middleCols<6>(6 * s) * acc;
     }
   }
 }
@@ -451,7 +436,7 @@ void LoopClosures::velocityRows(const Eigen::VectorXd& qdot, const Eigen::Vector
   for (int k = 0; k < nv; ++k)
     V = std::max({V, std::fabs(qdot(k)) * unit_(k), reference ? std::fabs((*reference)(k)) * unit_(k) : 0.0});
   for (size_t i = 0; i < constraints.size(); ++i) {
-    for (int e = row[i]; e < row[i] + sys_->constraints[constraints[i]]->size(); ++e) {
+    for (int e = row[i]; e < row[i] + nrows_[i]; ++e) {
       double s = -nu(e), sc = std::fabs(nu(e));
       for (int k : ccols_[i]) {
         s += G(e, k) * qdot(k);

@@ -40,7 +40,6 @@
 
 #include <Eigen/Core>
 #include <Eigen/Cholesky>
-#include <Eigen/Eigenvalues>
 #include <Eigen/QR>
 #include <Eigen/SVD>
 
@@ -303,6 +302,11 @@ class LoopClosures {
   const Eigen::VectorXd* q_ = nullptr;  // evaluate()'s q, for the direct rows' Phi
   std::vector<DirectRow> direct_;  // per closure
   std::vector<int> limit_col_;     // per sys limit: its velocity coordinate (a direct row), or -1
+  std::vector<int> nrows_;         // per closure: its rows (the constraint's size)
+  // evaluate()'s scratch: per body of a closure its lever (scale), per row the norms of the
+  // row's parts on a body's [v; omega'] (Gbound)
+  double lever_[kMaxConstraintBodies] = {};
+  Eigen::Matrix<double, Eigen::Dynamic, 2> jnorm_;
   Eigen::VectorXd unit_;           // per velocity coordinate: length scale (an angle) or 1
   std::vector<BodyKin> kin_;      // ground first
   AlignedVector<Vector6d> pa_, a_;  // inverse-mass passes
@@ -322,8 +326,8 @@ class LoopClosures {
   Eigen::VectorXd p_b_, p_g_, p_mu_, p_dr_;
   Eigen::MatrixXd p_W_;  // one closure's normalized rows, over its columns
   using Small6 = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 6, 6>;
-  Small6 p_gram_;        // W W^T, and its eigenvalues (findPassage's test away from passages)
-  Eigen::SelfAdjointEigenSolver<Small6> p_eig_;
+  Small6 p_gram_;        // W W^T - kPassageGate^2 I and its Cholesky factor (findPassage's
+  Eigen::LLT<Small6> p_llt_;  // test away from passages)
   bool closureRows(size_t c);
   std::vector<int> p_rows_, p_cols_;
   Eigen::JacobiSVD<Eigen::MatrixXd> p_svd_;
