@@ -792,13 +792,9 @@ ClosureProjectionReport projectClosureVelocities(const TreeModel& model, const S
   // positions)
   // (evaluated_at_q: the position projection's last findPassage() was at this evaluation)
   const bool passage = cl.passage_ref && (evaluated_at_q ? cl.passageFound() : cl.findPassage());
-  if (passage) {
-    cl.passageFactor(model, ws);
-    rep.dependent = cl.m - cl.p_r_;
-  } else {
-    cl.factor(model, ws);
-    rep.dependent = cl.info.dependent;
-  }
+  // (factored at the first correction: a q_dot already on the closures, as the stepper's
+  // usually is after its stages, needs no solve)
+  bool factored = false;
   double previous_step = HUGE_VAL;
   int extra = 0;
   for (;;) {
@@ -811,6 +807,16 @@ ClosureProjectionReport projectClosureVelocities(const TreeModel& model, const S
     rep.converged = rep.residual <= tol;
     if (rep.converged && (!passage || !cl.passageNear() || extra >= kPassageRoundoffSteps)) break;
     if (rep.iterations >= max_iterations) break;
+    if (!factored) {
+      if (passage) {
+        cl.passageFactor(model, ws);
+        rep.dependent = cl.m - cl.p_r_;
+      } else {
+        cl.factor(model, ws);
+        rep.dependent = cl.info.dependent;
+      }
+      factored = true;
+    }
     if (passage) {
       cl.passageRhs(r, cl.p_g_);
       cl.passageSolve(cl.p_g_, cl.p_mu_);
