@@ -77,6 +77,17 @@ bool LoopClosures::closureRows(size_t c) {
 }
 
 bool LoopClosures::findPassage() {
+  // (G, Gabs, Gbound and passage_hold as at the last call: its results stand)
+  if (p_at_g_ == g_gen_ && p_at_hold_ == passage_hold) {
+    if (p_band_ > 0) ++p_met_;
+    return p_reduce_;
+  }
+  p_at_g_ = g_gen_, p_at_hold_ = passage_hold;
+  ++p_gen_;
+  return findPassageNow();
+}
+
+bool LoopClosures::findPassageNow() {
   p_band_ = p_excl_ = 0;
   p_near_ = false;
   p_r_ = 0;
@@ -197,8 +208,12 @@ bool LoopClosures::findPassage() {
 }
 
 void LoopClosures::passageFactor(const TreeModel& model, const TreeWorkspace& ws) {
+  // (R and the articulated factors as at the last call: its factorization stands)
+  const long ws_gen = massFactorsGeneration(ws);
+  if (pfac_at_p_ == p_gen_ && pfac_at_ws_ == ws_gen) return;
   // R M^-1 R^T over the kept slots (closure_solver.h); the others are held at mu = 0
   p_solver_.factor(model, ws, p_R_, p_keep_, p_least_norm_, p_A_);
+  pfac_at_p_ = p_gen_, pfac_at_ws_ = ws_gen;
 }
 
 void LoopClosures::passageRhs(const Eigen::VectorXd& b, Eigen::VectorXd& g, bool accel) const {

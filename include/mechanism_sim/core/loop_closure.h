@@ -377,6 +377,32 @@ class LoopClosures {
   void passageSolve(const Eigen::VectorXd& b, Eigen::VectorXd& x) const {
     p_solver_.solve(p_least_norm_, b, x);
   }
+  // Work on inputs that hold the bits of the last call's is not done again (the stepper
+  // evaluates each accepted q at rest for its projections, then in motion for the
+  // accelerations, and a step whose inputs were set again recomputes its first stage
+  // there): evaluate() keeps a closure's rows of G, Gabs and Gbound where its Jc and the
+  // links' poses and subspaces are unchanged, findPassage() its results while G is,
+  // factor() and passageFactor() theirs while their rows and ws's articulated factors are.
+  // The generations count changes; an "at" member is the generation a result was made at.
+  enum class RowsOf : signed char { kUnknown, kZero, kDirect, kMapped };
+  std::vector<RowsOf> rows_of_;             // per closure: what its rows of G hold
+  std::vector<Eigen::MatrixXd> Jc_mapped_;  // per closure: the Jc they were mapped from
+  AlignedVector<Matrix3d> pose_A_;          // the links' poses and subspaces at the last evaluate()
+  AlignedVector<Vector3d> pose_r_;
+  AlignedVector<MotionSubspace> pose_S_;
+  AlignedVector<MotionSubspace> fac_S_, fac_U_;  // ws's articulated factors at the last look
+  AlignedVector<Matrix3d> fac_E_;
+  AlignedVector<Vector3d> fac_rho_;
+  AlignedVector<SmallMatrix> fac_Dinv_;
+  long g_gen_ = 0;   // G, Gabs, Gbound
+  long ws_gen_ = 0;  // ws's articulated factors, as massFactorsGeneration() saw them
+  long p_gen_ = 0;   // findPassage()'s results
+  long p_at_g_ = -1, fac_at_g_ = -1, fac_at_ws_ = -1, pfac_at_p_ = -1, pfac_at_ws_ = -1;
+  bool p_at_hold_ = true, fac_Y_ = false;
+  ClosureSolveInfo fac_info_;
+  long massFactorsGeneration(const TreeWorkspace& ws);
+  void factorNow(const TreeModel& model, const TreeWorkspace& ws);
+  bool findPassageNow();
   const TreeModel* model_ = nullptr;
   const System* sys_ = nullptr;
   EvalContext external_;
