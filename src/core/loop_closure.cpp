@@ -806,7 +806,9 @@ ClosureProjectionReport projectClosurePositions(const TreeModel& model, const Sy
   double previous_step = HUGE_VAL;
   int extra = 0;
   for (;;) {
-    forwardDynamics(model, sys, q, zero, zero, ws, qdd);  // kinematics and the articulated factors
+    // the kinematics the closures' equations read; the articulated factors (forwardDynamics)
+    // only for a correction: the stepper's q is usually on the closures already
+    forwardKinematics(model, q, zero, ws);
     cl.evaluate(model, sys, ws, q);
     // in a branch passage the held directions are the integration's: not judged, not moved
     const bool passage = cl.passage_ref && cl.findPassage();
@@ -815,6 +817,7 @@ ClosureProjectionReport projectClosurePositions(const TreeModel& model, const Sy
     rep.converged = rep.residual <= tol;
     if (rep.converged && (!near || extra >= kPassageRoundoffSteps)) break;
     if (rep.iterations >= max_iterations) break;
+    forwardDynamics(model, sys, q, zero, zero, ws, qdd);  // (the same kinematics, and M's factors)
     if (passage) {
       cl.passageFactor(model, ws);
       cl.passageRhs(cl.Phi, cl.p_g_);
@@ -850,7 +853,7 @@ ClosureProjectionReport projectClosureVelocities(const TreeModel& model, const S
   const Eigen::VectorXd& zero = cl.zero_v_;
   Eigen::VectorXd &qdd = cl.qdd_v_, &r = cl.r_m_, &x = cl.x_m_;
   if (!evaluated_at_q) {
-    forwardDynamics(model, sys, q, zero, zero, ws, qdd);
+    forwardKinematics(model, q, zero, ws);
     cl.evaluate(model, sys, ws, q);  // G depends on q only
   }
   Eigen::VectorXd& reference = cl.ref_v_;
@@ -877,6 +880,7 @@ ClosureProjectionReport projectClosureVelocities(const TreeModel& model, const S
     if (rep.converged && (!passage || !cl.passageNear() || extra >= kPassageRoundoffSteps)) break;
     if (rep.iterations >= max_iterations) break;
     if (!factored) {
+      forwardDynamics(model, sys, q, zero, zero, ws, qdd);  // M's factors at q (the same kinematics)
       if (passage) {
         cl.passageFactor(model, ws);
         rep.dependent = cl.m - cl.p_r_;

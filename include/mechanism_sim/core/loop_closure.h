@@ -441,8 +441,9 @@ ClosureProjectionReport projectClosurePositions(const TreeModel& model, const Sy
 // q_dot -= M^-1 G^T (G M^-1 G^T)^+ (G q_dot - nu) (the M-nearest q_dot with G q_dot = nu), repeated
 // while the relative residual exceeds tol (at most max_iterations). evaluated_at_q: ws and
 // closures already hold q's kinematics (zero velocity) and evaluation, as
-// projectClosurePositions leaves them: only the factorization is taken, and only when a
-// correction is needed (a q_dot on the closures leaves the closures' factorization as it was).
+// projectClosurePositions leaves them. The articulated factors and the closures'
+// factorization are taken only when a correction is needed (a q_dot on the closures leaves
+// both as they were).
 ClosureProjectionReport projectClosureVelocities(const TreeModel& model, const System& sys, LoopClosures& closures,
                                                  const Eigen::VectorXd& q, Eigen::VectorXd& qdot, TreeWorkspace& ws,
                                                  double tol = 1e-13, int max_iterations = 3,
