@@ -156,50 +156,61 @@ bool LoopClosures::findPassageNow() {
     }
     const int kr = static_cast<int>(p_rows_.size()), kc = static_cast<int>(p_cols_.size());
     const Eigen::VectorXd& dr = p_dr_;
-    // (U in full: with more rows than columns the rows' left null space is dependent too)
-    p_svd_.compute(p_W_, Eigen::ComputeFullU | Eigen::ComputeThinV);
-    const auto& sigma = p_svd_.singularValues();
-    const auto& U = p_svd_.matrixU();
-    const auto& V = p_svd_.matrixV();
-    int rank = 0;
-    for (Eigen::Index d = 0; d < sigma.size(); ++d) rank += sigma(d) >= kPassageDependent;
-    if (rank < kr) reduce = true;  // rows dependent without being zero
-    // A dependent direction is dropped, and its component of a residual is not judged: the
-    // rows' own terms can be round-off there while their normalization (Gbound) is not, so
-    // the component is round-off of the normalized rows, not of the row (onshape's planar
-    // 2-dof closes its loop by a ball: the out-of-plane row is round-off, 1 of 3 rows over
-    // 2 columns, and the velocity projection stalled at 0.06 judging it).
-    auto exclude = [&](Eigen::Index d) {
-      p_w_.row(p_excl_).setZero();
-      p_z_.row(p_excl_).setZero();
-      for (int i = 0; i < kr; ++i) {
-        p_w_(p_excl_, p_rows_[i]) = dr(i) * U(i, d);
-        p_z_(p_excl_, p_rows_[i]) = U(i, d) / dr(i);
+    // the directions of the decomposition svd of W
+    auto directions = [&](const auto& svd) {
+      const auto& sigma = svd.singularValues();
+      const auto& U = svd.matrixU();
+      const auto& V = svd.matrixV();
+      int rank = 0;
+      for (Eigen::Index d = 0; d < sigma.size(); ++d) rank += sigma(d) >= kPassageDependent;
+      if (rank < kr) reduce = true;  // rows dependent without being zero
+      // A dependent direction is dropped, and its component of a residual is not judged: the
+      // rows' own terms can be round-off there while their normalization (Gbound) is not, so
+      // the component is round-off of the normalized rows, not of the row (onshape's planar
+      // 2-dof closes its loop by a ball: the out-of-plane row is round-off, 1 of 3 rows over
+      // 2 columns, and the velocity projection stalled at 0.06 judging it).
+      auto exclude = [&](Eigen::Index d) {
+        p_w_.row(p_excl_).setZero();
+        p_z_.row(p_excl_).setZero();
+        for (int i = 0; i < kr; ++i) {
+          p_w_(p_excl_, p_rows_[i]) = dr(i) * U(i, d);
+          p_z_(p_excl_, p_rows_[i]) = U(i, d) / dr(i);
+        }
+        ++p_excl_;
+      };
+      for (Eigen::Index d = sigma.size(); d < kr; ++d) exclude(d);
+      for (Eigen::Index d = 0; d < sigma.size(); ++d) {
+        const double s = sigma(d);
+        if (!(s >= kPassageDependent)) {  // dependent: dropped
+          exclude(d);
+          continue;
+        }
+        if (s < kPassageGate) reduce = true;
+        const int j = row[c] + p_used_[c]++;
+        ++p_r_;
+        p_keep_(j) = 1.0;
+        const bool held = passage_hold && s < kPassageBand;
+        p_near_ = p_near_ || s < kPassageNear;
+        p_held_[j] = held;
+        // R_j = (1/s) u^T D_r G = (v o unit)^T, P(j, e) = D_r(e) u_e / s
+        clearSlot(j, c, n);
+        for (int i = 0; i < kr; ++i) p_P_(j, p_rows_[i]) = dr(i) * U(i, d) / s;
+        for (int q = 0; q < kc; ++q) p_R_(j, p_cols_[q]) = V(q, d) * unit_(p_cols_[q]);
+        if (held) {
+          exclude(d);
+          ++p_band_;
+        }
       }
-      ++p_excl_;
     };
-    for (Eigen::Index d = sigma.size(); d < kr; ++d) exclude(d);
-    for (Eigen::Index d = 0; d < sigma.size(); ++d) {
-      const double s = sigma(d);
-      if (!(s >= kPassageDependent)) {  // dependent: dropped
-        exclude(d);
-        continue;
-      }
-      if (s < kPassageGate) reduce = true;
-      const int j = row[c] + p_used_[c]++;
-      ++p_r_;
-      p_keep_(j) = 1.0;
-      const bool held = passage_hold && s < kPassageBand;
-      p_near_ = p_near_ || s < kPassageNear;
-      p_held_[j] = held;
-      // R_j = (1/s) u^T D_r G = (v o unit)^T, P(j, e) = D_r(e) u_e / s
-      clearSlot(j, c, n);
-      for (int i = 0; i < kr; ++i) p_P_(j, p_rows_[i]) = dr(i) * U(i, d) / s;
-      for (int q = 0; q < kc; ++q) p_R_(j, p_cols_[q]) = V(q, d) * unit_(p_cols_[q]);
-      if (held) {
-        exclude(d);
-        ++p_band_;
-      }
+    // (U in full: with more rows than columns the rows' left null space is dependent too.
+    // Up to 6 x 6, as a cut joint's rows over a planar loop's or a short spatial loop's
+    // columns, in fixed-capacity storage: no dynamic-size overhead.)
+    if (kr <= 6 && kc <= 6) {
+      p_svd6_.compute(p_W_, Eigen::ComputeFullU | Eigen::ComputeThinV);
+      directions(p_svd6_);
+    } else {
+      p_svd_.compute(p_W_, Eigen::ComputeFullU | Eigen::ComputeThinV);
+      directions(p_svd_);
     }
     for (int j = row[c] + p_used_[c]; j < row[c] + used_before; ++j) clearSlot(j, c, n);
   }

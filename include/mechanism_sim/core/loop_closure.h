@@ -331,6 +331,7 @@ class LoopClosures {
   bool closureRows(size_t c);
   std::vector<int> p_rows_, p_cols_;
   Eigen::JacobiSVD<Eigen::MatrixXd> p_svd_;
+  Eigen::JacobiSVD<Small6> p_svd6_;  // (the same up to 6 x 6)
   int p_r_ = 0, p_band_ = 0;
   int p_excl_ = 0;  // rows of p_w_, p_z_: the held directions and the dependent ones
   bool p_near_ = false, p_reduce_ = false;
