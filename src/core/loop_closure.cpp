@@ -376,7 +376,7 @@ void LoopClosures::evaluate(const TreeModel& model, const System& sys, const Tre
   const BodyKin* ptrs[kMaxConstraintBodies];
   for (size_t i = 0; i < constraints.size(); ++i) {
     const Constraint& C = *sys.constraints[constraints[i]];
-    const int n = C.size(), r0 = row[i];
+    const int n = nrows_[i], r0 = row[i];
     if (inactiveLimit(C, ctx)) {  // a free limit: a zero row (as Constraint::evaluate gives it), no mapping
       Phi.segment(r0, n).setZero(), gamma.segment(r0, n).setZero(), scale.segment(r0, n).setZero();
       gamma_q.segment(r0, n).setZero();

@@ -163,6 +163,8 @@ class LoopClosures {
   Eigen::VectorXd gamma_q;     // G q_ddot = gamma_q
   Eigen::VectorXd nu;          // G q_dot = nu (drives' velocity terms; 0 for the rest)
   std::vector<Eigen::MatrixXd> Jc;  // per closure: Phi_x (size x 6 slots)
+  // (G, Gabs and Gbound are the caller's to read, not to write: evaluate() keeps a closure's
+  // rows while their inputs hold the same bits, and findPassage() and factor() their results)
 
   // ---- solves
   Eigen::MatrixXd Y;       // M^-1 G^T (nv x m), formed by factor() when form_Y
