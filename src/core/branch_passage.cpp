@@ -47,7 +47,7 @@ namespace mechanism_sim {
 // relative to each other (p_cols_), and its term-normalized rows W (p_W_, scales p_dr_).
 // false: no such rows or columns.
 bool LoopClosures::closureRows(size_t c) {
-  const int n = sys_->constraints[constraints[c]]->size();
+  const int n = nrows_[c];
   p_rows_.clear();
   p_cols_.clear();
   for (int e = row[c]; e < row[c] + n; ++e)
@@ -77,6 +77,17 @@ bool LoopClosures::closureRows(size_t c) {
 }
 
 bool LoopClosures::findPassage() {
+  // (G, Gabs, Gbound and passage_hold as at the last call: its results stand)
+  if (p_at_g_ == g_gen_ && p_at_hold_ == passage_hold) {
+    if (p_band_ > 0) ++p_met_;
+    return p_reduce_;
+  }
+  p_at_g_ = g_gen_, p_at_hold_ = passage_hold;
+  ++p_gen_;
+  return findPassageNow();
+}
+
+bool LoopClosures::findPassageNow() {
   p_band_ = p_excl_ = 0;
   p_near_ = false;
   p_r_ = 0;
@@ -101,11 +112,15 @@ bool LoopClosures::findPassage() {
     for (int k : ccols_[c]) p_R_(j, k) = 0.0;
   };
   // Away from every passage nothing reduces: each closure's smallest singular value is
-  // above kPassageGate and it has no dependent rows. The smallest eigenvalue of W W^T (at
-  // most 6 x 6) says so without the decomposition: its error, eps |W|^2, is far below
-  // kPassageGate^2. (Where some closure is near a passage, every closure is decomposed
-  // below: the reduced solve takes all of them.)
+  // above kPassageGate and it has no dependent rows, i.e. W W^T - kPassageGate^2 I (at most
+  // 6 x 6) is positive definite, which its Cholesky factorization decides without the
+  // decomposition (Golub & Van Loan, "Matrix Computations", 4.2: it runs to completion iff
+  // the matrix is positive definite). Its error, eps |W|^2, is far below kPassageGate^2, and
+  // kGateMargin more keeps a pivot at that round-off on the full path, which decides it by
+  // the singular values themselves. (Where some closure is near a passage, every closure is
+  // decomposed below: the reduced solve takes all of them.)
   {
+    constexpr double kGateMargin = 1e-10;
     bool clear = true;
     for (size_t c = 0; c < constraints.size() && clear; ++c) {
       if (!closureRows(c)) continue;
@@ -114,12 +129,13 @@ bool LoopClosures::findPassage() {
         break;
       }
       p_gram_.noalias() = p_W_ * p_W_.transpose();
-      p_eig_.compute(p_gram_, Eigen::EigenvaluesOnly);
-      clear = p_eig_.eigenvalues()(0) >= kPassageGate * kPassageGate;
+      p_gram_.diagonal().array() -= kPassageGate * kPassageGate + kGateMargin;
+      p_llt_.compute(p_gram_);
+      clear = p_llt_.info() == Eigen::Success;
     }
     if (clear) {
       for (size_t c = 0; c < constraints.size(); ++c) {
-        const int n = sys_->constraints[constraints[c]]->size();
+        const int n = nrows_[c];
         for (int j = row[c]; j < row[c] + p_used_[c]; ++j) clearSlot(j, c, n);
         for (int e = row[c]; e < row[c] + n; ++e) p_keep_(e) = 0.0, p_held_[e] = 0;
         p_used_[c] = 0;
@@ -130,7 +146,7 @@ bool LoopClosures::findPassage() {
   // (R's rows sit in slots: closure c's directions at rows row[c], row[c] + 1, ... of R, so
   // that R has G's block structure for the sparse solve; unused slots are zero, not kept)
   for (size_t c = 0; c < constraints.size(); ++c) {
-    const int n = sys_->constraints[constraints[c]]->size();
+    const int n = nrows_[c];
     const int used_before = p_used_[c];
     p_used_[c] = 0;
     for (int e = row[c]; e < row[c] + n; ++e) p_keep_(e) = 0.0, p_held_[e] = 0;
@@ -140,50 +156,61 @@ bool LoopClosures::findPassage() {
     }
     const int kr = static_cast<int>(p_rows_.size()), kc = static_cast<int>(p_cols_.size());
     const Eigen::VectorXd& dr = p_dr_;
-    // (U in full: with more rows than columns the rows' left null space is dependent too)
-    p_svd_.compute(p_W_, Eigen::ComputeFullU | Eigen::ComputeThinV);
-    const auto& sigma = p_svd_.singularValues();
-    const auto& U = p_svd_.matrixU();
-    const auto& V = p_svd_.matrixV();
-    int rank = 0;
-    for (Eigen::Index d = 0; d < sigma.size(); ++d) rank += sigma(d) >= kPassageDependent;
-    if (rank < kr) reduce = true;  // rows dependent without being zero
-    // A dependent direction is dropped, and its component of a residual is not judged: the
-    // rows' own terms can be round-off there while their normalization (Gbound) is not, so
-    // the component is round-off of the normalized rows, not of the row (onshape's planar
-    // 2-dof closes its loop by a ball: the out-of-plane row is round-off, 1 of 3 rows over
-    // 2 columns, and the velocity projection stalled at 0.06 judging it).
-    auto exclude = [&](Eigen::Index d) {
-      p_w_.row(p_excl_).setZero();
-      p_z_.row(p_excl_).setZero();
-      for (int i = 0; i < kr; ++i) {
-        p_w_(p_excl_, p_rows_[i]) = dr(i) * U(i, d);
-        p_z_(p_excl_, p_rows_[i]) = U(i, d) / dr(i);
+    // the directions of the decomposition svd of W
+    auto directions = [&](const auto& svd) {
+      const auto& sigma = svd.singularValues();
+      const auto& U = svd.matrixU();
+      const auto& V = svd.matrixV();
+      int rank = 0;
+      for (Eigen::Index d = 0; d < sigma.size(); ++d) rank += sigma(d) >= kPassageDependent;
+      if (rank < kr) reduce = true;  // rows dependent without being zero
+      // A dependent direction is dropped, and its component of a residual is not judged: the
+      // rows' own terms can be round-off there while their normalization (Gbound) is not, so
+      // the component is round-off of the normalized rows, not of the row (onshape's planar
+      // 2-dof closes its loop by a ball: the out-of-plane row is round-off, 1 of 3 rows over
+      // 2 columns, and the velocity projection stalled at 0.06 judging it).
+      auto exclude = [&](Eigen::Index d) {
+        p_w_.row(p_excl_).setZero();
+        p_z_.row(p_excl_).setZero();
+        for (int i = 0; i < kr; ++i) {
+          p_w_(p_excl_, p_rows_[i]) = dr(i) * U(i, d);
+          p_z_(p_excl_, p_rows_[i]) = U(i, d) / dr(i);
+        }
+        ++p_excl_;
+      };
+      for (Eigen::Index d = sigma.size(); d < kr; ++d) exclude(d);
+      for (Eigen::Index d = 0; d < sigma.size(); ++d) {
+        const double s = sigma(d);
+        if (!(s >= kPassageDependent)) {  // dependent: dropped
+          exclude(d);
+          continue;
+        }
+        if (s < kPassageGate) reduce = true;
+        const int j = row[c] + p_used_[c]++;
+        ++p_r_;
+        p_keep_(j) = 1.0;
+        const bool held = passage_hold && s < kPassageBand;
+        p_near_ = p_near_ || s < kPassageNear;
+        p_held_[j] = held;
+        // R_j = (1/s) u^T D_r G = (v o unit)^T, P(j, e) = D_r(e) u_e / s
+        clearSlot(j, c, n);
+        for (int i = 0; i < kr; ++i) p_P_(j, p_rows_[i]) = dr(i) * U(i, d) / s;
+        for (int q = 0; q < kc; ++q) p_R_(j, p_cols_[q]) = V(q, d) * unit_(p_cols_[q]);
+        if (held) {
+          exclude(d);
+          ++p_band_;
+        }
       }
-      ++p_excl_;
     };
-    for (Eigen::Index d = sigma.size(); d < kr; ++d) exclude(d);
-    for (Eigen::Index d = 0; d < sigma.size(); ++d) {
-      const double s = sigma(d);
-      if (!(s >= kPassageDependent)) {  // dependent: dropped
-        exclude(d);
-        continue;
-      }
-      if (s < kPassageGate) reduce = true;
-      const int j = row[c] + p_used_[c]++;
-      ++p_r_;
-      p_keep_(j) = 1.0;
-      const bool held = passage_hold && s < kPassageBand;
-      p_near_ = p_near_ || s < kPassageNear;
-      p_held_[j] = held;
-      // R_j = (1/s) u^T D_r G = (v o unit)^T, P(j, e) = D_r(e) u_e / s
-      clearSlot(j, c, n);
-      for (int i = 0; i < kr; ++i) p_P_(j, p_rows_[i]) = dr(i) * U(i, d) / s;
-      for (int q = 0; q < kc; ++q) p_R_(j, p_cols_[q]) = V(q, d) * unit_(p_cols_[q]);
-      if (held) {
-        exclude(d);
-        ++p_band_;
-      }
+    // (U in full: with more rows than columns the rows' left null space is dependent too.
+    // Up to 6 x 6, as a cut joint's rows over a planar loop's or a short spatial loop's
+    // columns, in fixed-capacity storage: no dynamic-size overhead.)
+    if (kr <= 6 && kc <= 6) {
+      p_svd6_.compute(p_W_, Eigen::ComputeFullU | Eigen::ComputeThinV);
+      directions(p_svd6_);
+    } else {
+      p_svd_.compute(p_W_, Eigen::ComputeFullU | Eigen::ComputeThinV);
+      directions(p_svd_);
     }
     for (int j = row[c] + p_used_[c]; j < row[c] + used_before; ++j) clearSlot(j, c, n);
   }
@@ -192,8 +219,12 @@ bool LoopClosures::findPassage() {
 }
 
 void LoopClosures::passageFactor(const TreeModel& model, const TreeWorkspace& ws) {
+  // (R and the articulated factors as at the last call: its factorization stands)
+  const long ws_gen = massFactorsGeneration(ws);
+  if (pfac_at_p_ == p_gen_ && pfac_at_ws_ == ws_gen) return;
   // R M^-1 R^T over the kept slots (closure_solver.h); the others are held at mu = 0
   p_solver_.factor(model, ws, p_R_, p_keep_, p_least_norm_, p_A_);
+  pfac_at_p_ = p_gen_, pfac_at_ws_ = ws_gen;
 }
 
 void LoopClosures::passageRhs(const Eigen::VectorXd& b, Eigen::VectorXd& g, bool accel) const {
@@ -203,7 +234,7 @@ void LoopClosures::passageRhs(const Eigen::VectorXd& b, Eigen::VectorXd& g, bool
     const int c = cl_of_[j];
     double s = 0.0;
     if (!p_held_[j]) {
-      for (int e = row[c]; e < row[c] + sys_->constraints[constraints[c]]->size(); ++e) s += p_P_(j, e) * b(e);
+      for (int e = row[c]; e < row[c] + nrows_[c]; ++e) s += p_P_(j, e) * b(e);
     } else if (accel && passage_ref) {
       for (int k : ccols_[c]) s += p_R_(j, k) * (*passage_ref)(k);
     }
@@ -216,7 +247,7 @@ void LoopClosures::passageMultipliers(const Eigen::VectorXd& mu) {
   for (int j = 0; j < m; ++j) {
     if (mu(j) == 0.0) continue;
     const int c = cl_of_[j];
-    for (int e = row[c]; e < row[c] + sys_->constraints[constraints[c]]->size(); ++e) lambda(e) += p_P_(j, e) * mu(j);
+    for (int e = row[c]; e < row[c] + nrows_[c]; ++e) lambda(e) += p_P_(j, e) * mu(j);
   }
 }
 

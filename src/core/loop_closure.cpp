@@ -10,6 +10,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <cstring>
 
 #include "mechanism_sim/core/couplers.h"
 #include "mechanism_sim/core/errors.h"
@@ -36,6 +38,29 @@ inline Eigen::Vector4d quatExp(const Vector3d& phi) {
   return out;
 }
 
+// Whether `now` holds the bits of `copy` (sizes included: -0.0 is not 0.0 here, NaN is
+// itself); `copy` becomes `now` either way (same sizes: no allocation).
+template <class M>
+bool unchangedSince(const Eigen::MatrixBase<M>& now, M& copy) {
+  bool same = now.rows() == copy.rows() && now.cols() == copy.cols();
+  const double *a = now.derived().data(), *b = copy.data();
+  for (Eigen::Index i = 0; same && i < now.size(); ++i) {
+    std::uint64_t x, y;  // (bits: a memcmp call costs more than these few words)
+    std::memcpy(&x, a + i, sizeof x);
+    std::memcpy(&y, b + i, sizeof y);
+    same = x == y;
+  }
+  if (!same) copy = now;
+  return same;
+}
+template <class M>
+bool unchangedSince(const AlignedVector<M>& now, AlignedVector<M>& copy) {
+  bool same = now.size() == copy.size();
+  if (!same) copy.resize(now.size());
+  for (size_t k = 0; k < now.size(); ++k) same &= unchangedSince(now[k], copy[k]);
+  return same;
+}
+
 // A limit whose side in the context is 0 (free): its row is zero (LimitConstraint).
 inline bool inactiveLimit(const Constraint& C, const EvalContext& ctx) {
   const int l = C.limit();
@@ -56,6 +81,7 @@ LoopClosures::LoopClosures(const TreeModel& model, const System& sys) : model_(&
     constraints.push_back(c);
     row.push_back(m);
     const int n = sys.constraints[c]->size();
+    nrows_.push_back(n);
     for (int e = 0; e < n; ++e)
       sys_row.push_back(c < static_cast<int>(sys.layout.size()) ? sys.layout[c].row + e : -1);
     m += n;
@@ -117,6 +143,9 @@ LoopClosures::LoopClosures(const TreeModel& model, const System& sys) : model_(&
   vr_.setZero(m), vt_.setZero(m);
   for (int c : constraints)
     Jc.push_back(Eigen::MatrixXd::Zero(sys.constraints[c]->size(), 6 * static_cast<int>(sys.constraints[c]->bodies().size())));
+  rows_of_.assign(constraints.size(), RowsOf::kUnknown);
+  Jc_mapped_ = Jc;
+  jnorm_.setZero(nrows_.empty() ? 0 : *std::max_element(nrows_.begin(), nrows_.end()), 2);
   kin_.assign(sys.numBodies(), BodyKin());
   pa_.assign(model.nb, Vector6d::Zero());
   a_ = a0_ = pa_;
@@ -306,6 +335,8 @@ void LoopClosures::clearRows() {
   info.dependent = m;
   all_zero_ = true;
   cleared_ = true;
+  std::fill(rows_of_.begin(), rows_of_.end(), RowsOf::kUnknown);  // (G and Gabs cleared, Gbound not)
+  ++g_gen_;
 }
 
 void LoopClosures::evaluate(const TreeModel& model, const System& sys, const TreeWorkspace& ws) {
@@ -319,17 +350,38 @@ void LoopClosures::evaluate(const TreeModel& model, const System& sys, const Tre
     if (L.parent != 0) a0_[k] += transformMotion(ws.E[k], ws.rho[k], a0_[L.parent - 1]);
   }
   const EvalContext ctx = context();
+  // A closure's rows of G, Gabs and Gbound are functions of its Phi_x (Jc) and of the
+  // links' poses and subspaces alone: where those hold the bits of the last mapping (the
+  // stepper evaluates each new q at rest for its projections, then in motion for the
+  // accelerations) the rows are kept, and g_gen_ says whether any row changed.
+  const bool poses_same = unchangedSince(ws.A, pose_A_) & unchangedSince(ws.r, pose_r_) & unchangedSince(ws.S, pose_S_);
+  bool changed = false;
   // (G, Gabs and Gbound are zero off each closure's coordinates: only those are cleared)
-  for (size_t i = 0; i < constraints.size(); ++i)
-    for (int e = row[i]; e < row[i] + sys.constraints[constraints[i]]->size(); ++e)
+  auto clear = [&](size_t i) {
+    for (int e = row[i]; e < row[i] + nrows_[i]; ++e)
       for (int k : ccols_[i]) G(e, k) = Gabs(e, k) = Gbound(e, k) = 0.0;
+    changed = true;
+  };
+  auto directRow = [&](size_t i) {  // a coordinate row: G = its coefficients
+    if (rows_of_[i] == RowsOf::kDirect) return;
+    clear(i);
+    rows_of_[i] = RowsOf::kDirect;
+    const DirectRow& d = direct_[i];
+    for (int k = 0; k < d.n; ++k) {
+      G(row[i], d.col[k]) += d.coef[k];
+      Gabs(row[i], d.col[k]) += std::fabs(d.coef[k]);
+      Gbound(row[i], d.col[k]) += std::fabs(d.coef[k]);
+    }
+  };
   const BodyKin* ptrs[kMaxConstraintBodies];
   for (size_t i = 0; i < constraints.size(); ++i) {
     const Constraint& C = *sys.constraints[constraints[i]];
-    const int n = C.size(), r0 = row[i];
+    const int n = nrows_[i], r0 = row[i];
     if (inactiveLimit(C, ctx)) {  // a free limit: a zero row (as Constraint::evaluate gives it), no mapping
       Phi.segment(r0, n).setZero(), gamma.segment(r0, n).setZero(), scale.segment(r0, n).setZero();
+      gamma_q.segment(r0, n).setZero();
       Jc[i].setZero();
+      if (rows_of_[i] != RowsOf::kZero) clear(i), rows_of_[i] = RowsOf::kZero;
       continue;
     }
     if (q_ && direct_[i].n > 0) {  // Phi from q itself (evaluate(..., q)); scale: the size of its terms
@@ -349,46 +401,50 @@ void LoopClosures::evaluate(const TreeModel& model, const System& sys, const Tre
         phi -= d.offset;
         sc += std::fabs(d.offset);
       }
-      Phi(r0) = phi, gamma(r0) = 0.0, scale(r0) = sc;
-      for (int k = 0; k < d.n; ++k) {
-        G(r0, d.col[k]) += d.coef[k];
-        Gabs(r0, d.col[k]) += std::fabs(d.coef[k]);
-        Gbound(r0, d.col[k]) += std::fabs(d.coef[k]);
-      }
+      Phi(r0) = phi, gamma(r0) = gamma_q(r0) = 0.0, scale(r0) = sc;
+      directRow(i);
       continue;
     }
     const auto& bodies = C.bodies();
     for (size_t s = 0; s < bodies.size(); ++s) ptrs[s] = &kin_[bodies[s]];
     C.evaluate(ptrs, ctx, Phi.segment(r0, n), Jc[i], gamma.segment(r0, n));
     if (C.rheonomic()) C.velocityTerm(ctx, nu.data() + r0);  // (nu stays 0 elsewhere)
+    for (size_t s = 0; s < bodies.size(); ++s) lever_[s] = kin_[bodies[s]].r.cwiseAbs().maxCoeff() + sys.length_scale;
     for (int e = 0; e < n; ++e) {
       double sc = 0;
-      for (size_t s = 0; s < bodies.size(); ++s) {
-        const double lever = kin_[bodies[s]].r.cwiseAbs().maxCoeff() + sys.length_scale;
-        sc += Jc[i].row(e).segment<3>(6 * s).cwiseAbs().sum() * lever + Jc[i].row(e).segment<3>(6 * s + 3).cwiseAbs().sum();
-      }
+      for (size_t s = 0; s < bodies.size(); ++s)
+        sc += Jc[i].row(e).segment<3>(6 * s).cwiseAbs().sum() * lever_[s] + Jc[i].row(e).segment<3>(6 * s + 3).cwiseAbs().sum();
       scale(r0 + e) = sc;
     }
-    if (direct_[i].n > 0) {  // a coordinate row: G = its coefficients, gamma_q = 0 (set below)
-      for (int k = 0; k < direct_[i].n; ++k) {
-        G(r0, direct_[i].col[k]) += direct_[i].coef[k];
-        Gabs(r0, direct_[i].col[k]) += std::fabs(direct_[i].coef[k]);
-        Gbound(r0, direct_[i].col[k]) += std::fabs(direct_[i].coef[k]);
-      }
+    if (direct_[i].n > 0) {  // gamma_q = 0: a coordinate's rate is q_ddot's own
+      gamma_q.segment(r0, n).setZero();
+      directRow(i);
       continue;
     }
+    gamma_q.segment(r0, n) = gamma.segment(r0, n);
+    for (size_t s = 0; s < bodies.size(); ++s) {
+      const int b = bodies[s];
+      if (b == 0) continue;
+      // velocity-product part: absolute acceleration of b at q_ddot = 0 (bodyAccelerations)
+      const Matrix3d& Ab = ws.A[b - 1];
+      const Vector6d& a0 = a0_[b - 1];
+      Vector6d acc;
+      acc.head<3>() = Ab * (a0.tail<3>() + ws.v[b - 1].head<3>().cross(ws.v[b - 1].tail<3>()));
+      acc.tail<3>() = a0.head<3>();
+      gamma_q.segment(r0, n).noalias() -= Jc[i].middleCols<6>(6 * s).topRows(n) * acc;
+    }
+    if (poses_same && rows_of_[i] == RowsOf::kMapped && unchangedSince(Jc[i], Jc_mapped_[i])) continue;
+    Jc_mapped_[i] = Jc[i];  // (same size: no allocation)
+    rows_of_[i] = RowsOf::kMapped;
+    clear(i);
     for (size_t s = 0; s < bodies.size(); ++s) {
       const int b = bodies[s];
       if (b == 0) continue;
       const auto Jb = Jc[i].middleCols<6>(6 * s);
       const Matrix3d& Ab = ws.A[b - 1];
       const Vector3d& rb = ws.r[b - 1];
-      // velocity-product part: absolute acceleration of b at q_ddot = 0 (bodyAccelerations)
-      const Vector6d& a0 = a0_[b - 1];
-      Vector6d acc;
-      acc.head<3>() = Ab * (a0.tail<3>() + ws.v[b - 1].head<3>().cross(ws.v[b - 1].tail<3>()));
-      acc.tail<3>() = a0.head<3>();
-      gamma.segment(r0, n).noalias() -= Jb.topRows(n) * acc;  // (gamma_q assembled below)
+      // the rows' parts' norms for Gbound, once per body (they do not depend on the column)
+      for (int e = 0; e < n; ++e) jnorm_(e, 0) = Jb.row(e).head<3>().norm(), jnorm_(e, 1) = Jb.row(e).tail<3>().norm();
       for (int a = b; a != 0; a = model.links[a - 1].parent) {
         const TreeLink& L = model.links[a - 1];
         const Matrix3d& Aa = ws.A[a - 1];
@@ -408,32 +464,12 @@ void LoopClosures::evaluate(const TreeModel& model, const System& sys, const Tre
           // the entry vanish, for the branch passages' normalization)
           const double sv = vg.norm() + wg.norm() * lever.norm(), sw = wg.norm();
           for (int e = 0; e < n; ++e)
-            Gbound(r0 + e, L.iv + col) += Jb.row(e).head<3>().norm() * sv + Jb.row(e).tail<3>().norm() * sw;
+            Gbound(r0 + e, L.iv + col) += jnorm_(e, 0) * sv + jnorm_(e, 1) * sw;
         }
       }
     }
   }
-  // gamma now holds gamma - Phi_x a0 = gamma_q; restore the absolute gamma alongside
-  gamma_q = gamma;
-  for (size_t i = 0; i < constraints.size(); ++i) {
-    const Constraint& C = *sys.constraints[constraints[i]];
-    if (inactiveLimit(C, ctx)) continue;
-    const int n = C.size(), r0 = row[i];
-    if (direct_[i].n > 0) {  // gamma stayed the absolute one; a coordinate's rate is q_ddot's own
-      gamma_q.segment(r0, n).setZero();
-      continue;
-    }
-    const auto& bodies = C.bodies();
-    for (size_t s = 0; s < bodies.size(); ++s) {
-      const int b = bodies[s];
-      if (b == 0) continue;
-      const Vector6d& a0 = a0_[b - 1];
-      Vector6d acc;
-      acc.head<3>() = ws.A[b - 1] * (a0.tail<3>() + ws.v[b - 1].head<3>().cross(ws.v[b - 1].tail<3>()));
-      acc.tail<3>() = a0.head<3>();
-      gamma.segment(r0, n).noalias() += Jc[i].middleCols<6>(6 * s) * acc;
-    }
-  }
+  if (changed) ++g_gen_;
 }
 
 double LoopClosures::positionResidual() const {
@@ -451,7 +487,7 @@ void LoopClosures::velocityRows(const Eigen::VectorXd& qdot, const Eigen::Vector
   for (int k = 0; k < nv; ++k)
     V = std::max({V, std::fabs(qdot(k)) * unit_(k), reference ? std::fabs((*reference)(k)) * unit_(k) : 0.0});
   for (size_t i = 0; i < constraints.size(); ++i) {
-    for (int e = row[i]; e < row[i] + sys_->constraints[constraints[i]]->size(); ++e) {
+    for (int e = row[i]; e < row[i] + nrows_[i]; ++e) {
       double s = -nu(e), sc = std::fabs(nu(e));
       for (int k : ccols_[i]) {
         s += G(e, k) * qdot(k);
@@ -501,12 +537,30 @@ void LoopClosures::applyInverseMass(const TreeModel& model, const TreeWorkspace&
   }
 }
 
+long LoopClosures::massFactorsGeneration(const TreeWorkspace& ws) {
+  if (!(unchangedSince(ws.S, fac_S_) & unchangedSince(ws.E, fac_E_) & unchangedSince(ws.rho, fac_rho_) &
+        unchangedSince(ws.U, fac_U_) & unchangedSince(ws.Dinv, fac_Dinv_)))
+    ++ws_gen_;
+  return ws_gen_;
+}
+
 void LoopClosures::factor(const TreeModel& model, const TreeWorkspace& ws) {
   info.rows = m;
   if (m == 0) {
     info.rank = info.dependent = 0;
     return;
   }
+  // (G, Gabs and the articulated factors as at the last factorization: it stands)
+  const long ws_gen = massFactorsGeneration(ws);
+  if (fac_at_g_ == g_gen_ && fac_at_ws_ == ws_gen && (fac_Y_ || !form_Y)) {
+    info = fac_info_;
+    return;
+  }
+  factorNow(model, ws);
+  fac_at_g_ = g_gen_, fac_at_ws_ = ws_gen, fac_Y_ = form_Y, fac_info_ = info;
+}
+
+void LoopClosures::factorNow(const TreeModel& model, const TreeWorkspace& ws) {
   // Rows whose entries are all round-off against their terms are structurally zero (a
   // planar loop's out-of-plane rows): dropped, with lambda 0 there.
   int zero_rows = 0;
@@ -752,7 +806,9 @@ ClosureProjectionReport projectClosurePositions(const TreeModel& model, const Sy
   double previous_step = HUGE_VAL;
   int extra = 0;
   for (;;) {
-    forwardDynamics(model, sys, q, zero, zero, ws, qdd);  // kinematics and the articulated factors
+    // the kinematics the closures' equations read; the articulated factors (forwardDynamics)
+    // only for a correction: the stepper's q is usually on the closures already
+    forwardKinematics(model, q, zero, ws);
     cl.evaluate(model, sys, ws, q);
     // in a branch passage the held directions are the integration's: not judged, not moved
     const bool passage = cl.passage_ref && cl.findPassage();
@@ -761,6 +817,7 @@ ClosureProjectionReport projectClosurePositions(const TreeModel& model, const Sy
     rep.converged = rep.residual <= tol;
     if (rep.converged && (!near || extra >= kPassageRoundoffSteps)) break;
     if (rep.iterations >= max_iterations) break;
+    forwardDynamics(model, sys, q, zero, zero, ws, qdd);  // (the same kinematics, and M's factors)
     if (passage) {
       cl.passageFactor(model, ws);
       cl.passageRhs(cl.Phi, cl.p_g_);
@@ -796,7 +853,7 @@ ClosureProjectionReport projectClosureVelocities(const TreeModel& model, const S
   const Eigen::VectorXd& zero = cl.zero_v_;
   Eigen::VectorXd &qdd = cl.qdd_v_, &r = cl.r_m_, &x = cl.x_m_;
   if (!evaluated_at_q) {
-    forwardDynamics(model, sys, q, zero, zero, ws, qdd);
+    forwardKinematics(model, q, zero, ws);
     cl.evaluate(model, sys, ws, q);  // G depends on q only
   }
   Eigen::VectorXd& reference = cl.ref_v_;
@@ -807,13 +864,9 @@ ClosureProjectionReport projectClosureVelocities(const TreeModel& model, const S
   // positions)
   // (evaluated_at_q: the position projection's last findPassage() was at this evaluation)
   const bool passage = cl.passage_ref && (evaluated_at_q ? cl.passageFound() : cl.findPassage());
-  if (passage) {
-    cl.passageFactor(model, ws);
-    rep.dependent = cl.m - cl.p_r_;
-  } else {
-    cl.factor(model, ws);
-    rep.dependent = cl.info.dependent;
-  }
+  // (factored at the first correction: a q_dot already on the closures, as the stepper's
+  // usually is after its stages, needs no solve)
+  bool factored = false;
   double previous_step = HUGE_VAL;
   int extra = 0;
   for (;;) {
@@ -826,6 +879,17 @@ ClosureProjectionReport projectClosureVelocities(const TreeModel& model, const S
     rep.converged = rep.residual <= tol;
     if (rep.converged && (!passage || !cl.passageNear() || extra >= kPassageRoundoffSteps)) break;
     if (rep.iterations >= max_iterations) break;
+    if (!factored) {
+      forwardDynamics(model, sys, q, zero, zero, ws, qdd);  // M's factors at q (the same kinematics)
+      if (passage) {
+        cl.passageFactor(model, ws);
+        rep.dependent = cl.m - cl.p_r_;
+      } else {
+        cl.factor(model, ws);
+        rep.dependent = cl.info.dependent;
+      }
+      factored = true;
+    }
     if (passage) {
       cl.passageRhs(r, cl.p_g_);
       cl.passageSolve(cl.p_g_, cl.p_mu_);

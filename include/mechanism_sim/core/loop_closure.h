@@ -40,7 +40,6 @@
 
 #include <Eigen/Core>
 #include <Eigen/Cholesky>
-#include <Eigen/Eigenvalues>
 #include <Eigen/QR>
 #include <Eigen/SVD>
 
@@ -116,7 +115,7 @@ struct ClosureProjectionReport {
   bool converged = false;
   int iterations = 0;
   double residual = 0.0;  // relative, as closureResidual / closureVelocityResidual
-  int dependent = 0;      // at the last linear solve
+  int dependent = 0;      // at the last linear solve (0: none was needed)
 };
 
 // The closures of a tree and the scratch of their solves: sized once by the constructor.
@@ -164,6 +163,8 @@ class LoopClosures {
   Eigen::VectorXd gamma_q;     // G q_ddot = gamma_q
   Eigen::VectorXd nu;          // G q_dot = nu (drives' velocity terms; 0 for the rest)
   std::vector<Eigen::MatrixXd> Jc;  // per closure: Phi_x (size x 6 slots)
+  // (G, Gabs and Gbound are the caller's to read, not to write: evaluate() keeps a closure's
+  // rows while their inputs hold the same bits, and findPassage() and factor() their results)
 
   // ---- solves
   Eigen::MatrixXd Y;       // M^-1 G^T (nv x m), formed by factor() when form_Y
@@ -303,6 +304,11 @@ class LoopClosures {
   const Eigen::VectorXd* q_ = nullptr;  // evaluate()'s q, for the direct rows' Phi
   std::vector<DirectRow> direct_;  // per closure
   std::vector<int> limit_col_;     // per sys limit: its velocity coordinate (a direct row), or -1
+  std::vector<int> nrows_;         // per closure: its rows (the constraint's size)
+  // evaluate()'s scratch: per body of a closure its lever (scale), per row the norms of the
+  // row's parts on a body's [v; omega'] (Gbound)
+  double lever_[kMaxConstraintBodies] = {};
+  Eigen::Matrix<double, Eigen::Dynamic, 2> jnorm_;
   Eigen::VectorXd unit_;           // per velocity coordinate: length scale (an angle) or 1
   std::vector<BodyKin> kin_;      // ground first
   AlignedVector<Vector6d> pa_, a_;  // inverse-mass passes
@@ -322,11 +328,12 @@ class LoopClosures {
   Eigen::VectorXd p_b_, p_g_, p_mu_, p_dr_;
   Eigen::MatrixXd p_W_;  // one closure's normalized rows, over its columns
   using Small6 = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 6, 6>;
-  Small6 p_gram_;        // W W^T, and its eigenvalues (findPassage's test away from passages)
-  Eigen::SelfAdjointEigenSolver<Small6> p_eig_;
+  Small6 p_gram_;        // W W^T - kPassageGate^2 I and its Cholesky factor (findPassage's
+  Eigen::LLT<Small6> p_llt_;  // test away from passages)
   bool closureRows(size_t c);
   std::vector<int> p_rows_, p_cols_;
   Eigen::JacobiSVD<Eigen::MatrixXd> p_svd_;
+  Eigen::JacobiSVD<Small6> p_svd6_;  // (the same up to 6 x 6)
   int p_r_ = 0, p_band_ = 0;
   int p_excl_ = 0;  // rows of p_w_, p_z_: the held directions and the dependent ones
   bool p_near_ = false, p_reduce_ = false;
@@ -373,6 +380,32 @@ class LoopClosures {
   void passageSolve(const Eigen::VectorXd& b, Eigen::VectorXd& x) const {
     p_solver_.solve(p_least_norm_, b, x);
   }
+  // Work on inputs that hold the bits of the last call's is not done again (the stepper
+  // evaluates each accepted q at rest for its projections, then in motion for the
+  // accelerations, and a step whose inputs were set again recomputes its first stage
+  // there): evaluate() keeps a closure's rows of G, Gabs and Gbound where its Jc and the
+  // links' poses and subspaces are unchanged, findPassage() its results while G is,
+  // factor() and passageFactor() theirs while their rows and ws's articulated factors are.
+  // The generations count changes; an "at" member is the generation a result was made at.
+  enum class RowsOf : signed char { kUnknown, kZero, kDirect, kMapped };
+  std::vector<RowsOf> rows_of_;             // per closure: what its rows of G hold
+  std::vector<Eigen::MatrixXd> Jc_mapped_;  // per closure: the Jc they were mapped from
+  AlignedVector<Matrix3d> pose_A_;          // the links' poses and subspaces at the last evaluate()
+  AlignedVector<Vector3d> pose_r_;
+  AlignedVector<MotionSubspace> pose_S_;
+  AlignedVector<MotionSubspace> fac_S_, fac_U_;  // ws's articulated factors at the last look
+  AlignedVector<Matrix3d> fac_E_;
+  AlignedVector<Vector3d> fac_rho_;
+  AlignedVector<SmallMatrix> fac_Dinv_;
+  long g_gen_ = 0;   // G, Gabs, Gbound
+  long ws_gen_ = 0;  // ws's articulated factors, as massFactorsGeneration() saw them
+  long p_gen_ = 0;   // findPassage()'s results
+  long p_at_g_ = -1, fac_at_g_ = -1, fac_at_ws_ = -1, pfac_at_p_ = -1, pfac_at_ws_ = -1;
+  bool p_at_hold_ = true, fac_Y_ = false;
+  ClosureSolveInfo fac_info_;
+  long massFactorsGeneration(const TreeWorkspace& ws);
+  void factorNow(const TreeModel& model, const TreeWorkspace& ws);
+  bool findPassageNow();
   const TreeModel* model_ = nullptr;
   const System* sys_ = nullptr;
   EvalContext external_;
@@ -411,7 +444,9 @@ ClosureProjectionReport projectClosurePositions(const TreeModel& model, const Sy
 // q_dot -= M^-1 G^T (G M^-1 G^T)^+ (G q_dot - nu) (the M-nearest q_dot with G q_dot = nu), repeated
 // while the relative residual exceeds tol (at most max_iterations). evaluated_at_q: ws and
 // closures already hold q's kinematics (zero velocity) and evaluation, as
-// projectClosurePositions leaves them: only the factorization is taken.
+// projectClosurePositions leaves them. The articulated factors and the closures'
+// factorization are taken only when a correction is needed (a q_dot on the closures leaves
+// both as they were).
 ClosureProjectionReport projectClosureVelocities(const TreeModel& model, const System& sys, LoopClosures& closures,
                                                  const Eigen::VectorXd& q, Eigen::VectorXd& qdot, TreeWorkspace& ws,
                                                  double tol = 1e-13, int max_iterations = 3,
