@@ -173,6 +173,8 @@ void JointStepper::setDamping(const System& sys) {
   damp_touched_.assign(nd, 0);
   damp_column_of_.assign(nd, -1);
   damp_direct_.assign(closures_.m, 0);
+  damp_nz_.reserve(static_cast<size_t>(closures_.m) * model_.nv);
+  damp_nz_first_.assign(closures_.m + 1, 0);
   damp_candidates_.reserve(nd);
   damp_need_.reserve(nd);
   stiff_.assign(nd, 0);
@@ -580,15 +582,20 @@ void JointStepper::dampedInverseMass() {
   std::fill(damp_column_of_.begin(), damp_column_of_.end(), -1);
   for (size_t a = 0; a < damp_need_.size(); ++a) damp_column_of_[damp_need_[a]] = static_cast<int>(a);
   const int m = closures_.m;
+  damp_nz_.clear();  // per closure row its nonzero entries' coordinates (a free limit's: none)
   for (int e = 0; e < m; ++e) {
+    damp_nz_first_[e] = static_cast<int>(damp_nz_.size());
     damp_direct_[e] = 1;
-    for (int v = 0; v < model_.nv && damp_direct_[e]; ++v)
-      if (closures_.G(e, v) != 0.0 && damp_index_of_v_[v] < 0) damp_direct_[e] = 0;
+    for (int v = 0; v < model_.nv; ++v)
+      if (closures_.G(e, v) != 0.0) {
+        damp_nz_.push_back(v);
+        if (damp_index_of_v_[v] < 0) damp_direct_[e] = 0;
+      }
+    damp_nz_first_[e + 1] = static_cast<int>(damp_nz_.size());
     if (!damp_direct_[e]) continue;
-    for (int v = 0; v < model_.nv; ++v) {
-      const int c = damp_index_of_v_[v];
-      if (closures_.G(e, v) != 0.0 && damp_column_of_[c] < 0)
-        damp_column_of_[c] = static_cast<int>(damp_need_.size()), damp_need_.push_back(c);
+    for (int p = damp_nz_first_[e]; p < damp_nz_first_[e + 1]; ++p) {
+      const int c = damp_index_of_v_[damp_nz_[p]];
+      if (damp_column_of_[c] < 0) damp_column_of_[c] = static_cast<int>(damp_need_.size()), damp_need_.push_back(c);
     }
   }
   for (size_t a = 0; a < damp_need_.size(); ++a) {
@@ -603,16 +610,20 @@ void JointStepper::dampedInverseMass() {
   if (m == 0) return;
   // (M^-1 G^T)_D by columns: a row on damped coordinates from those columns, another by its
   // own inward pass over the links on the paths of its nonzero entries
+  damp_used_.clear();
   for (int e = 0; e < m; ++e) {
+    if (damp_nz_first_[e] == damp_nz_first_[e + 1]) continue;  // a zero row: reaches nothing
+    damp_used_.push_back(e);
     if (damp_direct_[e]) {
       damp_Yd_.col(e).setZero();
-      for (int v = 0; v < model_.nv; ++v)
-        if (closures_.G(e, v) != 0.0) damp_Yd_.col(e) += closures_.G(e, v) * damp_Minv_.col(damp_column_of_[damp_index_of_v_[v]]);
+      for (int p = damp_nz_first_[e]; p < damp_nz_first_[e + 1]; ++p) {
+        const int v = damp_nz_[p];
+        damp_Yd_.col(e) += closures_.G(e, v) * damp_Minv_.col(damp_column_of_[damp_index_of_v_[v]]);
+      }
       continue;
     }
-    for (int v = 0; v < model_.nv; ++v)
-      if (closures_.G(e, v) != 0.0)
-        for (int k = link_of_v_[v]; k >= 0 && !damp_mark_[k]; k = model_.links[k].parent - 1) damp_mark_[k] = 1;
+    for (int p = damp_nz_first_[e]; p < damp_nz_first_[e + 1]; ++p)
+      for (int k = link_of_v_[damp_nz_[p]]; k >= 0 && !damp_mark_[k]; k = model_.links[k].parent - 1) damp_mark_[k] = 1;
     damp_links_.clear();
     for (auto it = model_.order.rbegin(); it != model_.order.rend(); ++it)
       if (damp_mark_[*it - 1]) damp_links_.push_back(*it - 1), damp_mark_[*it - 1] = 0;
@@ -629,10 +640,14 @@ void JointStepper::dampedInverseMass() {
     }
   }
   // only the rows that reach a damped coordinate count (a free limit's row is zero)
-  damp_used_.clear();
-  for (int e = 0; e < m; ++e)
-    if (!damp_Yd_.col(e).isZero(0.0)) damp_used_.push_back(e);
-  for (int l = 0; l < nd; ++l) damp_touched_[l] = !damp_Yd_.row(l).isZero(0.0);
+  size_t kept = 0;
+  for (int e : damp_used_)
+    if (!damp_Yd_.col(e).isZero(0.0)) damp_used_[kept++] = e;
+  damp_used_.resize(kept);
+  for (int l = 0; l < nd; ++l) {
+    damp_touched_[l] = 0;
+    for (int e : damp_used_) damp_touched_[l] = damp_touched_[l] || damp_Yd_(l, e) != 0.0;
+  }
   // (G M^-1 G^T)^+ by the columns of those rows (the closures' own solve: dropped rows 0,
   // least norm where rows depend), then W over them
   for (int f : damp_used_) {

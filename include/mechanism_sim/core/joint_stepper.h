@@ -125,6 +125,7 @@ class JointStepper {
   std::vector<int> damp_need_;         // ... and those closure rows need
   std::vector<int> damp_column_of_;    // per damped_ entry: its column of damp_Minv_, or -1
   std::vector<char> damp_direct_;      // per closure row: on damped coordinates only
+  std::vector<int> damp_nz_, damp_nz_first_;  // per closure row: its nonzero entries' coordinates
   std::vector<char> damp_touched_;     // per damped_ entry: its row of damp_Yd_ is not zero
   Eigen::VectorXd damp_col_, damp_rc_, damp_x_;  // P e_k; sqrt(c) per damped_ entry; scratch
   AlignedVector<Vector6d> damp_p_;     // the inward passes' forces
