@@ -143,6 +143,40 @@ void JointStepper::setDamping(const System& sys) {
     for (int k = 0; k < sys.joints[j]->dof(); ++k)
       if (sys.damping[j][k] > 0.0 && (cut_damped_.empty() || cut_damped_.back() != j)) cut_damped_.push_back(j);
   const int nd = static_cast<int>(damped_.size());
+  link_of_v_.assign(model_.nv, 0);
+  for (int k = 0; k < model_.nb; ++k)
+    for (int i = 0; i < model_.links[k].nv; ++i) link_of_v_[model_.links[k].iv + i] = k;
+  damp_index_of_v_.assign(model_.nv, -1);
+  damp_path_.assign(nd, {});
+  damp_path_v_.assign(nd, {});
+  damp_top_.assign(nd, -1);
+  for (int i = 0; i < nd; ++i) {
+    damp_index_of_v_[damped_[i].iv] = i;
+    for (int k = link_of_v_[damped_[i].iv];; k = model_.links[k].parent - 1) {
+      damp_path_[i].push_back(k);
+      for (int v = 0; v < model_.links[k].nv; ++v) damp_path_v_[i].push_back(model_.links[k].iv + v);
+      if (model_.links[k].nv > 0) damp_top_[i] = k;
+      if (model_.links[k].parent == 0) break;
+    }
+  }
+  damp_Zd_.setZero(model_.nv, nd), damp_Xd_.setZero(model_.nv, nd);  // (zero off each path, always)
+  damp_Minv_.setZero(nd, nd);
+  damp_Yd_.setZero(nd, closures_.m), damp_W_.setZero(nd, closures_.m);
+  damp_used_.reserve(closures_.m);
+  damp_x_.setZero(model_.nv);
+  damp_col_.setZero(nd);
+  damp_rc_.resize(nd);
+  for (int i = 0; i < nd; ++i) damp_rc_(i) = std::sqrt(damped_[i].c);
+  damp_p_.assign(model_.nb, Vector6d::Zero());
+  damp_mark_.assign(model_.nb, 0);
+  damp_links_.reserve(model_.nb);
+  damp_touched_.assign(nd, 0);
+  damp_column_of_.assign(nd, -1);
+  damp_direct_.assign(closures_.m, 0);
+  damp_nz_.reserve(static_cast<size_t>(closures_.m) * model_.nv);
+  damp_nz_first_.assign(closures_.m + 1, 0);
+  damp_candidates_.reserve(nd);
+  damp_need_.reserve(nd);
   stiff_.assign(nd, 0);
   stiff_list_.reserve(nd);
   damp_Y_.setZero(model_.nv, nd);
@@ -452,18 +486,19 @@ void JointStepper::frictionFor(const System& sys, State& s, double h) {
 }
 
 // Which damped coordinates are stiff at this step, by stiff_damping.cpp's rule (see there):
-// s_k = h sum_l sqrt(c_k c_l) |(M^-1)_lk| over the damped coordinates l (Gershgorin on
-// h C^1/2 M^-1 C^1/2, the damped modes' decay rates), stiff above the tableau's
-// stiff_bound. First the absolute formulation's bound, with the joints' rows on their two
-// bodies and the bodies' own inverse masses: (M^-1)_kk in joint coordinates is the same
-// G_k P G_k^T as there, P <= the block-diagonal inverse mass. Only where that bound
-// exceeds stiff_bound, (M^-1) e_k itself (one articulated-body pass at q0).
+// s_k = h sum_l sqrt(c_k c_l) |P_lk| over the damped coordinates l (Gershgorin on
+// h C^1/2 P C^1/2, the damped modes' decay rates; P the constrained inverse mass), stiff
+// above the tableau's stiff_bound. First the absolute formulation's bound, with the
+// joints' rows on their two bodies and the bodies' own inverse masses: (M^-1)_kk in joint
+// coordinates is the same G_k P G_k^T as there, P <= the block-diagonal inverse mass. Only
+// where that bound exceeds stiff_bound / 4, P_lk itself, at the damped l only
+// (dampedInverseMass: O(depth) an entry, where a column of P costs passes over the tree).
 bool JointStepper::classifyDamping(const System& sys, const State& s, double h) {
   const double bound = tableau_->stiff_bound;
-  bool kinematics = false, mass = false;
-  bool changed = false;
-  stiff_list_.clear();
-  for (size_t i = 0; i < damped_.size(); ++i) {
+  bool kinematics = false;
+  const int nd = static_cast<int>(damped_.size());
+  damp_candidates_.clear();
+  for (int i = 0; i < nd; ++i) {
     Damped& d = damped_[i];
     const Joint& J = *sys.joints[d.j];
     double sum = d.bound;  // the bound: sum over the damped coordinates of the same joint
@@ -486,34 +521,142 @@ bool JointStepper::classifyDamping(const System& sys, const State& s, double h) 
       if (d.revolute) d.bound = sum;
     }
     // (other joints' damped coordinates on the same bodies add to the bound; the exact
-    // column below counts every damped coordinate)
+    // entries count every damped coordinate)
+    if (h * sum > bound / 4) damp_candidates_.push_back(i);
+  }
+  if (!damp_candidates_.empty()) dampedInverseMass();
+  bool changed = false;
+  stiff_list_.clear();
+  for (int i = 0, next = 0; i < nd; ++i) {
     bool stiff = false;
-    if (h * sum > bound / 4) {
-      // M^-1 e_k by the factored joint-space inertia (once a step: a unit vector's solve
-      // touches its ancestors, then one outward pass)
-      if (!mass) closures_.factorMass(model_, ws_), mass = true;
-      damp_Y_.col(i).setZero();
-      damp_Y_(d.iv, i) = 1.0;
-      closures_.inverseMass(damp_Y_.col(i).data());
-      // with closures, the constrained inverse mass P e_k = y - M^-1 G^T (G M^-1 G^T)^+ G y
-      // (the absolute formulation's P): a finger coupled to its hand is not stiff when the
-      // hand carries it (closures_ holds q0's factorization: stage 1 ran there)
-      damp_c_ = damp_Y_.col(i);
-      if (closures_.m > 0) {
-        closures_.timesG(damp_c_, damp_r_);
-        closures_.solve(damp_r_, damp_mu_);
-        closures_.inverseMassGT(damp_mu_, damp_e_);
-        damp_c_ -= damp_e_;
-      }
-      double exact = 0.0;
-      for (const Damped& o : damped_) exact += std::sqrt(d.c * o.c) * std::fabs(damp_c_(o.iv));
+    if (next < static_cast<int>(damp_candidates_.size()) && damp_candidates_[next] == i) {
+      // P e_k at the damped coordinates: with closures, P = M^-1 - M^-1 G^T (G M^-1 G^T)^+
+      // G M^-1 (the absolute formulation's P): a finger coupled to its hand is not stiff
+      // when the hand carries it. G M^-1 e_k is row k of M^-1 G^T.
+      damp_col_ = damp_Minv_.col(next++);
+      if (damp_touched_[i])  // (by columns: Eigen's product kernels cost more at these sizes)
+        for (int e : damp_used_) damp_col_ -= damp_W_.col(e) * damp_Yd_(i, e);
+      const double exact = damp_rc_(i) * damp_rc_.dot(damp_col_.cwiseAbs());  // sum_l sqrt(c_k c_l) |P_lk|
       stiff = !(h * exact <= bound);
     }
     if (stiff != static_cast<bool>(stiff_[i])) changed = true;
     stiff_[i] = stiff;
-    if (stiff) stiff_list_.push_back(static_cast<int>(i));
+    if (stiff) stiff_list_.push_back(i);
   }
   return changed;
+}
+
+// What classifyDamping's entries of P are made of, at ws_'s articulated factors (q0), by the
+// sparse factorization of closure_solver.h (RBDA 8.5): with M = L^T D L as the
+// articulated-body algorithm factors it (D_k = S_k^T I^A_k S_k, ws_.Dinv), L^-T x is its
+// inward pass with zero velocity on x (inverseMassInward), which for a unit vector e_l or a
+// closure row touches only the links on its paths to the root; then
+//   (M^-1)_lk = z_l^T D^-1 z_k  (z_l = L^-T e_l: over the coordinates the two paths share),
+//   (M^-1 G^T)_le = z_l^T D^-1 L^-T G_e^T, or sum_c G_ec (M^-1)_lc for a row on damped
+//   coordinates c (a coupler's, a limit's),
+// and with closures W = (M^-1 G^T)_D (G M^-1 G^T)^+ from closures_' factorization at q0
+// (stage 1 ran there), so that P_Dk = (M^-1)_Dk - W (M^-1 G^T)_k^T.
+void JointStepper::dampedInverseMass() {
+  auto scaleByDinv = [&](int k, const double* z, double* x) {  // x = D_k^-1 z on link k
+    const TreeLink& L = model_.links[k];
+    if (L.nv == 1) {
+      x[L.iv] = ws_.Dinv[k](0, 0) * z[L.iv];
+    } else if (L.nv > 0) {
+      const SmallVector u = Eigen::Map<const SmallVector>(z + L.iv, L.nv);
+      Eigen::Map<SmallVector>(x + L.iv, L.nv) = ws_.Dinv[k] * u;
+    }
+  };
+  const int nd = static_cast<int>(damped_.size());
+  for (int i = 0; i < nd; ++i) {
+    double* z = damp_Zd_.col(i).data();
+    for (int v : damp_path_v_[i]) z[v] = 0.0;
+    z[damped_[i].iv] = 1.0;
+    for (int k : damp_path_[i]) damp_p_[k].setZero();
+    for (int k : damp_path_[i]) inverseMassInward(model_, ws_, k, z, z, damp_p_);
+    for (int k : damp_path_[i]) scaleByDinv(k, z, damp_Xd_.col(i).data());
+  }
+  // (M^-1)_Dk: the candidates' columns, then those of the damped coordinates that closure
+  // rows on damped coordinates only touch
+  damp_need_ = damp_candidates_;
+  std::fill(damp_touched_.begin(), damp_touched_.end(), 0);
+  std::fill(damp_column_of_.begin(), damp_column_of_.end(), -1);
+  for (size_t a = 0; a < damp_need_.size(); ++a) damp_column_of_[damp_need_[a]] = static_cast<int>(a);
+  const int m = closures_.m;
+  damp_nz_.clear();  // per closure row its nonzero entries' coordinates (a free limit's: none)
+  for (int e = 0; e < m; ++e) {
+    damp_nz_first_[e] = static_cast<int>(damp_nz_.size());
+    damp_direct_[e] = 1;
+    for (int v = 0; v < model_.nv; ++v)
+      if (closures_.G(e, v) != 0.0) {
+        damp_nz_.push_back(v);
+        if (damp_index_of_v_[v] < 0) damp_direct_[e] = 0;
+      }
+    damp_nz_first_[e + 1] = static_cast<int>(damp_nz_.size());
+    if (!damp_direct_[e]) continue;
+    for (int p = damp_nz_first_[e]; p < damp_nz_first_[e + 1]; ++p) {
+      const int c = damp_index_of_v_[damp_nz_[p]];
+      if (damp_column_of_[c] < 0) damp_column_of_[c] = static_cast<int>(damp_need_.size()), damp_need_.push_back(c);
+    }
+  }
+  for (size_t a = 0; a < damp_need_.size(); ++a) {
+    const int k = damp_need_[a];
+    for (int l = 0; l < nd; ++l) {
+      double y = 0.0;  // (none where the two paths share no coordinate)
+      if (damp_top_[l] == damp_top_[k])
+        for (int v : damp_path_v_[l]) y += damp_Zd_(v, l) * damp_Xd_(v, k);
+      damp_Minv_(l, a) = y;
+    }
+  }
+  if (m == 0) return;
+  // (M^-1 G^T)_D by columns: a row on damped coordinates from those columns, another by its
+  // own inward pass over the links on the paths of its nonzero entries
+  damp_used_.clear();
+  for (int e = 0; e < m; ++e) {
+    if (damp_nz_first_[e] == damp_nz_first_[e + 1]) continue;  // a zero row: reaches nothing
+    damp_used_.push_back(e);
+    if (damp_direct_[e]) {
+      damp_Yd_.col(e).setZero();
+      for (int p = damp_nz_first_[e]; p < damp_nz_first_[e + 1]; ++p) {
+        const int v = damp_nz_[p];
+        damp_Yd_.col(e) += closures_.G(e, v) * damp_Minv_.col(damp_column_of_[damp_index_of_v_[v]]);
+      }
+      continue;
+    }
+    for (int p = damp_nz_first_[e]; p < damp_nz_first_[e + 1]; ++p)
+      for (int k = link_of_v_[damp_nz_[p]]; k >= 0 && !damp_mark_[k]; k = model_.links[k].parent - 1) damp_mark_[k] = 1;
+    damp_links_.clear();
+    for (auto it = model_.order.rbegin(); it != model_.order.rend(); ++it)
+      if (damp_mark_[*it - 1]) damp_links_.push_back(*it - 1), damp_mark_[*it - 1] = 0;
+    damp_e_ = closures_.G.row(e).transpose();
+    double* z = damp_e_.data();
+    damp_x_.setZero();
+    for (int k : damp_links_) damp_p_[k].setZero();
+    for (int k : damp_links_) inverseMassInward(model_, ws_, k, z, z, damp_p_);
+    for (int k : damp_links_) scaleByDinv(k, z, damp_x_.data());
+    for (int l = 0; l < nd; ++l) {
+      double y = 0.0;
+      for (int v : damp_path_v_[l]) y += damp_Zd_(v, l) * damp_x_(v);
+      damp_Yd_(l, e) = y;
+    }
+  }
+  // only the rows that reach a damped coordinate count (a free limit's row is zero)
+  size_t kept = 0;
+  for (int e : damp_used_)
+    if (!damp_Yd_.col(e).isZero(0.0)) damp_used_[kept++] = e;
+  damp_used_.resize(kept);
+  for (int l = 0; l < nd; ++l) {
+    damp_touched_[l] = 0;
+    for (int e : damp_used_) damp_touched_[l] = damp_touched_[l] || damp_Yd_(l, e) != 0.0;
+  }
+  // (G M^-1 G^T)^+ by the columns of those rows (the closures' own solve: dropped rows 0,
+  // least norm where rows depend), then W over them
+  for (int f : damp_used_) {
+    damp_r_.setZero();
+    damp_r_(f) = 1.0;
+    closures_.solve(damp_r_, damp_mu_);
+    damp_W_.col(f).setZero();
+    for (int e : damp_used_) damp_W_.col(f) += damp_Yd_.col(e) * damp_mu_(e);
+  }
 }
 
 // u' = argmin 1/2 |u' - u|_M^2 + 1/2 h sum_stiff c_k u'_k^2, i.e. (M + h E C E^T) u' = M u

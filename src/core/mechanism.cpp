@@ -22,12 +22,14 @@ void Mechanism::requireUnbuilt(const char* what) const {
 // Parameters that leave the layout alone may change after build(): copy on write, so a
 // System that a Stepper or a snapshot refers to never changes under it.
 System& Mechanism::editable() {
+  stateChanged();
   if (built_) sys_ = std::make_shared<System>(*sys_);
   if (joint_) joint_->invalidate();  // (the State's accelerations were of the old System)
   return *sys_;
 }
 
 void Mechanism::useFormulation(bool settle) {
+  stateChanged();
   const Formulation f = chooseFormulation(*sys_, parseFormulation(sys_->options.formulation), &formulation_why_);
   if (f == Formulation::kJoint) {
     if (!joint_) joint_ = std::make_unique<JointStepper>(*sys_);
@@ -147,6 +149,7 @@ void Mechanism::commandDriveVelocity(int drive, double v, double acc) {
   if (!(acc > 0)) throw UsageError(who + "drive acceleration must be positive");
   double q, q_dot, q_ddot;
   driveTarget(drive, &q, &q_dot, &q_ddot);
+  stateChanged();
   state_.drive[drive] = DriveRamp{state_.t, q, q_dot, v, std::isfinite(acc) ? acc : 0.0};
 }
 
@@ -182,6 +185,7 @@ void Mechanism::setIntegrator(const IntegratorOptions& options) {
 
 void Mechanism::build() {
   if (built_) return;
+  stateChanged();
   sys_->finalize();
   state_ = initialState(*sys_);
   inputs_ = zeroInputs(*sys_);
@@ -195,6 +199,7 @@ void Mechanism::build() {
 AssemblyReport Mechanism::assemble(const std::vector<CoordinateTarget>& positions,
                                    const std::vector<CoordinateTarget>& velocities) {
   build();
+  stateChanged();
   const AssemblyReport r = mechanism_sim::assemble(*sys_, state_, *stepper_, positions, velocities, &dependencies_);
   stepper_->settle(*sys_, state_, inputs_);
   if (joint_) joint_->settle(*sys_, state_, inputs_);  // the joint state of the assembled one
@@ -203,6 +208,7 @@ AssemblyReport Mechanism::assemble(const std::vector<CoordinateTarget>& position
 
 void Mechanism::step(double h) {
   if (!built_) throw UsageError("Mechanism::step before build() and assemble()");
+  stateChanged();
   // (a step that fails leaves the State at the last accepted step: the queries compute
   // from it, not from the stepper's evaluation, which the failed step left elsewhere)
   if (joint_) {
@@ -239,6 +245,7 @@ void Mechanism::setSpringActuation(int spring, double f_act) {
 void Mechanism::restore(const Snapshot& s) {
   if (!built_ || s.x.size() != state_.x.size() || s.tracked.size() != state_.tracked.size())
     throw UsageError("Mechanism::restore: the snapshot is of another mechanism");
+  stateChanged();
   state_ = s;  // (queries compute from it; stepping goes on from it bit for bit)
   if (joint_) {
     joint_->invalidate();  // (recomputed at the next step: the same bits)
@@ -249,10 +256,11 @@ void Mechanism::restore(const Snapshot& s) {
 }
 
 const Evaluation& Mechanism::evaluated() const {
-  if (stepper_ && stepper_->evaluation().stamp.describes(state_)) return stepper_->evaluation();
+  if (described_) return *described_;
+  if (stepper_ && stepper_->evaluation().stamp.describes(state_)) return *(described_ = &stepper_->evaluation());
   if (!query_eval_) query_eval_ = std::make_unique<Evaluation>(*sys_);
   if (!query_eval_->stamp.describes(state_)) evaluateAt(*sys_, state_, *query_eval_);
-  return *query_eval_;
+  return *(described_ = query_eval_.get());
 }
 
 // ---- queries

@@ -81,6 +81,7 @@ std::vector<int> Mechanism::replaceDrives(std::vector<DriveSpec> drives, const s
     if (from[d] < 0 && s.dropped[sys->layout[sys->drives[d].constraint].row]) dependent.push_back(static_cast<int>(d));
   if (!dependent.empty()) return dependent;
   stepper->settle(*sys, s, inputs_);
+  stateChanged();
   sys_ = std::move(sys);
   state_ = std::move(s);
   stepper_ = std::move(stepper);
@@ -99,6 +100,7 @@ void Mechanism::commandDrivePath(int drive, std::shared_ptr<const DrivePath> pat
     throw UsageError("joint '" + sys_->joints[D.joint]->name() +
                                 "': its drive follows a profile; only a velocity drive takes a path");
   if (!path) throw UsageError("commandDrivePath: no path");
+  stateChanged();
   state_.drive[drive] = DriveRamp{state_.t, 0.0, 0.0, 0.0, 0.0, std::move(path)};
   // the accelerations and the driving effort of the new reference, now (queries read them)
   stepper_->settle(*sys_, state_, inputs_);

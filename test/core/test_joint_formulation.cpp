@@ -10,6 +10,7 @@
 #include <functional>
 #include <cstdio>
 #include <random>
+#include <string>
 
 #include "bodies.h"
 #include "compare.h"
@@ -259,6 +260,45 @@ TEST(JointFormulation, SnapshotRestoreContinuesBitIdentically) {
   for (int i = 0; i < a.q.size(); ++i) ASSERT_EQ(a.q[i], b.q[i]) << i;
   for (int i = 0; i < a.x.size(); ++i) ASSERT_EQ(a.x[i], b.x[i]) << i;
   EXPECT_EQ(a.tracked, b.tracked);
+}
+
+// The queries read the evaluation of the State, found once per state (Mechanism::evaluated
+// keeps it until the State changes): after every kind of change they answer as a
+// Mechanism restored to that State does.
+TEST(JointFormulation, QueriesFollowEveryChangeOfTheState) {
+  for (const char* f : {"joint", "absolute"}) {
+    Mechanism m, fresh;
+    randomTree(m, 7, 5);
+    randomTree(fresh, 7, 5);
+    for (Mechanism* x : {&m, &fresh}) {
+      x->setIntegrator(formulation(f));
+      x->build();
+      x->assemble();
+    }
+    auto same = [&](const char* after) {
+      fresh.restore(m.snapshot());
+      auto close = [&](double a, double b) { return std::fabs(a - b) <= 1e-12 * std::max(1.0, std::fabs(b)); };
+      for (int b = 1; b < m.numBodies(); ++b)
+        EXPECT_TRUE((m.position(b) - fresh.position(b)).norm() <= 1e-12 * std::max(1.0, fresh.position(b).norm()))
+            << f << ", after " << after << ": body " << b;
+      for (int j = 0; j < m.numJoints(); ++j)
+        for (int k = 0; k < m.joint(j).dof(); ++k)
+          EXPECT_TRUE(close(m.jointPosition(j, k), fresh.jointPosition(j, k)) &&
+                      close(m.jointVelocity(j, k), fresh.jointVelocity(j, k)))
+              << f << ", after " << after << ": joint " << j << " coordinate " << k;
+      EXPECT_TRUE(close(m.positionViolation(), fresh.positionViolation())) << f << ", after " << after;
+    };
+    same("assemble");
+    const Mechanism::Snapshot snap = m.snapshot();
+    m.step(1e-3);
+    same("a step");
+    m.restore(snap);
+    same("restore");
+    m.setIntegrator(formulation(std::string(f) == "joint" ? "absolute" : "joint"));
+    same("a change of formulation");
+    m.step(1e-3);
+    same("a step in the other formulation");
+  }
 }
 
 // The same through a loop's branch passage (branch_passage.cpp), where what is held

@@ -78,6 +78,10 @@ class JointStepper {
   // coordinates): which damped coordinates are stiff at this step (ws_ at s.q's factors);
   // returns whether the set changed. The others stay in the stages as efforts.
   bool classifyDamping(const System& sys, const State& s, double h);
+  // For classifyDamping, at ws_'s articulated factors (q0): the columns of M^-1 of the
+  // candidates (damp_candidates_) at the damped coordinates, and with closures
+  // (M^-1 G^T) and W = (M^-1 G^T) (G M^-1 G^T)^+ there (damp_Yd_, damp_W_).
+  void dampedInverseMass();
   // The stiff ones after the stages: implicit Euler in the metric M + h C (Lie splitting).
   void implicitDamping(const System& sys, State& s, double h);
   // Sets s.friction to 0; returns whether any joint has Coulomb friction.
@@ -108,12 +112,30 @@ class JointStepper {
     double bound = -1.0;
   };
   std::vector<Damped> damped_;  // every damped tree coordinate
+  // per damped_ entry: the links of its path to the root (its own first), their velocity
+  // coordinates, and the link nearest the root with coordinates; per velocity coordinate
+  // its link and its damped_ entry (-1: none)
+  std::vector<std::vector<int>> damp_path_, damp_path_v_;
+  std::vector<int> damp_top_, link_of_v_, damp_index_of_v_;
+  Eigen::MatrixXd damp_Zd_, damp_Xd_;  // L^-T e_l and D^-1 L^-T e_l per damped_ entry l
+  Eigen::MatrixXd damp_Minv_;          // (M^-1)_Dk, column a for damped_ entry damp_need_[a]
+  Eigen::MatrixXd damp_Yd_, damp_W_;   // (M^-1 G^T)_D and W (damped x closure rows)
+  std::vector<int> damp_used_;         // closure rows whose column of damp_Yd_ is not zero
+  std::vector<int> damp_candidates_;   // damped_ entries whose P column is needed
+  std::vector<int> damp_need_;         // ... and those closure rows need
+  std::vector<int> damp_column_of_;    // per damped_ entry: its column of damp_Minv_, or -1
+  std::vector<char> damp_direct_;      // per closure row: on damped coordinates only
+  std::vector<int> damp_nz_, damp_nz_first_;  // per closure row: its nonzero entries' coordinates
+  std::vector<char> damp_touched_;     // per damped_ entry: its row of damp_Yd_ is not zero
+  Eigen::VectorXd damp_col_, damp_rc_, damp_x_;  // P e_k; sqrt(c) per damped_ entry; scratch
+  AlignedVector<Vector6d> damp_p_;     // the inward passes' forces
+  std::vector<char> damp_mark_;        // per link: on a closure row's paths
+  std::vector<int> damp_links_;        // those links, children before parents
   std::vector<int> cut_damped_;  // cut joints with damping (efforts: accelerations())
   std::vector<int> cut_constraints_;  // the cut joints' System constraints (their tracked angles)
   std::vector<char> stiff_;     // per damped_: integrated implicitly (classifyDamping)
   std::vector<int> stiff_list_;  // indices into damped_ of the stiff ones
-  Eigen::MatrixXd damp_Y_;       // M^-1 e_iv per damped_ entry: of the checked ones at q0
-                                 // (classifyDamping), of the stiff ones at the stages' end
+  Eigen::MatrixXd damp_Y_;       // M^-1 e_iv per damped_ entry: of the stiff ones at the stages' end
   Eigen::MatrixXd damp_K_;       // C^-1 / h + E^T M^-1 E over the stiff ones, and its Cholesky factor
   Eigen::VectorXd damp_e_, damp_z_, damp_du_, damp_zero_, damp_qdd_, damp_tau_;
   AlignedVector<Vector6d> damp_v_, damp_f_;  // bodies' velocities and momenta (implicitDamping)

@@ -170,8 +170,12 @@ class Mechanism {
   std::vector<int> replaceDrives(std::vector<DriveSpec> drives, const std::vector<int>& from,
                                  std::vector<DriveRamp> references);
   // The evaluation at state_ (evaluation.h): the stepper's when its stamp describes
-  // state_, else the queries' own, evaluated on demand.
+  // state_, else the queries' own, evaluated on demand. Found once per state: until
+  // stateChanged(), the one found (a stamp's comparison reads all of x and u, and a sample
+  // of the run loop asks some 300 queries of one state).
   const Evaluation& evaluated() const;
+  // Every method that may change state_, the System or the steppers' evaluations calls it.
+  void stateChanged() { described_ = nullptr; }
   // The multipliers of state_ and the evaluation whose Jacobian they go with: the State's
   // own (absolute formulation, independent equations), the least-norm ones from its
   // accelerations (absolute formulation, dependent equations), or in the joint formulation,
@@ -192,6 +196,7 @@ class Mechanism {
   Formulation formulation_ = Formulation::kAbsolute;
   std::string formulation_why_;
   mutable std::unique_ptr<Evaluation> query_eval_;  // the queries' own evaluation
+  mutable const Evaluation* described_ = nullptr;    // evaluated()'s, until stateChanged()
   // The reactions' solves, with their own evaluations and scratch (queries leave stepping
   // alone): the least-norm one (absolute formulation, dependent equations), the tree pass
   // (joint formulation).
