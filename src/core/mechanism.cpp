@@ -8,6 +8,17 @@
 #include "mechanism_sim/core/couplers.h"
 
 namespace mechanism_sim {
+namespace {
+
+// An input set again to the same bits (signed zeros apart): nothing to recompute.
+bool sameBits(double a, double b) { return a == b && std::signbit(a) == std::signbit(b); }
+bool sameBits(const Vector3d& a, const Vector3d& b) {
+  for (int i = 0; i < 3; ++i)
+    if (!sameBits(a(i), b(i))) return false;
+  return true;
+}
+
+}  // namespace
 
 Mechanism::Mechanism() : sys_(std::make_shared<System>()) {
   Body ground;
@@ -223,6 +234,9 @@ void Mechanism::setJointEffort(int joint, int k, double tau) {
   checkCoordinate(joint, k);
   if (!std::isfinite(tau)) throw UsageError("effort must be finite");
   if (!built_) throw UsageError("Mechanism::setJointEffort before build()");
+  // (an unchanged input keeps the joint stepper's first stage: MechanismModel::step and the
+  // node set every effort before every step, and recomputing it cost a fifth RK4 stage)
+  if (sameBits(inputs_.effort[joint][k], tau)) return;
   inputs_.effort[joint][k] = tau;
   if (joint_) joint_->invalidate();
 }
@@ -230,6 +244,7 @@ void Mechanism::setJointEffort(int joint, int k, double tau) {
 void Mechanism::setBodyWrench(int body, const Vector3d& force, const Vector3d& torque_body) {
   if (!built_) throw UsageError("Mechanism::setBodyWrench before build()");
   if (!force.allFinite() || !torque_body.allFinite()) throw UsageError("wrench must be finite");
+  if (sameBits(inputs_.force.at(body), force) && sameBits(inputs_.torque.at(body), torque_body)) return;
   inputs_.force.at(body) = force;
   inputs_.torque.at(body) = torque_body;
   if (joint_) joint_->invalidate();
@@ -238,7 +253,9 @@ void Mechanism::setBodyWrench(int body, const Vector3d& force, const Vector3d& t
 void Mechanism::setSpringActuation(int spring, double f_act) {
   if (!built_) throw UsageError("Mechanism::setSpringActuation before build()");
   if (!std::isfinite(f_act)) throw UsageError("actuation must be finite");
-  inputs_.spring_actuation.at(spring) = f_act - sys_->springs.at(spring).f_act;
+  const double value = f_act - sys_->springs.at(spring).f_act;
+  if (sameBits(inputs_.spring_actuation.at(spring), value)) return;
+  inputs_.spring_actuation.at(spring) = value;
   if (joint_) joint_->invalidate();
 }
 
