@@ -43,8 +43,8 @@ TreeMassFactor::TreeMassFactor(const TreeModel& model) {
 
 // LTDL, RBDA 6.5 table 6.3: for k from the leaves up, H_kk is D_k; each ancestor i of k
 // gets a = H_ki / H_kk, H_ij -= a H_kj over i and its ancestors j, and H_ki = a (L_ki).
-void TreeMassFactor::compute(const TreeModel& model, const System& sys, const TreeWorkspace& ws) {
-  jointSpaceInertia(model, sys, ws, Ic_, H_);
+void TreeMassFactor::compute(const TreeModel& model, const TreeWorkspace& ws) {
+  jointSpaceInertia(model, ws, Ic_, H_);
   for (int n = static_cast<int>(vorder_.size()) - 1; n >= 0; --n) {
     const int k = vorder_[n];
     for (int i = vparent_[k]; i >= 0; i = vparent_[i]) {

@@ -452,28 +452,16 @@ void forwardKinematics(const TreeModel& model, const Eigen::VectorXd& q, const E
   for (int b : model.order) {
     const int k = b - 1;
     const TreeLink& L = model.links[k];
-    if (L.kind == TreeJointKind::kFixed) {  // the constant pose; no joint motion, c = 0
-      ws.cJ[k].setZero();
-      ws.c[k].setZero();
-      ws.E[k] = L.E0;
-      ws.rho[k] = L.rho0;
-      if (L.parent == 0) {
-        ws.A[k] = L.E0.transpose();
-        ws.r[k] = L.rho0;
-        ws.v[k].setZero();
-      } else {
-        const int p = L.parent - 1;
-        ws.A[k].noalias() = ws.A[p] * L.E0.transpose();
-        ws.r[k].noalias() = ws.r[p] + ws.A[p] * L.rho0;
-        ws.v[k] = transformMotion(L.E0, L.rho0, ws.v[p]);
-      }
-      continue;
-    }
     Vector6d vJ, cJ;
     // Child body axes in parent body axes (Rrel = Rp R Rc^T), and the child's centre
     // relative to the parent's (rho = sp + Rp t - Rrel sc).
     Matrix3d Rrel;
-    if (L.constant_S) {  // the common case: S constant in the child's frame (set once in ws), c_J = 0
+    if (L.kind == TreeJointKind::kFixed) {  // the constant pose (TreeModel); no joint motion
+      Rrel = L.E0.transpose();
+      ws.rho[k] = L.rho0;
+      cJ.setZero();
+      vJ.setZero();
+    } else if (L.constant_S) {  // the common case: S constant in the child's frame (set once in ws), c_J = 0
       // R = Rz(+-q) (revolute, screw) or 1 (prismatic), t along z (jointTransform; reversed,
       // the inverse pose):
       // Rp Rz mixes two columns of Rp, the product's first factor done in 12 products
@@ -683,16 +671,11 @@ void forwardDynamics(const TreeModel& model, const System& sys, const Eigen::Vec
     }
     // The parent accumulates X^T I^a X and X^T p^a (table 7.1, with X = i_X_lambda(i)).
     const int p = L.aparent - 1;
-    if (!L.parent_welded) {
-      addTransformedInertia(ws.E[k], ws.rho[k], IA, ws.IA[p]);
-      ws.pA[p] += transformForceBack(ws.E[k], ws.rho[k], pa);
-    } else {
-      Matrix3d E;
-      Vector3d rho;
-      articulatedTransform(model, ws, k, E, rho);
-      addTransformedInertia(E, rho, IA, ws.IA[p]);
-      ws.pA[p] += transformForceBack(E, rho, pa);
-    }
+    Matrix3d E;
+    Vector3d rho;
+    articulatedTransform(model, ws, k, E, rho);
+    addTransformedInertia(E, rho, IA, ws.IA[p]);
+    ws.pA[p] += transformForceBack(E, rho, pa);
   }
   // Pass 3 (outward): a'_i = X a_parent + c_i, q_ddot_i = D^-1 (u_i - U_i^T a'_i),
   // a_i = a'_i + S_i q_ddot_i (ground does not accelerate: gravity is a force here).
@@ -744,11 +727,10 @@ void inverseDynamics(const TreeModel& model, const System& sys, const Eigen::Vec
 // Composite-rigid-body algorithm, RBDA 6.2, table 6.2, in body coordinates: I^c_i = I_i +
 // sum over children X^T I^c X; F = I^c_i S_i, H_ii = S_i^T F, then F moves to each ancestor
 // j (F = X^T F) for H_ij = F^T S_j.
-void jointSpaceInertia(const TreeModel& model, const System& sys, const TreeWorkspace& ws,
-                       AlignedVector<Matrix6d>& Ic, Eigen::MatrixXd& H) {
+void jointSpaceInertia(const TreeModel& model, const TreeWorkspace& ws, AlignedVector<Matrix6d>& Ic,
+                       Eigen::MatrixXd& H) {
   // (welded bodies are in their hosts' Ic0: the composites skip them, joint_space.h; F
   // still moves through their transforms on the way to an ancestor)
-  (void)sys;
   Ic.resize(model.nb);
   for (int b : model.order)
     if (model.links[b - 1].kind != TreeJointKind::kFixed) Ic[b - 1] = model.links[b - 1].Ic0;

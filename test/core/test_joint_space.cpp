@@ -459,7 +459,7 @@ TEST(JointSpace, CompositeInertiaAndItsFactorizationMatchTheRecursions) {
       forwardKinematics(model, q, zero, ws);
       AlignedVector<Matrix6d> Ic;
       Eigen::MatrixXd H = Eigen::MatrixXd::Zero(model.nv, model.nv);
-      jointSpaceInertia(model, sys, ws, Ic, H);
+      jointSpaceInertia(model, ws, Ic, H);
       Eigen::VectorXd tau0, tau1, e = zero;
       inverseDynamics(model, sys, q, zero, zero, ws, tau0);
       Eigen::MatrixXd Href(model.nv, model.nv);
@@ -474,7 +474,7 @@ TEST(JointSpace, CompositeInertiaAndItsFactorizationMatchTheRecursions) {
       EXPECT_LT((H - Href).cwiseAbs().maxCoeff(), 1e-12 * scale) << "seed " << seed << ", L " << L;
       forwardKinematics(model, q, zero, ws);
       TreeMassFactor mass(model);
-      mass.compute(model, sys, ws);
+      mass.compute(model, ws);
       for (int k = 0; k < model.nv; ++k) {
         e.setZero();
         e(k) = 1.0;

@@ -47,7 +47,7 @@ class TreeMassFactor {
   TreeMassFactor() = default;
   explicit TreeMassFactor(const TreeModel& model);
   // H at ws's kinematics (forwardKinematics or forwardDynamics), factored.
-  void compute(const TreeModel& model, const System& sys, const TreeWorkspace& ws);
+  void compute(const TreeModel& model, const TreeWorkspace& ws);
   // z = L^-T z in place, over z's entries (velocity coordinates); only the coordinates in
   // `set` (ancestor-closed, in the tree's order) are read and written.
   void solveLT(double* z, const std::vector<int>& set) const;

@@ -221,9 +221,10 @@ void inverseDynamics(const TreeModel& model, const System& sys, const Eigen::Vec
 // the composite-rigid-body algorithm (RBDA 6.2, table 6.2) in body coordinates: only the
 // entries H(i, j) of coordinates on one branch (j an ancestor's or the same link's) are
 // written, both triangles; the others are left as they are (zero: branch-induced sparsity,
-// RBDA 6.5). Ic: scratch, per moving body (the composite inertias on return).
-void jointSpaceInertia(const TreeModel& model, const System& sys, const TreeWorkspace& ws,
-                       AlignedVector<Matrix6d>& Ic, Eigen::MatrixXd& H);
+// RBDA 6.5). The bodies' inertias are the model's (TreeLink::Ic0, welded bodies in their hosts'). Ic:
+// scratch, per moving body (the composite inertias on return).
+void jointSpaceInertia(const TreeModel& model, const TreeWorkspace& ws, AlignedVector<Matrix6d>& Ic,
+                       Eigen::MatrixXd& H);
 // Inputs::effort as a vector tau over q_dot (a free body's entries zero).
 void jointEfforts(const TreeModel& model, const Inputs& in, Eigen::VectorXd& tau);
 

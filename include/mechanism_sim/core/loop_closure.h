@@ -213,7 +213,7 @@ class LoopClosures {
   // The same by the joint-space inertia factored at ws (closure_solver.h): factorMass(model,
   // ws) once (O(n d^2)), then each inverseMass(x) (x = M^-1 x in place) costs O(n d), less
   // for a unit vector. The closures' own solves factor it themselves.
-  void factorMass(const TreeModel& model, const TreeWorkspace& ws) { mass_.compute(model, *sys_, ws); }
+  void factorMass(const TreeModel& model, const TreeWorkspace& ws) { mass_.compute(model, ws); }
   void inverseMass(double* x) const { mass_.solve(x); }
   // out = G v, and out = M^-1 G^T x at factorMass()'s factors, over each closure row's
   // coordinates (G is zero elsewhere)
