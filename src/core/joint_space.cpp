@@ -606,10 +606,15 @@ inline void articulatedTransform(const TreeModel& model, const TreeWorkspace& ws
 void forwardDynamics(const TreeModel& model, const System& sys, const Eigen::VectorXd& q,
                      const Eigen::VectorXd& qdot, const Eigen::VectorXd& tau, TreeWorkspace& ws,
                      Eigen::VectorXd& qddot, const Inputs* loads) {
-  // Pass 1 (outward): velocities and the bias c_i (forwardKinematics), then
-  // I^A_i = I_i, p^A_i = v_i x* I_i v_i - f^x_i (as table 7.1 starts them).
-  // Welded bodies are in their hosts' I_i and f^x_i (joint_space.h): the passes skip them.
+  // Pass 1 (outward): velocities and the bias c_i (forwardKinematics), then the rest
   forwardKinematics(model, q, qdot, ws);
+  forwardDynamicsAtKinematics(model, sys, tau, ws, qddot, loads);
+}
+
+void forwardDynamicsAtKinematics(const TreeModel& model, const System& sys, const Eigen::VectorXd& tau,
+                                 TreeWorkspace& ws, Eigen::VectorXd& qddot, const Inputs* loads) {
+  // Pass 1 (continued): I^A_i = I_i, p^A_i = v_i x* I_i v_i - f^x_i (as table 7.1 starts
+  // them). Welded bodies are in their hosts' I_i and f^x_i (joint_space.h): the passes skip them.
   for (int b : model.order) {
     const int k = b - 1;
     const TreeLink& L = model.links[k];

@@ -194,7 +194,8 @@ void JointStepper::setDamping(const System& sys) {
 }
 
 void JointStepper::accelerations(const System& sys, const State& s, const Inputs& in, double t,
-                                 const Eigen::VectorXd& q, const Eigen::VectorXd& qdot, Eigen::VectorXd& qddot) {
+                                 const Eigen::VectorXd& q, const Eigen::VectorXd& qdot, Eigen::VectorXd& qddot,
+                                 bool evaluated) {
   jointEfforts(model_, in, tau_);  // efforts along the joint coordinates
   // Damping, per coordinate of q_dot: a spherical joint's are the relative angular velocity
   // in frame i, Joint::coordinates' rates (settle() reads q_dot from them), so tau_k =
@@ -209,7 +210,7 @@ void JointStepper::accelerations(const System& sys, const State& s, const Inputs
   const Inputs* loads = &in;
   if (!sys.springs.empty() || !cut_damped_.empty()) {
     // springs act between points of bodies: body loads at the tree's poses (appliedForces)
-    forwardKinematics(model_, q, qdot, ws_);
+    if (!evaluated) forwardKinematics(model_, q, qdot, ws_);
     absoluteState(model_, ws_, spring_x_, spring_u_);
     loadKinematics(sys, spring_x_.data(), spring_u_.data(), kin_);
     loads_.force = in.force;
@@ -250,7 +251,7 @@ void JointStepper::accelerations(const System& sys, const State& s, const Inputs
   EvalContext ctx = s.context();
   ctx.t = t;
   closures_.setContext(ctx);
-  constrainedForwardDynamics(model_, sys, closures_, q, qdot, tau_, ws_, qddot, loads);
+  constrainedForwardDynamics(model_, sys, closures_, q, qdot, tau_, ws_, qddot, loads, evaluated);
 }
 
 void JointStepper::writeAbsolute(const System& sys, State& s) {
@@ -291,15 +292,18 @@ void JointStepper::writeAbsolute(const System& sys, State& s) {
 // positions and velocities are projected onto the closures, the accelerations solved, and
 // limits that would pull let go (solved again), as the absolute formulation's finishStep.
 void JointStepper::finish(const System& sys, State& s, const Inputs& in) {
+  bool evaluated = false;
   if (closures_.m > 0) {
     closures_.setContext(s.context());
     if (!sys.limits.empty()) closures_.activateReachedLimits(sys, model_, s.q, s.qdot, ws_, s.limit_side.data());
     // (closures that are all free limits are zero rows: nothing to project onto)
     bool active = closures_.constraints.size() > sys.limits.size();
     for (size_t l = 0; l < sys.limits.size() && !active; ++l) active = s.limit_side[l] != 0;
-    if (active) project(sys, s);
+    // (the projections' last evaluation is at (q, q_dot) when they moved nothing: the
+    // accelerations start from it)
+    evaluated = active && project(sys, s);
   }
-  accelerations(sys, s, in, s.t, s.q, s.qdot, s.qddot);
+  accelerations(sys, s, in, s.t, s.q, s.qdot, s.qddot, evaluated);
   for (size_t pass = 0; pass < sys.limits.size() && closures_.releasePullingLimits(sys, s.limit_side.data()) > 0;
        ++pass)
     accelerations(sys, s, in, s.t, s.q, s.qdot, s.qddot);
@@ -309,9 +313,11 @@ void JointStepper::finish(const System& sys, State& s, const Inputs& in) {
 
 // Positions and velocities onto the closures (loop_closure.h), to the System's relative
 // tolerances; a shortfall is counted, beyond kFailureResidual the step fails.
-void JointStepper::project(const System& sys, State& s) {
+bool JointStepper::project(const System& sys, State& s) {
   closures_.setContext(s.context());
-  const ClosureProjectionReport p = projectClosurePositions(model_, sys, closures_, s.q, ws_, sys.options.position_tol);
+  // (kinematics at s.qdot: the equations do not read the rates, the accelerations after do)
+  const ClosureProjectionReport p =
+      projectClosurePositions(model_, sys, closures_, s.q, ws_, sys.options.position_tol, 20, &s.qdot);
   stats_.countPositionProjection(p.converged, p.residual);
   if (!p.converged && p.residual > kFailureResidual) {
     std::ostringstream os;
@@ -321,7 +327,7 @@ void JointStepper::project(const System& sys, State& s) {
   }
   const ClosureProjectionReport v =
       projectClosureVelocities(model_, sys, closures_, s.q, s.qdot, ws_, sys.options.velocity_tol, kMaxVelocityPasses,
-                               true);  // (ws_ and closures_ at s.q: the position projection's last evaluation)
+                               true, p.at_rates);  // (ws_ and closures_ at s.q: the position projection's last evaluation)
   stats_.countVelocityProjection(v.converged, v.residual);
   if (!v.converged && v.residual > kFailureResidual) {
     std::ostringstream os;
@@ -329,6 +335,7 @@ void JointStepper::project(const System& sys, State& s) {
        << fmt(v.residual) << ")";
     throw StepFailure(os.str());
   }
+  return v.at_rates;
 }
 
 void JointStepper::settle(const System& sys, State& s, const Inputs& in) {

@@ -341,20 +341,29 @@ void LoopClosures::clearRows() {
 
 void LoopClosures::evaluate(const TreeModel& model, const System& sys, const TreeWorkspace& ws) {
   cleared_ = false;
-  loadKin(ws);
-  // a0: spatial accelerations at q_ddot = 0 (RBDA table 7.1's a'_i without the S q_ddot)
-  for (int b : model.order) {
-    const int k = b - 1;
-    const TreeLink& L = model.links[k];
-    a0_[k] = ws.c[k];
-    if (L.parent != 0) a0_[k] += transformMotion(ws.E[k], ws.rho[k], a0_[L.parent - 1]);
-  }
   const EvalContext ctx = context();
-  // A closure's rows of G, Gabs and Gbound are functions of its Phi_x (Jc) and of the
-  // links' poses and subspaces alone: where those hold the bits of the last mapping (the
-  // stepper evaluates each new q at rest for its projections, then in motion for the
-  // accelerations) the rows are kept, and g_gen_ says whether any row changed.
-  const bool poses_same = unchangedSince(ws.A, pose_A_) & unchangedSince(ws.r, pose_r_) & unchangedSince(ws.S, pose_S_);
+  // The bodies' kinematics are read by the closures that are not rows on q itself (those
+  // give Phi from q: a limit, a drive or a coupler on tree joints, often all there is)
+  bool kinematics = false;
+  for (size_t i = 0; i < constraints.size() && !kinematics; ++i)
+    kinematics = !(q_ && direct_[i].n > 0) && !inactiveLimit(*sys.constraints[constraints[i]], ctx);
+  bool poses_same = false;
+  if (kinematics) {
+    loadKin(ws);
+    // a0: spatial accelerations at q_ddot = 0 (RBDA table 7.1's a'_i without the S q_ddot)
+    for (int b : model.order) {
+      const int k = b - 1;
+      const TreeLink& L = model.links[k];
+      a0_[k] = ws.c[k];
+      if (L.parent != 0) a0_[k] += transformMotion(ws.E[k], ws.rho[k], a0_[L.parent - 1]);
+    }
+    // A closure's rows of G, Gabs and Gbound are functions of its Phi_x (Jc) and of the
+    // links' poses and subspaces alone: where those hold the bits of the last mapping (the
+    // stepper evaluates each new q at rest for its projections, then in motion for the
+    // accelerations) the rows are kept, and g_gen_ says whether any row changed. (Without
+    // kinematics no row is mapped: the copies stay those of the last mapping.)
+    poses_same = unchangedSince(ws.A, pose_A_) & unchangedSince(ws.r, pose_r_) & unchangedSince(ws.S, pose_S_);
+  }
   bool changed = false;
   // (G, Gabs and Gbound are zero off each closure's coordinates: only those are cleared)
   auto clear = [&](size_t i) {
@@ -731,8 +740,11 @@ double LoopClosures::correctionSize(const Eigen::VectorXd& dv) const {
 ClosureSolveInfo constrainedForwardDynamics(const TreeModel& model, const System& sys, LoopClosures& cl,
                                             const Eigen::VectorXd& q, const Eigen::VectorXd& qdot,
                                             const Eigen::VectorXd& tau, TreeWorkspace& ws, Eigen::VectorXd& qddot,
-                                            const Inputs* loads) {
-  forwardDynamics(model, sys, q, qdot, tau, ws, qddot, loads);
+                                            const Inputs* loads, bool evaluated) {
+  // (evaluated: ws's kinematics and the closures' evaluation are at (q, q_dot) already, as
+  // the stepper's projections leave them when they move nothing)
+  if (evaluated) forwardDynamicsAtKinematics(model, sys, tau, ws, qddot, loads);
+  else forwardDynamics(model, sys, q, qdot, tau, ws, qddot, loads);
   // efforts on cut joints: q_ddot += M^-1 (G_k J)^T tau_k (the recursion is linear in tau)
   if (loads && !model.cut_joints.empty()) {
     cl.tau_.setZero();
@@ -746,7 +758,7 @@ ClosureSolveInfo constrainedForwardDynamics(const TreeModel& model, const System
     cl.clearRows();
     return cl.info;
   }
-  cl.evaluate(model, sys, ws, q);
+  if (!evaluated) cl.evaluate(model, sys, ws, q);
   const bool passage = cl.passage_ref && cl.findPassage();
   if (!passage || cl.regular_factor) cl.factor(model, ws);
   if (passage) {
@@ -795,9 +807,11 @@ void retract(const TreeModel& model, Eigen::VectorXd& q, const Eigen::VectorXd& 
 }
 
 ClosureProjectionReport projectClosurePositions(const TreeModel& model, const System& sys, LoopClosures& cl,
-                                                Eigen::VectorXd& q, TreeWorkspace& ws, double tol, int max_iterations) {
+                                                Eigen::VectorXd& q, TreeWorkspace& ws, double tol, int max_iterations,
+                                                const Eigen::VectorXd* rates) {
   ClosureProjectionReport rep;
   const Eigen::VectorXd& zero = cl.zero_v_;
+  const Eigen::VectorXd& qdot = rates ? *rates : zero;
   Eigen::VectorXd &qdd = cl.qdd_v_, &dv = cl.dv_v_, &x = cl.x_m_;
   // Near a branch passage (branch_passage.cpp) the equations' residual tolerance leaves
   // the coordinate across the branch off by tol / s (s the passage's singular value), and
@@ -808,8 +822,9 @@ ClosureProjectionReport projectClosurePositions(const TreeModel& model, const Sy
   for (;;) {
     // the kinematics the closures' equations read; the articulated factors (forwardDynamics)
     // only for a correction: the stepper's q is usually on the closures already
-    forwardKinematics(model, q, zero, ws);
+    forwardKinematics(model, q, qdot, ws);
     cl.evaluate(model, sys, ws, q);
+    rep.at_rates = rates != nullptr;
     // in a branch passage the held directions are the integration's: not judged, not moved
     const bool passage = cl.passage_ref && cl.findPassage();
     rep.residual = passage ? cl.passageResidual(cl.Phi, cl.scale) : cl.positionResidual();
@@ -817,7 +832,8 @@ ClosureProjectionReport projectClosurePositions(const TreeModel& model, const Sy
     rep.converged = rep.residual <= tol;
     if (rep.converged && (!near || extra >= kPassageRoundoffSteps)) break;
     if (rep.iterations >= max_iterations) break;
-    forwardDynamics(model, sys, q, zero, zero, ws, qdd);  // (the same kinematics, and M's factors)
+    // M's factors at the same kinematics (they do not read the rates; qdd is not used)
+    forwardDynamicsAtKinematics(model, sys, zero, ws, qdd);
     if (passage) {
       cl.passageFactor(model, ws);
       cl.passageRhs(cl.Phi, cl.p_g_);
@@ -848,7 +864,7 @@ ClosureProjectionReport projectClosurePositions(const TreeModel& model, const Sy
 
 ClosureProjectionReport projectClosureVelocities(const TreeModel& model, const System& sys, LoopClosures& cl,
                                                  const Eigen::VectorXd& q, Eigen::VectorXd& qdot, TreeWorkspace& ws,
-                                                 double tol, int max_iterations, bool evaluated_at_q) {
+                                                 double tol, int max_iterations, bool evaluated_at_q, bool at_rates) {
   ClosureProjectionReport rep;
   const Eigen::VectorXd& zero = cl.zero_v_;
   Eigen::VectorXd &qdd = cl.qdd_v_, &r = cl.r_m_, &x = cl.x_m_;
@@ -880,7 +896,7 @@ ClosureProjectionReport projectClosureVelocities(const TreeModel& model, const S
     if (rep.converged && (!passage || !cl.passageNear() || extra >= kPassageRoundoffSteps)) break;
     if (rep.iterations >= max_iterations) break;
     if (!factored) {
-      forwardDynamics(model, sys, q, zero, zero, ws, qdd);  // M's factors at q (the same kinematics)
+      forwardDynamicsAtKinematics(model, sys, zero, ws, qdd);  // M's factors at q (the same kinematics)
       if (passage) {
         cl.passageFactor(model, ws);
         rep.dependent = cl.m - cl.p_r_;
@@ -909,7 +925,8 @@ ClosureProjectionReport projectClosureVelocities(const TreeModel& model, const S
     qdot -= dv;
     ++rep.iterations;
   }
-  forwardKinematics(model, q, qdot, ws);
+  rep.at_rates = evaluated_at_q && at_rates && rep.iterations == 0;  // (else q_dot moved: gamma is another's)
+  if (!rep.at_rates) forwardKinematics(model, q, qdot, ws);
   return rep;
 }
 

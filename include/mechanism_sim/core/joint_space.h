@@ -213,6 +213,10 @@ void absoluteState(const TreeModel& model, const TreeWorkspace& ws, Eigen::Vecto
 void forwardDynamics(const TreeModel& model, const System& sys, const Eigen::VectorXd& q,
                      const Eigen::VectorXd& qdot, const Eigen::VectorXd& tau, TreeWorkspace& ws,
                      Eigen::VectorXd& qddot, const Inputs* loads = nullptr);
+// The same at the kinematics ws holds (forwardKinematics at these q, q_dot ran last and
+// nothing has changed ws's poses and rates since): the articulated passes alone.
+void forwardDynamicsAtKinematics(const TreeModel& model, const System& sys, const Eigen::VectorXd& tau,
+                                 TreeWorkspace& ws, Eigen::VectorXd& qddot, const Inputs* loads = nullptr);
 // The efforts that give q_ddot (the inverse of forwardDynamics): recursive Newton-Euler.
 void inverseDynamics(const TreeModel& model, const System& sys, const Eigen::VectorXd& q,
                      const Eigen::VectorXd& qdot, const Eigen::VectorXd& qddot, TreeWorkspace& ws,

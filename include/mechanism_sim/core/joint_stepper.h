@@ -69,11 +69,13 @@ class JointStepper {
 
  private:
   // q_ddot at (q, q_dot) and time t under the inputs and springs, with the closures
-  // (drives, limits, couplers) read in s's context.
+  // (drives, limits, couplers) read in s's context. evaluated: ws_ holds the kinematics of
+  // (q, q_dot) and closures_ their evaluation in that context (project() returned true).
   void accelerations(const System& sys, const State& s, const Inputs& in, double t, const Eigen::VectorXd& q,
-                     const Eigen::VectorXd& qdot, Eigen::VectorXd& qddot);
+                     const Eigen::VectorXd& qdot, Eigen::VectorXd& qddot, bool evaluated = false);
   void finish(const System& sys, State& s, const Inputs& in);
-  void project(const System& sys, State& s);
+  // Returns whether ws_ and closures_ are left at (s.q, s.qdot) (no velocity correction).
+  bool project(const System& sys, State& s);
   // Joint damping (the absolute formulation's rule, stiff_damping.cpp, in joint
   // coordinates): which damped coordinates are stiff at this step (ws_ at s.q's factors);
   // returns whether the set changed. The others stay in the stages as efforts.

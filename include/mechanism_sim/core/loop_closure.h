@@ -116,6 +116,9 @@ struct ClosureProjectionReport {
   int iterations = 0;
   double residual = 0.0;  // relative, as closureResidual / closureVelocityResidual
   int dependent = 0;      // at the last linear solve (0: none was needed)
+  // ws holds the kinematics of (q, the rates asked for) and the closures' evaluation is
+  // there: constrainedForwardDynamics(..., evaluated = true) may start from them
+  bool at_rates = false;
 };
 
 // The closures of a tree and the scratch of their solves: sized once by the constructor.
@@ -413,12 +416,13 @@ class LoopClosures {
   friend ClosureSolveInfo constrainedForwardDynamics(const TreeModel&, const System&, LoopClosures&,
                                                      const Eigen::VectorXd&, const Eigen::VectorXd&,
                                                      const Eigen::VectorXd&, TreeWorkspace&, Eigen::VectorXd&,
-                                                     const Inputs*);
+                                                     const Inputs*, bool);
   friend ClosureProjectionReport projectClosurePositions(const TreeModel&, const System&, LoopClosures&,
-                                                         Eigen::VectorXd&, TreeWorkspace&, double, int);
+                                                         Eigen::VectorXd&, TreeWorkspace&, double, int,
+                                                         const Eigen::VectorXd*);
   friend ClosureProjectionReport projectClosureVelocities(const TreeModel&, const System&, LoopClosures&,
                                                           const Eigen::VectorXd&, Eigen::VectorXd&, TreeWorkspace&,
-                                                          double, int, bool);
+                                                          double, int, bool, bool);
 };
 
 // Constrained forward dynamics: q_ddot and closures.lambda at (q, q_dot) with efforts tau
@@ -428,7 +432,7 @@ class LoopClosures {
 ClosureSolveInfo constrainedForwardDynamics(const TreeModel& model, const System& sys, LoopClosures& closures,
                                             const Eigen::VectorXd& q, const Eigen::VectorXd& qdot,
                                             const Eigen::VectorXd& tau, TreeWorkspace& ws, Eigen::VectorXd& qddot,
-                                            const Inputs* loads = nullptr);
+                                            const Inputs* loads = nullptr, bool evaluated = false);
 
 // q (+) dv: q moved by dv (velocity coordinates): q_k + dv_k, a spherical joint's
 // quaternion exp(dv/2) (x) q, a free body's r + dv and p (x) exp(dv'/2) (positionRates'
@@ -437,19 +441,23 @@ void retract(const TreeModel& model, Eigen::VectorXd& q, const Eigen::VectorXd& 
 
 // Newton on Phi(q) = 0 with the M-weighted least-norm step dq = -M^-1 G^T (G M^-1 G^T)^+ Phi,
 // until closures.positionResidual() <= tol (at most max_iterations steps). ws ends at q's
-// kinematics (with zero velocity). Both projections allocate nothing (the closures' scratch).
+// kinematics with zero velocity, or with `rates` when given (the equations' Phi and G do
+// not read them; gamma does: report.at_rates says ws and the evaluation are at (q, rates)).
+// Both projections allocate nothing (the closures' scratch).
 ClosureProjectionReport projectClosurePositions(const TreeModel& model, const System& sys, LoopClosures& closures,
                                                 Eigen::VectorXd& q, TreeWorkspace& ws, double tol = 1e-13,
-                                                int max_iterations = 20);
+                                                int max_iterations = 20, const Eigen::VectorXd* rates = nullptr);
 // q_dot -= M^-1 G^T (G M^-1 G^T)^+ (G q_dot - nu) (the M-nearest q_dot with G q_dot = nu), repeated
 // while the relative residual exceeds tol (at most max_iterations). evaluated_at_q: ws and
-// closures already hold q's kinematics (zero velocity) and evaluation, as
-// projectClosurePositions leaves them. The articulated factors and the closures'
-// factorization are taken only when a correction is needed (a q_dot on the closures leaves
-// both as they were).
+// closures already hold q's kinematics and evaluation, as projectClosurePositions leaves
+// them; at_rates: that kinematics has these q_dot (projectClosurePositions with rates =
+// &qdot and report.at_rates). The articulated factors and the closures' factorization are
+// taken only when a correction is needed (a q_dot on the closures leaves both as they
+// were). ws ends at (q, q_dot)'s kinematics; report.at_rates: the evaluation too (no
+// correction moved q_dot).
 ClosureProjectionReport projectClosureVelocities(const TreeModel& model, const System& sys, LoopClosures& closures,
                                                  const Eigen::VectorXd& q, Eigen::VectorXd& qdot, TreeWorkspace& ws,
                                                  double tol = 1e-13, int max_iterations = 3,
-                                                 bool evaluated_at_q = false);
+                                                 bool evaluated_at_q = false, bool at_rates = false);
 
 }  // namespace mechanism_sim
