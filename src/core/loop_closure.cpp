@@ -149,7 +149,7 @@ LoopClosures::LoopClosures(const TreeModel& model, const System& sys) : model_(&
   kin_.assign(sys.numBodies(), BodyKin());
   pa_.assign(model.nb, Vector6d::Zero());
   a_ = a0_ = pa_;
-  keep_.setZero(m), tau_.setZero(nv), qdd_cut_.setZero(nv);
+  keep_.setZero(m), tau_.setZero(nv), qdd_cut_.setZero(nv), pose_q_.setZero(model.nq);
   zero_v_.setZero(nv), qdd_v_.setZero(nv), dv_v_.setZero(nv), ref_v_.setZero(nv), r_m_.setZero(m), x_m_.setZero(m);
   A_.setZero(m, m);
   least_norm_ = ScaledLeastNorm(m);
@@ -362,7 +362,16 @@ void LoopClosures::evaluate(const TreeModel& model, const System& sys, const Tre
     // stepper evaluates each new q at rest for its projections, then in motion for the
     // accelerations) the rows are kept, and g_gen_ says whether any row changed. (Without
     // kinematics no row is mapped: the copies stay those of the last mapping.)
-    poses_same = unchangedSince(ws.A, pose_A_) & unchangedSince(ws.r, pose_r_) & unchangedSince(ws.S, pose_S_);
+    // With the tree's q given, its bits stand for the poses (forwardKinematics reads q and
+    // the model alone): nq numbers compared instead of 18 a link.
+    if (q_) {
+      poses_same = unchangedSince(*q_, pose_q_) & pose_by_q_;
+      pose_by_q_ = true, pose_by_x_ = false;
+    } else {
+      poses_same = unchangedSince(ws.A, pose_A_) & unchangedSince(ws.r, pose_r_) & unchangedSince(ws.S, pose_S_) &
+                   pose_by_x_;
+      pose_by_x_ = true, pose_by_q_ = false;
+    }
   }
   bool changed = false;
   // (G, Gabs and Gbound are zero off each closure's coordinates: only those are cleared)

@@ -396,6 +396,8 @@ class LoopClosures {
   AlignedVector<Matrix3d> pose_A_;          // the links' poses and subspaces at the last evaluate()
   AlignedVector<Vector3d> pose_r_;
   AlignedVector<MotionSubspace> pose_S_;
+  Eigen::VectorXd pose_q_;                  // or the tree's q there (evaluate(..., q))
+  bool pose_by_q_ = false, pose_by_x_ = false;  // which of the two the last mapping kept
   AlignedVector<MotionSubspace> fac_S_, fac_U_;  // ws's articulated factors at the last look
   AlignedVector<Matrix3d> fac_E_;
   AlignedVector<Vector3d> fac_rho_;
