@@ -96,6 +96,8 @@ struct LoopComparison {
   bool ok = false;
   double acc = 0, lambda = 0, Gtlambda = 0, fd = 0, pos = 0, vel = 0;
   int dependent = 0, rows = 0, pos_iterations = 0;
+  bool reused = false;  // the projections left their evaluation at (q, q_dot) ...
+  double reuse = -1;    // ... and the dynamics from it differ from a fresh evaluation's by this
 };
 
 // At the assembled pose (q neutral) with random rates projected onto G q_dot = 0 and random
@@ -194,6 +196,24 @@ LoopComparison compare(Builder& b, unsigned seed, const char* label) {
   Eigen::VectorXd qdx = qd + 0.1 * dv;
   const ClosureProjectionReport vr2 = projectClosureVelocities(model, sys, cl, qx, qdx, ws);
   out.vel = vr2.residual;
+  // ---- the stepper's finish: projections with the kinematics at the rates, which move
+  // nothing on a state already on the closures, leave ws and the evaluation at (q, q_dot);
+  // the dynamics from them are those of a fresh evaluation there, bit for bit
+  // (a rate projected again is judged against its own size, no longer the perturbed one's:
+  // once more, so that it is on the closures by that measure too)
+  projectClosureVelocities(model, sys, cl, qx, qdx, ws);
+  const ClosureProjectionReport py = projectClosurePositions(model, sys, cl, qx, ws, 1e-13, 20, &qdx);
+  const ClosureProjectionReport vy = projectClosureVelocities(model, sys, cl, qx, qdx, ws, 1e-13, 3, true, py.at_rates);
+  out.reused = py.at_rates && py.iterations == 0 && vy.at_rates;
+  if (out.reused) {
+    Eigen::VectorXd qdd_reused, qdd_fresh;
+    constrainedForwardDynamics(model, sys, cl, qx, qdx, tau, ws, qdd_reused, &in, true);
+    const Eigen::VectorXd lambda_reused = cl.lambda;
+    forwardKinematics(model, q, qd, ws);  // (another state in between)
+    constrainedForwardDynamics(model, sys, cl, q, qd, tau, ws, qdd_fresh, &in);
+    constrainedForwardDynamics(model, sys, cl, qx, qdx, tau, ws, qdd_fresh, &in);
+    out.reuse = std::max((qdd_reused - qdd_fresh).cwiseAbs().maxCoeff(), (lambda_reused - cl.lambda).cwiseAbs().maxCoeff());
+  }
   out.ok = true;
   return out;
 }
@@ -212,6 +232,8 @@ void checkLoop(const LoopComparison& c, const char* label, bool unique_lambda) {
   EXPECT_LT(c.fd, 1e-7) << label;
   EXPECT_LT(c.pos, 1e-12) << label;
   EXPECT_LT(c.vel, 1e-12) << label;
+  EXPECT_TRUE(c.reused) << label << ": the projections of a state on the closures moved it";
+  if (c.reused) EXPECT_EQ(c.reuse, 0.0) << label << ": dynamics from the projections' evaluation";
 }
 
 TEST(JointSpaceLoops, FourBarAgreesWithTheAbsoluteSolver) {
