@@ -12,6 +12,8 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
+#include <exception>
+#include <random>
 
 #include "mechanism_sim/core/couplers.h"
 #include "mechanism_sim/core/errors.h"
@@ -76,19 +78,12 @@ LoopClosures::LoopClosures(const TreeModel& model, const System& sys) : model_(&
   std::vector<char> tree_joint(sys.numConstraints(), 0);
   for (int j = 0; j < sys.numJoints(); ++j)
     if (model.joint_link[j] >= 0) tree_joint[sys.joint_constraint[j]] = 1;
-  for (int c = 0; c < sys.numConstraints(); ++c) {
-    if (tree_joint[c]) continue;
-    constraints.push_back(c);
-    row.push_back(m);
-    const int n = sys.constraints[c]->size();
-    nrows_.push_back(n);
-    for (int e = 0; e < n; ++e)
-      sys_row.push_back(c < static_cast<int>(sys.layout.size()) ? sys.layout[c].row + e : -1);
-    m += n;
-  }
+  for (int c = 0; c < sys.numConstraints(); ++c)
+    if (!tree_joint[c]) constraints.push_back(c);
   // per velocity coordinate: the length that makes its rate a speed (the length scale for
   // an angle, 1 for a length), for the direct rows' residual floor
   unit_.setOnes(nv);
+  angle_.assign(nv, 0);
   for (const TreeLink& L : model.links) {
     for (int k = 0; k < L.nv; ++k) {
       bool angle = false;
@@ -96,6 +91,7 @@ LoopClosures::LoopClosures(const TreeModel& model, const System& sys) : model_(&
       else if (L.kind == TreeJointKind::kSpherical) angle = true;
       else if (L.ptr) angle = L.ptr->trackedSlot(k) >= 0;
       if (angle) unit_(L.iv + k) = sys.length_scale;
+      angle_[L.iv + k] = angle;
     }
   }
   // limits and couplers on tree coordinates: rows directly on q
@@ -138,11 +134,57 @@ LoopClosures::LoopClosures(const TreeModel& model, const System& sys) : model_(&
     drive = s0.drive;
     t = s0.t;
   }
+  layout(model, sys, {});
+  // rows that no motion of the tree moves (a planar loop's out-of-plane rows): left out
+  // (laid out again either way: the tests' evaluations are forgotten)
+  layout(model, sys, idleRows(model, sys));
+}
+
+// The closures' rows (every row of each closure's constraint but those idle[i] marks) and
+// everything sized by them; the evaluations' kept results are forgotten.
+void LoopClosures::layout(const TreeModel& model, const System& sys, const std::vector<std::vector<char>>& idle) {
+  row.clear(), sys_row.clear(), nrows_.clear(), sel_.assign(constraints.size(), {}), idle_sys_rows_.clear();
+  m = 0;
+  for (size_t i = 0; i < constraints.size(); ++i) {
+    const int c = constraints[i];
+    const int n = sys.constraints[c]->size();
+    const int r0 = c < static_cast<int>(sys.layout.size()) ? sys.layout[c].row : -1;
+    row.push_back(m);
+    for (int e = 0; e < n; ++e) {
+      if (!idle.empty() && idle[i][e]) {
+        idle_sys_rows_.push_back(r0 < 0 ? -1 : r0 + e);
+        continue;
+      }
+      sel_[i].push_back(e);
+      sys_row.push_back(r0 < 0 ? -1 : r0 + e);
+    }
+    int kept = static_cast<int>(sel_[i].size());
+    if (kept == 0) {  // (a closure no motion moves at all: kept whole, its rows dropped as round-off)
+      idle_sys_rows_.resize(idle_sys_rows_.size() - n);
+      for (int e = 0; e < n; ++e) sys_row.push_back(r0 < 0 ? -1 : r0 + e);
+      kept = n;
+    }
+    if (kept == n) sel_[i].clear();  // (every row: evaluated in place)
+    nrows_.push_back(kept);
+    m += kept;
+  }
+  idle_ = static_cast<int>(idle_sys_rows_.size());
+  Jc.clear();
   Phi.setZero(m), gamma.setZero(m), scale.setZero(m), gamma_q.setZero(m), nu.setZero(m), lambda.setZero(m);
   G.setZero(m, nv), Gabs.setZero(m, nv), Gbound.setZero(m, nv), Y.setZero(nv, m);
   vr_.setZero(m), vt_.setZero(m);
-  for (int c : constraints)
-    Jc.push_back(Eigen::MatrixXd::Zero(sys.constraints[c]->size(), 6 * static_cast<int>(sys.constraints[c]->bodies().size())));
+  Jc_full_.clear();
+  for (size_t i = 0; i < constraints.size(); ++i) {
+    const Constraint& C = *sys.constraints[constraints[i]];
+    const int nb = 6 * static_cast<int>(C.bodies().size());
+    Jc.push_back(Eigen::MatrixXd::Zero(nrows_[i], nb));
+    Jc_full_.push_back(Eigen::MatrixXd::Zero(sel_[i].empty() ? 0 : C.size(), nb));
+  }
+  int full = 0;  // (the largest closure evaluated into the scratch)
+  for (size_t i = 0; i < constraints.size(); ++i) full = std::max(full, static_cast<int>(Jc_full_[i].rows()));
+  Phi_full_.setZero(full), gamma_full_.setZero(full);
+  pose_by_q_ = pose_by_x_ = cleared_ = all_zero_ = false;
+  ++g_gen_;
   rows_of_.assign(constraints.size(), RowsOf::kUnknown);
   Jc_mapped_ = Jc;
   jnorm_.setZero(nrows_.empty() ? 0 : *std::max_element(nrows_.begin(), nrows_.end()), 2);
@@ -153,7 +195,8 @@ LoopClosures::LoopClosures(const TreeModel& model, const System& sys) : model_(&
   zero_v_.setZero(nv), qdd_v_.setZero(nv), dv_v_.setZero(nv), ref_v_.setZero(nv), r_m_.setZero(m), x_m_.setZero(m);
   A_.setZero(m, m);
   least_norm_ = ScaledLeastNorm(m);
-  info.rows = m;
+  info = ClosureSolveInfo{};
+  info.rows = m + idle_;
   // The closures' blocks for the sparse solves (closure_solver.h): each closure's rows touch
   // the coordinates of its bodies' paths to the root (a direct row: its coordinates' links'
   // paths), an ancestor-closed set.
@@ -187,6 +230,63 @@ LoopClosures::LoopClosures(const TreeModel& model, const System& sys) : model_(&
   p_solver_ = solver_;
   p_keep_.setZero(m);
   p_used_.assign(constraints.size(), 0);
+}
+
+// Idle rows. A row of a closure's equations whose G = Phi_x J(q) row is zero at every q is
+// constant under every motion of the tree: G q_dot = 0 and gamma_q = 0 on it, and its
+// multiplier does no work. A planar loop (every joint on its paths turning about one
+// direction n, or sliding across it) closed by a revolute cut joint about n has three of
+// its five: the two C(n1) rows that keep the axes parallel (8.11: rotations about n keep
+// both axes along n) and the point row along n when n is a coordinate axis. The factor
+// drops such rows at every solve as round-off (roundoffRow), after mapping them at every
+// evaluation; here they are found once and left out of the rows.
+// Test: every entry of the row is round-off (kClosureZeroEntry) against the bound Gbound at
+// the neutral configuration and at three others drawn at random (angles across +-3 rad,
+// lengths across +-length_scale, the same draws every time). A row that is not
+// identically zero (its entries are analytic in q) vanishes at random points with
+// probability zero (polynomial identity testing: Schwartz 1980, Zippel 1979). Only
+// scleronomic closures that are not rows on q itself are tested (a drive's, a limit's or a
+// coupler's rows are not idle).
+std::vector<std::vector<char>> LoopClosures::idleRows(const TreeModel& model, const System& sys) {
+  std::vector<std::vector<char>> idle(constraints.size());
+  bool any = false;
+  for (size_t i = 0; i < constraints.size(); ++i) {
+    const Constraint& C = *sys.constraints[constraints[i]];
+    const bool candidate = direct_[i].n == 0 && C.limit() < 0 && !C.rheonomic();
+    idle[i].assign(C.size(), candidate ? 1 : 0);
+    any = any || candidate;
+  }
+  if (!any) return {};
+  TreeWorkspace ws(model);
+  std::mt19937 rng(20261126u);
+  std::uniform_real_distribution<double> unit(-1.0, 1.0);
+  const Eigen::VectorXd q0 = model.neutralPositions(sys);
+  Eigen::VectorXd q = q0, dv(nv);
+  for (int draw = 0; draw < 4 && any; ++draw) {
+    q = q0;
+    if (draw > 0) {
+      for (int k = 0; k < nv; ++k) dv(k) = unit(rng) * (angle_[k] ? 3.0 : sys.length_scale);
+      retract(model, q, dv);
+    }
+    try {
+      forwardKinematics(model, q, zero_v_, ws);
+      evaluate(model, sys, ws, q);
+    } catch (const std::exception&) {
+      return {};  // (an equation that cannot be evaluated there: no row is left out)
+    }
+    any = false;
+    for (size_t i = 0; i < constraints.size(); ++i)
+      for (int e = 0; e < static_cast<int>(idle[i].size()); ++e) {
+        if (!idle[i][e]) continue;
+        // (against Gbound, the norms of the row's and the column's parts: a rotation's
+        // round-off is relative to the vector rotated, not to each component, Gabs's terms)
+        const int r = row[i] + e;
+        for (int k : ccols_[i])
+          if (std::fabs(G(r, k)) > kClosureZeroEntry * Gbound(r, k)) idle[i][e] = 0;
+        any = any || idle[i][e];
+      }
+  }
+  return any ? idle : std::vector<std::vector<char>>{};
 }
 
 void LoopClosures::rowsTimes(const Eigen::MatrixXd& R, const Eigen::VectorXd& v, Eigen::VectorXd& out) const {
@@ -332,7 +432,7 @@ void LoopClosures::clearRows() {
   for (Eigen::MatrixXd& J : Jc) J.setZero();
   keep_.setZero();
   info.rank = 0;
-  info.dependent = m;
+  info.dependent = m + idle_;
   all_zero_ = true;
   cleared_ = true;
   std::fill(rows_of_.begin(), rows_of_.end(), RowsOf::kUnknown);  // (G and Gabs cleared, Gbound not)
@@ -425,7 +525,17 @@ void LoopClosures::evaluate(const TreeModel& model, const System& sys, const Tre
     }
     const auto& bodies = C.bodies();
     for (size_t s = 0; s < bodies.size(); ++s) ptrs[s] = &kin_[bodies[s]];
-    C.evaluate(ptrs, ctx, Phi.segment(r0, n), Jc[i], gamma.segment(r0, n));
+    if (sel_[i].empty()) {
+      C.evaluate(ptrs, ctx, Phi.segment(r0, n), Jc[i], gamma.segment(r0, n));
+    } else {  // every row, then the ones some motion moves (layout(): the idle ones left out)
+      const int nc = C.size();
+      C.evaluate(ptrs, ctx, Phi_full_.head(nc), Jc_full_[i], gamma_full_.head(nc));
+      for (int e = 0; e < n; ++e) {
+        const int f = sel_[i][e];
+        Phi(r0 + e) = Phi_full_(f), gamma(r0 + e) = gamma_full_(f);
+        Jc[i].row(e) = Jc_full_[i].row(f);
+      }
+    }
     if (C.rheonomic()) C.velocityTerm(ctx, nu.data() + r0);  // (nu stays 0 elsewhere)
     for (size_t s = 0; s < bodies.size(); ++s) lever_[s] = kin_[bodies[s]].r.cwiseAbs().maxCoeff() + sys.length_scale;
     for (int e = 0; e < n; ++e) {
@@ -563,9 +673,10 @@ long LoopClosures::massFactorsGeneration(const TreeWorkspace& ws) {
 }
 
 void LoopClosures::factor(const TreeModel& model, const TreeWorkspace& ws) {
-  info.rows = m;
+  info.rows = m + idle_;
   if (m == 0) {
-    info.rank = info.dependent = 0;
+    info.rank = 0;
+    info.dependent = idle_;
     return;
   }
   // (G, Gabs and the articulated factors as at the last factorization: it stands)
@@ -590,7 +701,7 @@ void LoopClosures::factorNow(const TreeModel& model, const TreeWorkspace& ws) {
   if (zero_rows == m) {  // every row zero (free limits): nothing to solve, lambda = 0
     Y.setZero();
     info.rank = 0;
-    info.dependent = m;
+    info.dependent = m + idle_;
     all_zero_ = true;
     return;
   }
@@ -607,7 +718,7 @@ void LoopClosures::factorNow(const TreeModel& model, const TreeWorkspace& ws) {
       for (int k = 0; k < nv; ++k) tau_(k) = G(e, k);
       applyInverseMass(model, ws, tau_.data(), Y.col(e).data());
     }
-  info.dependent = m - info.rank;
+  info.dependent = m + idle_ - info.rank;  // (idle rows count as dependent ones: no motion moves them)
 }
 
 void LoopClosures::solve(const Eigen::VectorXd& b, Eigen::VectorXd& x) const {
@@ -773,7 +884,7 @@ ClosureSolveInfo constrainedForwardDynamics(const TreeModel& model, const System
   if (passage) {
     // a branch passage (branch_passage.cpp): the regular directions by their equations,
     // the held ones at passage_ref's acceleration across the branch
-    if (!cl.regular_factor) cl.info = ClosureSolveInfo{cl.m, cl.p_r_, cl.m - cl.p_r_};
+    if (!cl.regular_factor) cl.info = ClosureSolveInfo{cl.m + cl.idle_, cl.p_r_, cl.m + cl.idle_ - cl.p_r_};
     cl.passageFactor(model, ws);
     cl.passageRhs(cl.gamma_q, cl.p_g_, true);
     cl.rowsTimes(cl.p_R_, qddot, cl.p_mu_);
@@ -849,7 +960,7 @@ ClosureProjectionReport projectClosurePositions(const TreeModel& model, const Sy
       cl.passageSolve(cl.p_g_, cl.p_mu_);
       cl.inverseMassRowsT(model, ws, cl.p_R_, cl.p_mu_, dv);
       dv = -dv;
-      rep.dependent = cl.m - cl.p_r_;
+      rep.dependent = cl.m + cl.idle_ - cl.p_r_;
     } else {
       cl.factor(model, ws);
       rep.dependent = cl.info.dependent;
@@ -908,7 +1019,7 @@ ClosureProjectionReport projectClosureVelocities(const TreeModel& model, const S
       forwardDynamicsAtKinematics(model, sys, zero, ws, qdd);  // M's factors at q (the same kinematics)
       if (passage) {
         cl.passageFactor(model, ws);
-        rep.dependent = cl.m - cl.p_r_;
+        rep.dependent = cl.m + cl.idle_ - cl.p_r_;
       } else {
         cl.factor(model, ws);
         rep.dependent = cl.info.dependent;

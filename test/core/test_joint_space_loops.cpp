@@ -96,6 +96,7 @@ struct LoopComparison {
   bool ok = false;
   double acc = 0, lambda = 0, Gtlambda = 0, fd = 0, pos = 0, vel = 0;
   int dependent = 0, rows = 0, pos_iterations = 0;
+  int idle = 0, kept = 0;  // closure rows left out as idle, and kept
   bool reused = false;  // the projections left their evaluation at (q, q_dot) ...
   double reuse = -1;    // ... and the dynamics from it differ from a fresh evaluation's by this
 };
@@ -150,16 +151,15 @@ LoopComparison compare(Builder& b, unsigned seed, const char* label) {
   bodyAccelerations(model, ws, qdd, acc);
   out.dependent = info.dependent;
   out.rows = info.rows;
+  out.idle = cl.idleRowCount();
+  out.kept = cl.m;
 
   Stepper stepper(sys);
   stepper.analyzeDependencies(sys, s);
   stepper.settle(sys, s, in);
   out.acc = accelerationDifference(acc, s.acc, sys.nb, L, sys.gravity.norm());
   Eigen::VectorXd lam_abs(cl.m);
-  for (size_t i = 0; i < cl.constraints.size(); ++i) {
-    const ConstraintLayout& lay = sys.layout[cl.constraints[i]];
-    lam_abs.segment(cl.row[i], lay.size) = s.lambda.segment(lay.row, lay.size);
-  }
+  for (int e = 0; e < cl.m; ++e) lam_abs(e) = s.lambda(cl.sys_row[e]);
   // G^T lambda is unique even with dependent rows; lambda itself when G has full rank
   const Eigen::VectorXd f1 = cl.G.transpose() * cl.lambda, f2 = cl.G.transpose() * lam_abs;
   Eigen::VectorXd fs = (cl.Gabs.transpose() * lam_abs.cwiseAbs()).cwiseMax(1e-300);
@@ -242,7 +242,9 @@ TEST(JointSpaceLoops, FourBarAgreesWithTheAbsoluteSolver) {
     const char* label = L == 1.0 ? "four-bar, m" : "four-bar, mm";
     const LoopComparison c = compare(b, 11, label);
     report(label, c);
-    EXPECT_EQ(c.dependent, 3) << label;  // the cut revolute's out-of-plane rows
+    EXPECT_EQ(c.dependent, 3) << label;  // the cut revolute's out-of-plane rows ...
+    EXPECT_EQ(c.idle, 3) << label;       // ... left out of the closure's rows: no motion moves them
+    EXPECT_EQ(c.kept, 2) << label;
     checkLoop(c, label, true);
   }
 }
@@ -254,12 +256,13 @@ TEST(JointSpaceLoops, RssrAgreesWithTheAbsoluteSolver) {
     const LoopComparison c = compare(b, 12, label);
     report(label, c);
     EXPECT_EQ(c.dependent, 0) << label;
+    EXPECT_EQ(c.idle, 0) << label;  // (a spatial loop: every row moves)
     checkLoop(c, label, true);
   }
 }
 
 TEST(JointSpaceLoops, RandomTreesWithRandomClosuresAgreeWithTheAbsoluteSolver) {
-  int checked = 0, with_dependent = 0;
+  int checked = 0, with_dependent = 0, with_idle = 0;
   double worst_acc = 0, worst_lambda = 0, worst_gt = 0, worst_fd = 0, worst_pos = 0, worst_vel = 0;
   for (double L : {1.0, 1e3})
     for (unsigned seed = 1; seed <= 24; ++seed) {
@@ -273,6 +276,7 @@ TEST(JointSpaceLoops, RandomTreesWithRandomClosuresAgreeWithTheAbsoluteSolver) {
       checkLoop(c, label.c_str(), c.dependent == 0);
       ++checked;
       with_dependent += c.dependent > 0;
+      with_idle += c.idle > 0;
       worst_acc = std::max(worst_acc, c.acc);
       if (c.dependent == 0) worst_lambda = std::max(worst_lambda, c.lambda);
       worst_gt = std::max(worst_gt, c.Gtlambda);
@@ -280,9 +284,9 @@ TEST(JointSpaceLoops, RandomTreesWithRandomClosuresAgreeWithTheAbsoluteSolver) {
       worst_pos = std::max(worst_pos, c.pos);
       worst_vel = std::max(worst_vel, c.vel);
     }
-  std::printf("[random loops] %d trees (%d with dependent closure rows): acc %.2e, lambda (full rank) %.2e, "
+  std::printf("[random loops] %d trees (%d with dependent closure rows, %d with idle ones): acc %.2e, lambda (full rank) %.2e, "
               "G^T lambda %.2e, FD(G) %.2e, position projection %.2e, velocity projection %.2e\n",
-              checked, with_dependent, worst_acc, worst_lambda, worst_gt, worst_fd, worst_pos, worst_vel);
+              checked, with_dependent, with_idle, worst_acc, worst_lambda, worst_gt, worst_fd, worst_pos, worst_vel);
   EXPECT_GE(checked, 20);
 }
 

@@ -137,7 +137,9 @@ class LoopClosures {
   std::vector<int> constraints;
   std::vector<int> row;          // first closure row per closure
   std::vector<int> sys_row;      // per closure row: its System row (sys.layout[c].row + e)
-  int m = 0;                     // closure rows
+  int m = 0;                     // closure rows (less the idle ones: idleRowCount())
+  // Rows of the closures' equations no motion of the tree moves, left out (idleRows())
+  int idleRowCount() const { return idle_; }
   int nv = 0;
   // The context the closures' equations read. By default the closure's own copies (from
   // initialState(sys): tracked angles per sys constraint, limit sides all 0 (free), drive
@@ -197,6 +199,7 @@ class LoopClosures {
   // out(sys_row[e]) = lambda(e); the tree joints' rows are left as they are.
   void systemMultipliers(Eigen::VectorXd& out) const {
     for (int e = 0; e < m; ++e) out(sys_row[e]) = lambda(e);
+    for (int r : idle_sys_rows_) if (r >= 0) out(r) = 0.0;  // (rows no motion moves: no force)
   }
   // tau += (G_k J(q))^T tau_k for every cut joint's coordinate k with effort tau_k in `in`
   // (its rows G_k from Joint::coordinates over its two bodies, mapped as G), at ws's
@@ -307,7 +310,20 @@ class LoopClosures {
   const Eigen::VectorXd* q_ = nullptr;  // evaluate()'s q, for the direct rows' Phi
   std::vector<DirectRow> direct_;  // per closure
   std::vector<int> limit_col_;     // per sys limit: its velocity coordinate (a direct row), or -1
-  std::vector<int> nrows_;         // per closure: its rows (the constraint's size)
+  std::vector<int> nrows_;         // per closure: its rows (the constraint's, less its idle ones)
+  // Idle rows (idleRows()): rows of a closure's equations whose G row is zero wherever the
+  // tree is (a planar loop's out-of-plane rows), so that no motion of the tree changes them.
+  // They are left out of the closures' rows: per closure the constraint's rows that are
+  // kept (empty: every one), the idle ones' System rows (their multipliers are 0) and the
+  // scratch the kept rows are copied from.
+  std::vector<std::vector<int>> sel_;
+  std::vector<int> idle_sys_rows_;
+  int idle_ = 0;
+  std::vector<Eigen::MatrixXd> Jc_full_;
+  Eigen::VectorXd Phi_full_, gamma_full_;
+  std::vector<char> angle_;        // per velocity coordinate: an angle
+  void layout(const TreeModel& model, const System& sys, const std::vector<std::vector<char>>& idle);
+  std::vector<std::vector<char>> idleRows(const TreeModel& model, const System& sys);
   // evaluate()'s scratch: per body of a closure its lever (scale), per row the norms of the
   // row's parts on a body's [v; omega'] (Gbound)
   double lever_[kMaxConstraintBodies] = {};
