@@ -752,7 +752,7 @@ int ScaledLeastNorm::factor(Eigen::MatrixXd& A, const Eigen::VectorXd* keep) {
       ++kept;
     }
   }
-  small_ = kept <= kSmall && kept < n;
+  small_ = kept <= kSmall;  // (every row kept too: fixed-capacity storage, no dynamic-size overhead)
   compact_ = !small_ && kept < n;
   kept_ = kept;
   if (small_) {  // the kept rows alone (dropped ones: x_e = 0, each counted with rank 1 as below)
