@@ -879,7 +879,10 @@ ClosureSolveInfo constrainedForwardDynamics(const TreeModel& model, const System
     return cl.info;
   }
   if (!evaluated) cl.evaluate(model, sys, ws, q);
+  // (held directions across this motion: branch_passage.cpp)
+  cl.passage_rate = &qdot;
   const bool passage = cl.passage_ref && cl.findPassage();
+  cl.passage_rate = nullptr;
   if (!passage || cl.regular_factor) cl.factor(model, ws);
   if (passage) {
     // a branch passage (branch_passage.cpp): the regular directions by their equations,

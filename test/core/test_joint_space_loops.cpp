@@ -16,6 +16,7 @@
 
 #include "mechanism_sim/core/evaluation.h"
 #include "mechanism_sim/core/loop_closure.h"
+#include "mechanism_sim/core/models.h"
 #include "mechanism_sim/core/stepper.h"
 
 namespace mechanism_sim {
@@ -345,6 +346,60 @@ TEST(JointSpaceLoops, FourBarIntegratedOneSecondTracksTheAbsoluteFormulation) {
   std::printf("[four-bar 1 s] crank angle %.12f rad (joint space), largest difference to the absolute run %.2e rad\n",
               q(model.links[crank].iq), worst);
   EXPECT_LT(worst, 1e-8);
+}
+
+// A branch passage's held direction is taken across the motion (branch_passage.cpp, "across
+// the motion"): its reaction does no work on it. A four-bar 1e-5 rad from flat with its
+// coordinate across the branch carried 1e-9 off (the integration's, as in a passage): the
+// level set's normal there leans 1e-4 into the motion, and a reaction along it did work:
+// 4e-9 of the constraint forces' |q_dot|^T |f| (the four-bars' random energy errors at
+// 0.1 ms, one per passage, largest where a stage landed nearest the crossing; 3e-16 with
+// the direction across the motion). The rates are projected
+// as the stepper's are (the regular directions' equations), so the constraint forces'
+// power q_dot^T M (q_ddot_free - q_ddot) is round-off.
+TEST(JointSpaceLoops, AHeldDirectionsReactionDoesNoWorkOnTheMotion) {
+  Mechanism mech;
+  models::fourBarChain(mech, 1, 0.4, 1.0, 0.3);  // flat at q = 0.3 on the parallelogram
+  mech.build();
+  const System& sys = mech.system();
+  TreeModel model(sys);
+  TreeWorkspace ws(model);
+  LoopClosures cl(model, sys);
+  ASSERT_EQ(model.nv, 3);
+  const Eigen::VectorXd zero = Eigen::VectorXd::Zero(model.nv);
+  // the branches' tangents at the flat pose: G's null space there (the parallelogram's is
+  // G's null vector at the built pose, linear in the joint coordinates)
+  auto nullSpace = [&](const Eigen::VectorXd& q) {
+    forwardKinematics(model, q, zero, ws);
+    cl.evaluate(model, sys, ws, q);
+    Eigen::JacobiSVD<Eigen::MatrixXd> svd(cl.G, Eigen::ComputeFullV);
+    return Eigen::MatrixXd(svd.matrixV());
+  };
+  const Eigen::VectorXd q0 = model.neutralPositions(sys);
+  Eigen::VectorXd t = nullSpace(q0).col(2);
+  t /= t(model.links[model.joint_link[0]].iv);  // (crank 0's rate 1)
+  const Eigen::VectorXd flat = q0 + 0.3 * t;
+  const Eigen::MatrixXd V = nullSpace(flat);
+  Eigen::VectorXd across = V.col(1) - V.col(1).dot(t) / t.squaredNorm() * t;
+  if (std::fabs(V.col(2).dot(t)) < std::fabs(V.col(1).dot(t)))
+    across = V.col(2) - V.col(2).dot(t) / t.squaredNorm() * t;
+  across.normalize();
+  const Eigen::VectorXd q = flat + 1e-5 * t + 1e-9 * across;
+  Eigen::VectorXd qdot = 2.0 * t;
+  Eigen::VectorXd a_ref = Eigen::VectorXd::Zero(model.nv);
+  cl.passage_ref = &a_ref;
+  projectClosureVelocities(model, sys, cl, q, qdot, ws, 1e-14);
+  Eigen::VectorXd qdd, qdd_free;
+  constrainedForwardDynamics(model, sys, cl, q, qdot, zero, ws, qdd);
+  EXPECT_GT(cl.passageDirections(), 0) << "a passage";
+  forwardDynamics(model, sys, q, qdot, zero, ws, qdd_free);
+  AlignedVector<Matrix6d> Ic(model.nb);
+  Eigen::MatrixXd H = Eigen::MatrixXd::Zero(model.nv, model.nv);
+  jointSpaceInertia(model, ws, Ic, H);
+  const Eigen::VectorXd f = H * (qdd_free - qdd);  // the constraint forces, R^T mu
+  const double power = qdot.dot(f), scale = qdot.cwiseAbs().dot(f.cwiseAbs());
+  std::printf("[four-bar 1e-5 rad from flat, 1e-9 across] constraint forces' power %.2e of %.2e\n", power, scale);
+  EXPECT_LT(std::fabs(power), 1e-12 * scale);
 }
 
 }  // namespace

@@ -148,6 +148,8 @@ class JointStepper {
   // s.qddot is q_ddot at (q_end_, v_end_) under the current inputs: stage 1 of the next step
   bool fresh_ = false;
   Eigen::VectorXd q_end_, v_end_;
+  // State::q_round and qdot_round at the step's start (restored when the step fails)
+  Eigen::VectorXd comp_q_, comp_v_;
   Eigen::VectorXd a_ref_;  // q_ddot at the step's start: what a branch passage holds
   std::vector<BodyKin> kin_;
   Eigen::VectorXd spring_x_, spring_u_;

@@ -264,6 +264,11 @@ class LoopClosures {
   // equations exactly (v_i^T a = u_i^T D_r gamma_q / s_i). Outside a passage nothing changes.
   const Eigen::VectorXd* passage_ref = nullptr;
   bool passage_hold = true;  // false: the decomposition applies, nothing is held (a settle)
+  // The rates of the motion at the coordinates of the next findPassage() (the acceleration
+  // solves set it to their q_dot; nullptr: none, as in the projections). A held direction is
+  // then taken across the motion (branch_passage.cpp, "across the motion"): its reaction
+  // does no work on it.
+  const Eigen::VectorXd* passage_rate = nullptr;
   // Whether constrainedForwardDynamics also factors the ordinary closure solve (factor())
   // where it takes a passage's: solve() and Y read that factorization (the joint stepper's
   // friction and damping at a step's start); false skips it (the later stages).
@@ -351,6 +356,9 @@ class LoopClosures {
   Eigen::LLT<Small6> p_llt_;  // test away from passages)
   bool closureRows(size_t c);
   std::vector<int> p_rows_, p_cols_;
+  Eigen::VectorXd p_m_, p_h_;  // a closure's rates and held direction over its columns
+  Eigen::VectorXd p_rate_;     // passage_rate at the last findPassage() (p_rate_set_)
+  bool p_rate_set_ = false;
   Eigen::JacobiSVD<Eigen::MatrixXd> p_svd_;
   Eigen::JacobiSVD<Small6> p_svd6_;  // (the same up to 6 x 6)
   int p_r_ = 0, p_band_ = 0;

@@ -179,6 +179,9 @@ struct State {
   // accelerations at the start of the step that led here), so a restored State computes
   // qddot again to the same bits
   Eigen::VectorXd qddot_ref;
+  // the round-off of q and qdot's last update, carried into the next step (joint_stepper.cpp:
+  // compensated summation); zero after settle
+  Eigen::VectorXd q_round, qdot_round;
   EvalContext context() const { return EvalContext{tracked.data(), limit_side.data(), t, drive.data()}; }
 };
 
