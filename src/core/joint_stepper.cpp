@@ -589,7 +589,9 @@ bool JointStepper::classifyDamping(const System& sys, const State& s, double h) 
       // when the hand carries it. G M^-1 e_k is row k of M^-1 G^T.
       damp_col_ = damp_Minv_.col(next++);
       if (damp_touched_[i])  // (by columns: Eigen's product kernels cost more at these sizes)
-        for (int e : damp_used_) damp_col_ -= damp_W_.col(e) * damp_Yd_(i, e);
+        // (a row on other branches of the closures has Yd 0 here: skipped, every bit as before)
+        for (int e : damp_used_)
+          if (damp_Yd_(i, e) != 0.0) damp_col_ -= damp_W_.col(e) * damp_Yd_(i, e);
       const double exact = damp_rc_(i) * damp_rc_.dot(damp_col_.cwiseAbs());  // sum_l sqrt(c_k c_l) |P_lk|
       stiff = !(h * exact <= bound);
     }
@@ -709,7 +711,8 @@ void JointStepper::dampedInverseMass() {
     damp_r_(f) = 1.0;
     closures_.solve(damp_r_, damp_mu_);
     damp_W_.col(f).setZero();
-    for (int e : damp_used_) damp_W_.col(f) += damp_Yd_.col(e) * damp_mu_(e);
+    for (int e : damp_used_)  // (rows on other branches than f's have mu 0 exactly: skipped)
+      if (damp_mu_(e) != 0.0) damp_W_.col(f) += damp_Yd_.col(e) * damp_mu_(e);
   }
 }
 
