@@ -168,6 +168,8 @@ void JointStepper::setDamping(const System& sys) {
   damp_rc_.resize(nd);
   for (int i = 0; i < nd; ++i) damp_rc_(i) = std::sqrt(damped_[i].c);
   damp_filter_.assign(nd, 0.0);
+  body_inverse_.clear();
+  for (const Body& B : sys.bodies) body_inverse_.push_back(bodyInverse(B));
   damp_rcb_.assign(nd, 0.0);
   damp_p_.assign(model_.nb, Vector6d::Zero());
   damp_mark_.assign(model_.nb, 0);
@@ -487,7 +489,18 @@ void JointStepper::frictionFor(const System& sys, State& s, double h) {
   }
 }
 
-double coordinateInverseMassBound(const System& sys, const Joint& J, const Row& row) {
+BodyInverse bodyInverse(const Body& B) {
+  BodyInverse out;
+  if (B.m > 0.0) out.inv_m = 1.0 / B.m;
+  const Eigen::LLT<Matrix3d> llt(B.Jp);
+  if (llt.info() == Eigen::Success && llt.matrixLLT().diagonal().minCoeff() > 0.0) {
+    out.inv_J = llt.solve(Matrix3d::Identity());
+    out.has_J = true;
+  }
+  return out;
+}
+
+double coordinateInverseMassBound(const Joint& J, const Row& row, const BodyInverse& bi, const BodyInverse& bj) {
   // (M^-1)_kk = 1 / min { x^T M x : x_k = 1 } for M SPD (the minimum is taken at
   // x = M^-1 e_k / (M^-1)_kk). x^T M x is twice the kinetic energy, sum_b u_b^T M_b u_b over
   // the bodies' velocities u = J(q) x (u_b = [v; omega'], M_b = diag(m, J'): the bodies' own
@@ -503,21 +516,20 @@ double coordinateInverseMassBound(const System& sys, const Joint& J, const Row& 
   // massless link) leaves the minimum at 0: no bound.
   double sum = 0.0;
   for (int slot = 0; slot < 2; ++slot) {
-    const int b = slot == 0 ? J.bodyI() : J.bodyJ();
-    if (b == System::kGround) continue;
-    const Body& B = sys.bodies[b];
+    if ((slot == 0 ? J.bodyI() : J.bodyJ()) == System::kGround) continue;
+    const BodyInverse& inv = slot == 0 ? bi : bj;
     const Vector3d gr = row.J.segment<3>(6 * slot).transpose(), gt = row.J.segment<3>(6 * slot + 3).transpose();
-    if (!gr.isZero(0.0)) {
-      if (!(B.m > 0.0)) return HUGE_VAL;
-      sum += gr.squaredNorm() / B.m;
-    }
+    if (!gr.isZero(0.0)) sum += gr.squaredNorm() * inv.inv_m;
     if (!gt.isZero(0.0)) {
-      const Eigen::LLT<Matrix3d> llt(B.Jp);
-      if (llt.info() != Eigen::Success || !(llt.matrixLLT().diagonal().minCoeff() > 0.0)) return HUGE_VAL;
-      sum += gt.dot(llt.solve(gt));
+      if (!inv.has_J) return HUGE_VAL;
+      sum += gt.dot(inv.inv_J * gt);
     }
   }
   return std::isfinite(sum) ? sum : HUGE_VAL;
+}
+
+double coordinateInverseMassBound(const System& sys, const Joint& J, const Row& row) {
+  return coordinateInverseMassBound(J, row, bodyInverse(sys.bodies[J.bodyI()]), bodyInverse(sys.bodies[J.bodyJ()]));
 }
 
 // Which damped coordinates are stiff at this step, by stiff_damping.cpp's rule (see there):
@@ -566,7 +578,7 @@ bool JointStepper::classifyDamping(const System& sys, const State& s, double h) 
                                                   gk.tail<3>().dot(Mi.bottomRightCorner<3, 3>() * gl.tail<3>()));
         }
       }
-      beta = coordinateInverseMassBound(sys, J, damp_rows_[d.k]);
+      beta = coordinateInverseMassBound(J, damp_rows_[d.k], body_inverse_[J.bodyI()], body_inverse_[J.bodyJ()]);
       if (d.revolute) d.bound = sum, d.beta = beta;
     }
     damp_filter_[i] = sum;

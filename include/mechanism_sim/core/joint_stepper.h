@@ -22,6 +22,7 @@
 // stiff damping, those two solves use the ordinary closure factorization).
 #pragma once
 #include <array>
+#include <cmath>
 #include <string>
 #include <vector>
 
@@ -46,13 +47,24 @@ std::string jointFormulationUnsupported(const System& sys);
 // absolute.
 Formulation chooseFormulation(const System& sys, Formulation asked, std::string* why);
 
+// 1 / m and J'^-1 of a body (its mass and central inertia): inv_m +inf without mass, has_J
+// false where J' is not positive definite.
+struct BodyInverse {
+  double inv_m = HUGE_VAL;
+  Matrix3d inv_J = Matrix3d::Zero();
+  bool has_J = false;
+};
+BodyInverse bodyInverse(const Body& B);
+
 // An upper bound on (M^-1)_kk, M the joint-space inertia of the tree, for a joint coordinate
 // whose row over its joint's two bodies (Joint::coordinates) is `row`, in the configuration
 // the row was taken in: row M_b^-1 row^T with the two bodies' own masses and central
 // inertias (derivation at the definition). +inf (HUGE_VAL) where the row moves a body that
 // has no mass or no inertia along it. For a revolute joint the row, and so the bound, is the
-// same in every configuration. (JointStepper::classifyDamping.)
+// same in every configuration. (JointStepper::classifyDamping.) The second form with the
+// bodies' inverses (bi, bj: of J's bodies i and j) computed once.
 double coordinateInverseMassBound(const System& sys, const Joint& J, const Row& row);
+double coordinateInverseMassBound(const Joint& J, const Row& row, const BodyInverse& bi, const BodyInverse& bj);
 
 class JointStepper {
  public:
@@ -138,6 +150,7 @@ class JointStepper {
   std::vector<char> damp_touched_;     // per damped_ entry: its row of damp_Yd_ is not zero
   Eigen::VectorXd damp_col_, damp_rc_, damp_x_;  // P e_k; sqrt(c) per damped_ entry; scratch
   std::vector<double> damp_filter_, damp_rcb_;   // per damped_ entry, this step: the filter, sqrt(c beta)
+  std::vector<BodyInverse> body_inverse_;        // per System body (the bound's)
   AlignedVector<Vector6d> damp_p_;     // the inward passes' forces
   std::vector<char> damp_mark_;        // per link: on a closure row's paths
   std::vector<int> damp_links_;        // those links, children before parents
