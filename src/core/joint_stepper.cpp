@@ -168,9 +168,9 @@ void JointStepper::setDamping(const System& sys) {
   damp_rc_.resize(nd);
   for (int i = 0; i < nd; ++i) damp_rc_(i) = std::sqrt(damped_[i].c);
   damp_filter_.assign(nd, 0.0);
-  body_inverse_.clear();
-  for (const Body& B : sys.bodies) body_inverse_.push_back(bodyInverse(B));
   damp_rcb_.assign(nd, 0.0);
+  body_inverse_.clear();  // (classifyDamping's bound: the bodies' inverses once)
+  for (const Body& B : sys.bodies) body_inverse_.push_back(bodyInverse(B));
   damp_p_.assign(model_.nb, Vector6d::Zero());
   damp_mark_.assign(model_.nb, 0);
   damp_links_.reserve(model_.nb);
