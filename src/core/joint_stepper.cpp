@@ -168,6 +168,10 @@ void JointStepper::setDamping(const System& sys) {
   damp_col_.setZero(nd);
   damp_rc_.resize(nd);
   for (int i = 0; i < nd; ++i) damp_rc_(i) = std::sqrt(damped_[i].c);
+  damp_filter_.assign(nd, 0.0);
+  damp_rcb_.assign(nd, 0.0);
+  body_inverse_.clear();  // (classifyDamping's bound: the bodies' inverses once)
+  for (const Body& B : sys.bodies) body_inverse_.push_back(bodyInverse(B));
   damp_p_.assign(model_.nb, Vector6d::Zero());
   damp_mark_.assign(model_.nb, 0);
   damp_links_.reserve(model_.nb);
@@ -530,23 +534,79 @@ void JointStepper::frictionFor(const System& sys, State& s, double h) {
   }
 }
 
+BodyInverse bodyInverse(const Body& B) {
+  BodyInverse out;
+  if (B.m > 0.0) out.inv_m = 1.0 / B.m;
+  const Eigen::LLT<Matrix3d> llt(B.Jp);
+  if (llt.info() == Eigen::Success && llt.matrixLLT().diagonal().minCoeff() > 0.0) {
+    out.inv_J = llt.solve(Matrix3d::Identity());
+    out.has_J = true;
+  }
+  return out;
+}
+
+double coordinateInverseMassBound(const Joint& J, const Row& row, const BodyInverse& bi, const BodyInverse& bj) {
+  // (M^-1)_kk = 1 / min { x^T M x : x_k = 1 } for M SPD (the minimum is taken at
+  // x = M^-1 e_k / (M^-1)_kk). x^T M x is twice the kinetic energy, sum_b u_b^T M_b u_b over
+  // the bodies' velocities u = J(q) x (u_b = [v; omega'], M_b = diag(m, J'): the bodies' own
+  // masses and central inertias, of which the tree's are composed), and x_k = row u (the
+  // coordinate's rate is its row times the bodies' velocities: settle() reads q_dot so). Leaving
+  // out every condition on u but row u = 1 (that the joints hold the bodies together, that u
+  // comes from joint rates) and the energies of all bodies but the row's two can only lower
+  // the minimum:
+  //   min { x^T M x : x_k = 1 } >= min { sum_{b = i, j} u_b^T M_b u_b : row u = 1 } = 1 / (row M_b^-1 row^T),
+  // so (M^-1)_kk <= row M_b^-1 row^T = sum_b |g_b,r|^2 / m_b + g_b,theta J'_b^-1 g_b,theta^T.
+  // (System::Minv is not used: its stand-ins raise every moment, which would make the bound
+  // fall short by up to 1e-3.) A body the row moves where it has no mass or no inertia (a
+  // massless link) leaves the minimum at 0: no bound.
+  double sum = 0.0;
+  for (int slot = 0; slot < 2; ++slot) {
+    if ((slot == 0 ? J.bodyI() : J.bodyJ()) == System::kGround) continue;
+    const BodyInverse& inv = slot == 0 ? bi : bj;
+    const Vector3d gr = row.J.segment<3>(6 * slot).transpose(), gt = row.J.segment<3>(6 * slot + 3).transpose();
+    if (!gr.isZero(0.0)) sum += gr.squaredNorm() * inv.inv_m;
+    if (!gt.isZero(0.0)) {
+      if (!inv.has_J) return HUGE_VAL;
+      sum += gt.dot(inv.inv_J * gt);
+    }
+  }
+  return std::isfinite(sum) ? sum : HUGE_VAL;
+}
+
+double coordinateInverseMassBound(const System& sys, const Joint& J, const Row& row) {
+  return coordinateInverseMassBound(J, row, bodyInverse(sys.bodies[J.bodyI()]), bodyInverse(sys.bodies[J.bodyJ()]));
+}
+
 // Which damped coordinates are stiff at this step, by stiff_damping.cpp's rule (see there):
 // s_k = h sum_l sqrt(c_k c_l) |P_lk| over the damped coordinates l (Gershgorin on
 // h C^1/2 P C^1/2, the damped modes' decay rates; P the constrained inverse mass), stiff
-// above the tableau's stiff_bound. First the absolute formulation's bound, with the
-// joints' rows on their two bodies and the bodies' own inverse masses: (M^-1)_kk in joint
-// coordinates is the same G_k P G_k^T as there, P <= the block-diagonal inverse mass. Only
-// where that bound exceeds stiff_bound / 4, P_lk itself, at the damped l only
-// (dampedInverseMass: O(depth) an entry, where a column of P costs passes over the tree).
+// above the tableau's stiff_bound. Three tests, cheapest first:
+//  1. An upper bound on every s_k at once, from a bound beta_l >= (M^-1)_ll per damped
+//     coordinate (coordinateInverseMassBound; for a revolute joint independent of the
+//     configuration, so kept): P is positive semidefinite and P <= M^-1 (the closures'
+//     term M^-1 G^T (G M^-1 G^T)^+ G M^-1 is positive semidefinite), so
+//        |P_lk| <= sqrt(P_ll P_kk) <= sqrt((M^-1)_ll (M^-1)_kk) <= sqrt(beta_l beta_k),
+//        s_k <= h sqrt(c_k beta_k) sum_l sqrt(c_l beta_l) =: u_k.
+//     A coordinate with u_k within stiff_bound is not stiff (the 7-dof arms' heavy links:
+//     kuka_iiwa's u_k is at most 1.82 against RK4's 2; there nothing more is computed).
+//  2. Else the absolute formulation's bound with the joint's own damped coordinates, the
+//     rows on their two bodies and System::Minv: a filter, not a bound (it leaves out the
+//     other joints' terms), so only where it is below stiff_bound / 4 is the coordinate
+//     taken as not stiff (as before 1. was added: the same coordinates are stiff).
+//  3. Else P_lk itself, at the damped l only (dampedInverseMass: O(depth) an entry, where a
+//     column of P costs passes over the tree).
+// (1. decides only where 3. would decide the same: u_k >= s_k.)
 bool JointStepper::classifyDamping(const System& sys, const State& s, double h) {
   const double bound = tableau_->stiff_bound;
   bool kinematics = false;
   const int nd = static_cast<int>(damped_.size());
   damp_candidates_.clear();
+  double spread = 0.0;  // sum_l sqrt(c_l beta_l) (1.)
   for (int i = 0; i < nd; ++i) {
     Damped& d = damped_[i];
     const Joint& J = *sys.joints[d.j];
-    double sum = d.bound;  // the bound: sum over the damped coordinates of the same joint
+    double sum = d.bound;  // the filter (2.): sum over the damped coordinates of the same joint
+    double beta = d.beta;
     if (sum < 0.0) {
       if (!kinematics) loadKinematics(sys, s.x.data(), s.u.data(), kin_), kinematics = true;
       J.coordinates(kin_[J.bodyI()], kin_[J.bodyJ()], s.tracked[J.id()], damp_rows_.data());
@@ -563,12 +623,18 @@ bool JointStepper::classifyDamping(const System& sys, const State& s, double h) 
                                                   gk.tail<3>().dot(Mi.bottomRightCorner<3, 3>() * gl.tail<3>()));
         }
       }
-      if (d.revolute) d.bound = sum;
+      beta = coordinateInverseMassBound(J, damp_rows_[d.k], body_inverse_[J.bodyI()], body_inverse_[J.bodyJ()]);
+      if (d.revolute) d.bound = sum, d.beta = beta;
     }
-    // (other joints' damped coordinates on the same bodies add to the bound; the exact
-    // entries count every damped coordinate)
-    if (h * sum > bound / 4) damp_candidates_.push_back(i);
+    damp_filter_[i] = sum;
+    damp_rcb_[i] = std::sqrt(d.c * beta);
+    spread += damp_rcb_[i];
   }
+  // (u_k NaN or infinite: no bound. 1 - 1e-9: where u_k = s_k, as for a body turning about
+  // a principal axis through its centre on the ground, the two may differ by round-off.)
+  const double below = bound * (1.0 - 1e-9);
+  for (int i = 0; i < nd; ++i)
+    if (!(h * damp_rcb_[i] * spread <= below) && h * damp_filter_[i] > bound / 4) damp_candidates_.push_back(i);
   if (!damp_candidates_.empty()) dampedInverseMass();
   bool changed = false;
   stiff_list_.clear();
@@ -580,7 +646,9 @@ bool JointStepper::classifyDamping(const System& sys, const State& s, double h) 
       // when the hand carries it. G M^-1 e_k is row k of M^-1 G^T.
       damp_col_ = damp_Minv_.col(next++);
       if (damp_touched_[i])  // (by columns: Eigen's product kernels cost more at these sizes)
-        for (int e : damp_used_) damp_col_ -= damp_W_.col(e) * damp_Yd_(i, e);
+        // (a row on other branches of the closures has Yd 0 here: skipped, every bit as before)
+        for (int e : damp_used_)
+          if (damp_Yd_(i, e) != 0.0) damp_col_ -= damp_W_.col(e) * damp_Yd_(i, e);
       const double exact = damp_rc_(i) * damp_rc_.dot(damp_col_.cwiseAbs());  // sum_l sqrt(c_k c_l) |P_lk|
       stiff = !(h * exact <= bound);
     }
@@ -700,7 +768,8 @@ void JointStepper::dampedInverseMass() {
     damp_r_(f) = 1.0;
     closures_.solve(damp_r_, damp_mu_);
     damp_W_.col(f).setZero();
-    for (int e : damp_used_) damp_W_.col(f) += damp_Yd_.col(e) * damp_mu_(e);
+    for (int e : damp_used_)  // (rows on other branches than f's have mu 0 exactly: skipped)
+      if (damp_mu_(e) != 0.0) damp_W_.col(f) += damp_Yd_.col(e) * damp_mu_(e);
   }
 }
 

@@ -22,6 +22,7 @@
 // stiff damping, those two solves use the ordinary closure factorization).
 #pragma once
 #include <array>
+#include <cmath>
 #include <string>
 #include <vector>
 
@@ -45,6 +46,25 @@ std::string jointFormulationUnsupported(const System& sys);
 // bench/RESULTS.md; each coupler or drive is a dense closure in joint space today), else
 // absolute.
 Formulation chooseFormulation(const System& sys, Formulation asked, std::string* why);
+
+// 1 / m and J'^-1 of a body (its mass and central inertia): inv_m +inf without mass, has_J
+// false where J' is not positive definite.
+struct BodyInverse {
+  double inv_m = HUGE_VAL;
+  Matrix3d inv_J = Matrix3d::Zero();
+  bool has_J = false;
+};
+BodyInverse bodyInverse(const Body& B);
+
+// An upper bound on (M^-1)_kk, M the joint-space inertia of the tree, for a joint coordinate
+// whose row over its joint's two bodies (Joint::coordinates) is `row`, in the configuration
+// the row was taken in: row M_b^-1 row^T with the two bodies' own masses and central
+// inertias (derivation at the definition). +inf (HUGE_VAL) where the row moves a body that
+// has no mass or no inertia along it. For a revolute joint the row, and so the bound, is the
+// same in every configuration. (JointStepper::classifyDamping.) The second form with the
+// bodies' inverses (bi, bj: of J's bodies i and j) computed once.
+double coordinateInverseMassBound(const System& sys, const Joint& J, const Row& row);
+double coordinateInverseMassBound(const Joint& J, const Row& row, const BodyInverse& bi, const BodyInverse& bj);
 
 class JointStepper {
  public:
@@ -108,10 +128,11 @@ class JointStepper {
     int j = 0, k = 0, iv = 0;  // joint, its coordinate, q_dot's index
     double c = 0.0;
     // A revolute joint's angle: its rows on the two bodies are the axis in each body's
-    // frame, so classifyDamping's bound does not change with the configuration: kept in
-    // `bound` once computed (-1: not yet).
+    // frame, so classifyDamping's filter and bound do not change with the configuration:
+    // kept in `bound` and `beta` once computed (-1: not yet).
     bool revolute = false;
     double bound = -1.0;
+    double beta = -1.0;  // coordinateInverseMassBound
   };
   std::vector<Damped> damped_;  // every damped tree coordinate
   // per damped_ entry: the links of its path to the root (its own first), their velocity
@@ -130,6 +151,8 @@ class JointStepper {
   std::vector<int> damp_nz_, damp_nz_first_;  // per closure row: its nonzero entries' coordinates
   std::vector<char> damp_touched_;     // per damped_ entry: its row of damp_Yd_ is not zero
   Eigen::VectorXd damp_col_, damp_rc_, damp_x_;  // P e_k; sqrt(c) per damped_ entry; scratch
+  std::vector<double> damp_filter_, damp_rcb_;   // per damped_ entry, this step: the filter, sqrt(c beta)
+  std::vector<BodyInverse> body_inverse_;        // per System body (the bound's)
   AlignedVector<Vector6d> damp_p_;     // the inward passes' forces
   std::vector<char> damp_mark_;        // per link: on a closure row's paths
   std::vector<int> damp_links_;        // those links, children before parents
