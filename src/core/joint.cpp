@@ -45,6 +45,7 @@ bool Joint::trackedRows(const BodyKin& ki, const BodyKin& kj, const Tracked& t, 
 }
 
 void Joint::putPoint(const JointGeometry& g, RowWriter& out) {
+  if (!out.wants(3)) return out.skip(3);  // (evaluateRows: none of the three read)
   out.put(Cpoint(g.d));
 }
 

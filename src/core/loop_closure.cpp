@@ -144,6 +144,7 @@ LoopClosures::LoopClosures(const TreeModel& model, const System& sys) : model_(&
 // everything sized by them; the evaluations' kept results are forgotten.
 void LoopClosures::layout(const TreeModel& model, const System& sys, const std::vector<std::vector<char>>& idle) {
   row.clear(), sys_row.clear(), nrows_.clear(), sel_.assign(constraints.size(), {}), idle_sys_rows_.clear();
+  sel_mask_.assign(constraints.size(), 0u), sel_joint_.assign(constraints.size(), nullptr);
   m = 0;
   for (size_t i = 0; i < constraints.size(); ++i) {
     const int c = constraints[i];
@@ -165,6 +166,9 @@ void LoopClosures::layout(const TreeModel& model, const System& sys, const std::
       kept = n;
     }
     if (kept == n) sel_[i].clear();  // (every row: evaluated in place)
+    sel_mask_[i] = 0u;
+    for (int e : sel_[i]) sel_mask_[i] |= e < 32 ? 1u << e : 0u;
+    sel_joint_[i] = !sel_[i].empty() && n <= 32 ? dynamic_cast<const Joint*>(sys.constraints[c].get()) : nullptr;
     nrows_.push_back(kept);
     m += kept;
   }
@@ -527,9 +531,12 @@ void LoopClosures::evaluate(const TreeModel& model, const System& sys, const Tre
     for (size_t s = 0; s < bodies.size(); ++s) ptrs[s] = &kin_[bodies[s]];
     if (sel_[i].empty()) {
       C.evaluate(ptrs, ctx, Phi.segment(r0, n), Jc[i], gamma.segment(r0, n));
-    } else {  // every row, then the ones some motion moves (layout(): the idle ones left out)
+    } else {  // the rows some motion moves (layout(): the idle ones left out), then copied
       const int nc = C.size();
-      C.evaluate(ptrs, ctx, Phi_full_.head(nc), Jc_full_[i], gamma_full_.head(nc));
+      if (sel_joint_[i])  // (a joint computes those alone)
+        sel_joint_[i]->evaluateRows(ptrs, ctx, Phi_full_.head(nc), Jc_full_[i], gamma_full_.head(nc), sel_mask_[i]);
+      else
+        C.evaluate(ptrs, ctx, Phi_full_.head(nc), Jc_full_[i], gamma_full_.head(nc));
       for (int e = 0; e < n; ++e) {
         const int f = sel_[i][e];
         Phi(r0 + e) = Phi_full_(f), gamma(r0 + e) = gamma_full_(f);

@@ -155,6 +155,33 @@ TEST_P(JointTypes, JacobianAndGammaMatchFiniteDifferences) {
   }
 }
 
+// evaluateRows (the closures' idle rows left out): on the rows it is asked for, the bits of
+// evaluate(); it writes no other row it was not asked for through the shared helpers.
+TEST_P(JointTypes, SelectedRowsAreTheFullEvaluationsRows) {
+  std::mt19937 rng(12);
+  for (int n = 0; n < 20; ++n) {
+    auto joint = randomJoint(GetParam(), rng);
+    const std::vector<BodyKin> kin = {test::randomBody(rng), test::randomBody(rng)};
+    Tracked tr = joint->initialTracked();
+    track(*joint, kin, tr);
+    const Evaluation e = evaluate(*joint, kin, tr);
+    const int size = joint->size();
+    const BodyKin* ptrs[2] = {&kin[0], &kin[1]};
+    const EvalContext ctx{&tr, nullptr};  // (constraint id 0, as evaluate() above)
+    for (unsigned mask = 1; mask < (1u << size); ++mask) {
+      Eigen::VectorXd Phi = Eigen::VectorXd::Constant(size, -7.0), gamma = Phi;
+      Eigen::MatrixXd J = Eigen::MatrixXd::Constant(size, 12, -7.0);
+      joint->evaluateRows(ptrs, ctx, Phi, J, gamma, mask);
+      for (int r = 0; r < size; ++r) {
+        if (!(mask & (1u << r))) continue;
+        EXPECT_EQ(Phi(r), e.Phi(r)) << GetParam() << " mask " << mask << " row " << r;
+        EXPECT_EQ(gamma(r), e.gamma(r)) << GetParam() << " mask " << mask << " row " << r;
+        EXPECT_EQ((J.row(r) - e.J.row(r)).cwiseAbs().maxCoeff(), 0.0) << GetParam() << " mask " << mask << " row " << r;
+      }
+    }
+  }
+}
+
 TEST_P(JointTypes, CoordinateRowsMatchFiniteDifferences) {
   const JointCase* c = jointCase(GetParam());
   if (!c) return;

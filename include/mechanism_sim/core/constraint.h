@@ -97,9 +97,14 @@ class Constraint {
 // Writes Rows into the outputs of Constraint::evaluate, for two-body constraints.
 class RowWriter {
  public:
+  // wanted: a bit per row (bit e: row e), the rows the caller reads; a helper that writes
+  // several rows may skip computing them when none is wanted (wants(), skip()).
   RowWriter(Eigen::Ref<Eigen::VectorXd> Phi, Eigen::Ref<Eigen::MatrixXd> J,
-            Eigen::Ref<Eigen::VectorXd> gamma)
-      : Phi_(Phi), J_(J), gamma_(gamma) {}
+            Eigen::Ref<Eigen::VectorXd> gamma, unsigned wanted = ~0u)
+      : Phi_(Phi), J_(J), gamma_(gamma), wanted_(wanted) {}
+  // Whether any of the next n rows is wanted; skip(n) passes them, written or not.
+  bool wants(int n) const { return n_ >= 32 || ((wanted_ >> n_) & ((n >= 32 ? ~0u : (1u << n) - 1u))) != 0; }
+  void skip(int n) { n_ += n; }
   void put(const Row& row) {
     Phi_(n_) = row.Phi;
     J_.row(n_) = row.J;
@@ -119,6 +124,7 @@ class RowWriter {
   Eigen::Ref<Eigen::VectorXd> Phi_;
   Eigen::Ref<Eigen::MatrixXd> J_;
   Eigen::Ref<Eigen::VectorXd> gamma_;
+  unsigned wanted_;
   int n_ = 0;
 };
 

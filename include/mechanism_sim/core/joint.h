@@ -83,6 +83,14 @@ class Joint : public Constraint {
     RowWriter out(Phi, J, gamma);
     equations(geometry(*kin[0], *kin[1], equationAxes()), *kin[0], *kin[1], ctx.tracked[id()], out);
   }
+  // evaluate() of the rows `rows` marks alone (bit e: row e; the others' Phi, J and gamma are
+  // left as they were, or written): the same numbers on the marked rows. The closures leave
+  // out rows no motion of the tree moves (loop_closure.h, idle rows) and skip computing them.
+  void evaluateRows(const BodyKin* const* kin, const EvalContext& ctx, Eigen::Ref<Eigen::VectorXd> Phi,
+                    Eigen::Ref<Eigen::MatrixXd> J, Eigen::Ref<Eigen::VectorXd> gamma, unsigned rows) const {
+    RowWriter out(Phi, J, gamma, rows);
+    equations(geometry(*kin[0], *kin[1], equationAxesFor(rows)), *kin[0], *kin[1], ctx.tracked[id()], out);
+  }
   // Tracked angles are the coordinates k with trackedSlot(k) >= 0: track() stores their
   // values and rates, trackedRates() their rates.
   void track(const BodyKin* const* kin, const EvalContext& ctx, Tracked& t, Tracked& rate) const final;
@@ -91,6 +99,8 @@ class Joint : public Constraint {
   JointGeometry geometry(const BodyKin& ki, const BodyKin& kj, unsigned parts = kAllParts) const;
   // The parts of JointGeometry that equations() reads (GeometryPart bits).
   virtual unsigned equationAxes() const { return kAllParts; }
+  // Those the rows `rows` marks read (evaluateRows; by default all of equationAxes()).
+  virtual unsigned equationAxesFor(unsigned /*rows*/) const { return equationAxes(); }
 
  protected:
   virtual void equations(const JointGeometry& g, const BodyKin& ki, const BodyKin& kj,
@@ -103,12 +113,14 @@ class Joint : public Constraint {
   // vanishes identically; its components along by_i and -bx_i are the two independent
   // rows bx_i^T bz_j = 0 and by_i^T bz_j = 0, each a C(n1) (8.11).
   static void putParallelAxes(const JointGeometry& g, RowWriter& out) {
+    if (!out.wants(2)) return out.skip(2);  // (evaluateRows: neither row read)
     out.put(Cn1(g.bx_i, g.bz_j));
     out.put(Cn1(g.by_i, g.bz_j));
   }
   // C(p2)(bz_i, d_ij) = tilde(bz_i) d_ij = 0 (A8.2), reduced the same way to
   // bx_i^T d_ij = 0 and by_i^T d_ij = 0, each a C(n2) (8.13).
   static void putOnAxis(const JointGeometry& g, RowWriter& out) {
+    if (!out.wants(2)) return out.skip(2);
     out.put(Cn2(g.bx_i, g.d));
     out.put(Cn2(g.by_i, g.d));
   }

@@ -322,6 +322,8 @@ class LoopClosures {
   // kept (empty: every one), the idle ones' System rows (their multipliers are 0) and the
   // scratch the kept rows are copied from.
   std::vector<std::vector<int>> sel_;
+  std::vector<unsigned> sel_mask_;         // the kept rows as bits, for Joint::evaluateRows
+  std::vector<const Joint*> sel_joint_;    // the closure's joint (kept rows of a joint), or null
   std::vector<int> idle_sys_rows_;
   int idle_ = 0;
   std::vector<Eigen::MatrixXd> Jc_full_;

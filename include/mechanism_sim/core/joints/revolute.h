@@ -16,6 +16,10 @@ class RevoluteJoint : public Joint {
   std::string type() const override { return kType; }
   int size() const override { return 5; }
   unsigned equationAxes() const override { return kBxI | kByI | kBzJ | kGap; }
+  // rows 0-2 the point (d), 3-4 the parallel axes (bx_i, by_i, bz_j)
+  unsigned equationAxesFor(unsigned rows) const override {
+    return ((rows & 0x7u) ? kGap : 0u) | ((rows & 0x18u) ? (kBxI | kByI | kBzJ) : 0u);
+  }
   int trackedSlot(int k) const override { return k == 0 ? 0 : -1; }
   int dof() const override { return static_cast<int>(kDofNames.size()); }
   bool holdsAxesParallel() const override { return true; }
