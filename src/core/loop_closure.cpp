@@ -575,11 +575,31 @@ void LoopClosures::evaluate(const TreeModel& model, const System& sys, const Tre
     for (size_t s = 0; s < bodies.size(); ++s) {
       const int b = bodies[s];
       if (b == 0) continue;
-      const auto Jb = Jc[i].middleCols<6>(6 * s);
+      // (the body's block and its magnitudes copied once, in fixed-capacity storage when it
+      // fits: the products below then run without dynamic-size overhead)
+      const auto Jdyn = Jc[i].middleCols<6>(6 * s);
+      if (n > kSmallRows) {
+        mapBody(model, ws, b, Jdyn, Jdyn.cwiseAbs(), r0, n);
+        continue;
+      }
+      const SmallRows Jb = Jdyn, Jabs = Jdyn.cwiseAbs();
+      mapBody(model, ws, b, Jb, Jabs, r0, n);
+    }
+  }
+  if (changed) ++g_gen_;
+}
+
+// G, Gabs and Gbound of rows r0 .. r0 + n - 1 on the columns of body b's path to the root,
+// from Jb (the rows' Phi_x on b's [delta r; delta theta']) and |Jb| (evaluate()).
+template <class JB, class JA>
+void LoopClosures::mapBody(const TreeModel& model, const TreeWorkspace& ws, int b, const JB& Jb, const JA& Jabs,
+                           int r0, int n) {
+  {
+    {  // (the blocks as evaluate() had them)
       const Matrix3d& Ab = ws.A[b - 1];
       const Vector3d& rb = ws.r[b - 1];
       // the rows' parts' norms for Gbound, once per body (they do not depend on the column)
-      for (int e = 0; e < n; ++e) jnorm_(e, 0) = Jb.row(e).head<3>().norm(), jnorm_(e, 1) = Jb.row(e).tail<3>().norm();
+      for (int e = 0; e < n; ++e) jnorm_(e, 0) = Jb.row(e).template head<3>().norm(), jnorm_(e, 1) = Jb.row(e).template tail<3>().norm();
       for (int a = b; a != 0; a = model.links[a - 1].parent) {
         const TreeLink& L = model.links[a - 1];
         const Matrix3d& Aa = ws.A[a - 1];
@@ -587,14 +607,15 @@ void LoopClosures::evaluate(const TreeModel& model, const System& sys, const Tre
         for (int col = 0; col < L.nv; ++col) {
           const Vector3d wg = Aa * ws.S[a - 1].col(col).head<3>();
           const Vector3d vg = Aa * ws.S[a - 1].col(col).tail<3>();
+          const Vector3d wxl = wg.cross(lever);
           Vector6d u;
-          u.head<3>() = vg + wg.cross(lever);
+          u.head<3>() = vg + wxl;
           u.tail<3>() = Ab.transpose() * wg;
           Vector6d uabs;
-          uabs.head<3>() = vg.cwiseAbs() + (wg.cross(lever)).cwiseAbs();
+          uabs.head<3>() = vg.cwiseAbs() + wxl.cwiseAbs();
           uabs.tail<3>() = u.tail<3>().cwiseAbs();
           G.col(L.iv + col).segment(r0, n).noalias() += Jb * u;
-          Gabs.col(L.iv + col).segment(r0, n).noalias() += Jb.cwiseAbs() * uabs;
+          Gabs.col(L.iv + col).segment(r0, n).noalias() += Jabs * uabs;
           // (norms, not components: a bound that does not vanish where the geometry makes
           // the entry vanish, for the branch passages' normalization)
           const double sv = vg.norm() + wg.norm() * lever.norm(), sw = wg.norm();
@@ -604,7 +625,6 @@ void LoopClosures::evaluate(const TreeModel& model, const System& sys, const Tre
       }
     }
   }
-  if (changed) ++g_gen_;
 }
 
 double LoopClosures::positionResidual() const {

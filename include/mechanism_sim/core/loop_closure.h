@@ -331,6 +331,11 @@ class LoopClosures {
   std::vector<char> angle_;        // per velocity coordinate: an angle
   void layout(const TreeModel& model, const System& sys, const std::vector<std::vector<char>>& idle);
   std::vector<std::vector<char>> idleRows(const TreeModel& model, const System& sys);
+  // evaluate()'s mapping of one body's rows onto G, Gabs and Gbound (loop_closure.cpp)
+  static constexpr int kSmallRows = 6;
+  using SmallRows = Eigen::Matrix<double, Eigen::Dynamic, 6, Eigen::RowMajor, kSmallRows, 6>;
+  template <class JB, class JA>
+  void mapBody(const TreeModel& model, const TreeWorkspace& ws, int b, const JB& Jb, const JA& Jabs, int r0, int n);
   // evaluate()'s scratch: per body of a closure its lever (scale), per row the norms of the
   // row's parts on a body's [v; omega'] (Gbound)
   double lever_[kMaxConstraintBodies] = {};
