@@ -220,7 +220,7 @@ int ClosureSolver::factor(const TreeModel& model, const TreeWorkspace& ws, const
       ++kept_;
     }
   }
-  sparse_ = kept_ > ScaledLeastNorm::kSmall;
+  sparse_ = kept_ > 0;  // (few rows too: the pivots decide, as for many; closure_solver.h)
   if (sparse_) {
     bool same = kept_ == kc_;
     for (int e = 0; e < m_ && same; ++e) same = analyzed_[e] == (d_(e) != 0.0);

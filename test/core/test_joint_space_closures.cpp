@@ -300,7 +300,9 @@ TEST(JointSpaceClosures, ChainWithActiveLimitsOnBothSides) {
         in.effort[0][0] += side * 40 * 9.81 * L * L;
         in.effort[2][0] += -side * 40 * 9.81 * L;
       });
-      if (!c.released) EXPECT_GT(c.lam_max, 0.0);
+      if (!c.released) {
+        EXPECT_GT(c.lam_max, 0.0);
+      }
       kept_active += c.released == 0;
     }
   EXPECT_EQ(kept_active, 4);  // the pressed limits all stayed active

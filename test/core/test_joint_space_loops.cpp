@@ -229,12 +229,16 @@ void checkLoop(const LoopComparison& c, const char* label, bool unique_lambda) {
   ASSERT_TRUE(c.ok) << label;
   EXPECT_LT(c.acc, 1e-10) << label;
   EXPECT_LT(c.Gtlambda, 1e-10) << label;
-  if (unique_lambda) EXPECT_LT(c.lambda, 1e-10) << label;
+  if (unique_lambda) {
+    EXPECT_LT(c.lambda, 1e-10) << label;
+  }
   EXPECT_LT(c.fd, 1e-7) << label;
   EXPECT_LT(c.pos, 1e-12) << label;
   EXPECT_LT(c.vel, 1e-12) << label;
   EXPECT_TRUE(c.reused) << label << ": the projections of a state on the closures moved it";
-  if (c.reused) EXPECT_EQ(c.reuse, 0.0) << label << ": dynamics from the projections' evaluation";
+  if (c.reused) {
+    EXPECT_EQ(c.reuse, 0.0) << label << ": dynamics from the projections' evaluation";
+  }
 }
 
 TEST(JointSpaceLoops, FourBarAgreesWithTheAbsoluteSolver) {

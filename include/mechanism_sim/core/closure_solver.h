@@ -23,8 +23,9 @@
 //                   (AMD, Eigen's AMDOrdering) found once; if a pivot falls below
 //                   kClosureSparsePivot (rows dependent, or nearly), the rank-revealing dense
 //                   solve (ScaledLeastNorm) takes over, so dependent rows get the least-norm
-//                   multipliers as before. At most ScaledLeastNorm::kSmall kept rows go to the
-//                   dense solve directly (a few active limits on an arm).
+//                   multipliers as before. However few the kept rows (a four-bar's 2, an
+//                   arm's active limit), the sparse LDL^T comes first: a rank-revealing
+//                   decomposition of a 2 x 2 cost 10% of the one-loop four-bar's step.
 #pragma once
 #include <vector>
 
