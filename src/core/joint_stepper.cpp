@@ -68,7 +68,7 @@ Formulation chooseFormulation(const System& sys, Formulation asked, std::string*
   // joints) the joint formulation cost 1.2 times the absolute one; auto takes it while they
   // are at most one per 2 coordinates. Loops run in joint coordinates too: their closures
   // cost it 0.45 to 0.75 times the absolute formulation a step ("2026-11-26 (4)": the
-  // four-bars 1/10/50 5.2 / 38.5 / 173 against 12 / 82 / 377 us, the zoo's loop robots 0.5
+  // four-bars 1/10/50 4.7 / 38.5 / 173 against 12 / 82 / 377 us, the zoo's loop robots 0.5
   // to 0.75), and it converges through their branches' flat passages, where the absolute one does not (the ten-loop
   // four-bar 2.7e-11 against 5.5e-8 m at 1 ms, bench/RESULTS.md).
   int mapped = 0;  // always-on rows through the absolute equations
