@@ -699,7 +699,7 @@ void JointStepper::dampedInverseMass() {
   for (int e = 0; e < m; ++e) {
     damp_nz_first_[e] = static_cast<int>(damp_nz_.size());
     damp_direct_[e] = 1;
-    for (int v = 0; v < model_.nv; ++v)
+    for (int v : closures_.rowColumns(e))  // (G is zero off them)
       if (closures_.G(e, v) != 0.0) {
         damp_nz_.push_back(v);
         if (damp_index_of_v_[v] < 0) damp_direct_[e] = 0;

@@ -200,7 +200,7 @@ void LoopClosures::layout(const TreeModel& model, const System& sys, const std::
   A_.setZero(m, m);
   least_norm_ = ScaledLeastNorm(m);
   info = ClosureSolveInfo{};
-  info.rows = m + idle_;
+  info.rows = allRows();
   // The closures' blocks for the sparse solves (closure_solver.h): each closure's rows touch
   // the coordinates of its bodies' paths to the root (a direct row: its coordinates' links'
   // paths), an ancestor-closed set.
@@ -436,7 +436,7 @@ void LoopClosures::clearRows() {
   for (Eigen::MatrixXd& J : Jc) J.setZero();
   keep_.setZero();
   info.rank = 0;
-  info.dependent = m + idle_;
+  info.dependent = allRows();
   all_zero_ = true;
   cleared_ = true;
   std::fill(rows_of_.begin(), rows_of_.end(), RowsOf::kUnknown);  // (G and Gabs cleared, Gbound not)
@@ -594,35 +594,32 @@ void LoopClosures::evaluate(const TreeModel& model, const System& sys, const Tre
 template <class JB, class JA>
 void LoopClosures::mapBody(const TreeModel& model, const TreeWorkspace& ws, int b, const JB& Jb, const JA& Jabs,
                            int r0, int n) {
-  {
-    {  // (the blocks as evaluate() had them)
-      const Matrix3d& Ab = ws.A[b - 1];
-      const Vector3d& rb = ws.r[b - 1];
-      // the rows' parts' norms for Gbound, once per body (they do not depend on the column)
-      for (int e = 0; e < n; ++e) jnorm_(e, 0) = Jb.row(e).template head<3>().norm(), jnorm_(e, 1) = Jb.row(e).template tail<3>().norm();
-      for (int a = b; a != 0; a = model.links[a - 1].parent) {
-        const TreeLink& L = model.links[a - 1];
-        const Matrix3d& Aa = ws.A[a - 1];
-        const Vector3d lever = rb - ws.r[a - 1];
-        for (int col = 0; col < L.nv; ++col) {
-          const Vector3d wg = Aa * ws.S[a - 1].col(col).head<3>();
-          const Vector3d vg = Aa * ws.S[a - 1].col(col).tail<3>();
-          const Vector3d wxl = wg.cross(lever);
-          Vector6d u;
-          u.head<3>() = vg + wxl;
-          u.tail<3>() = Ab.transpose() * wg;
-          Vector6d uabs;
-          uabs.head<3>() = vg.cwiseAbs() + wxl.cwiseAbs();
-          uabs.tail<3>() = u.tail<3>().cwiseAbs();
-          G.col(L.iv + col).segment(r0, n).noalias() += Jb * u;
-          Gabs.col(L.iv + col).segment(r0, n).noalias() += Jabs * uabs;
-          // (norms, not components: a bound that does not vanish where the geometry makes
-          // the entry vanish, for the branch passages' normalization)
-          const double sv = vg.norm() + wg.norm() * lever.norm(), sw = wg.norm();
-          for (int e = 0; e < n; ++e)
-            Gbound(r0 + e, L.iv + col) += jnorm_(e, 0) * sv + jnorm_(e, 1) * sw;
-        }
-      }
+  const Matrix3d& Ab = ws.A[b - 1];
+  const Vector3d& rb = ws.r[b - 1];
+  // the rows' parts' norms for Gbound, once per body (they do not depend on the column)
+  for (int e = 0; e < n; ++e)
+    jnorm_(e, 0) = Jb.row(e).template head<3>().norm(), jnorm_(e, 1) = Jb.row(e).template tail<3>().norm();
+  for (int a = b; a != 0; a = model.links[a - 1].parent) {
+    const TreeLink& L = model.links[a - 1];
+    const Matrix3d& Aa = ws.A[a - 1];
+    const Vector3d lever = rb - ws.r[a - 1];
+    for (int col = 0; col < L.nv; ++col) {
+      const Vector3d wg = Aa * ws.S[a - 1].col(col).head<3>();
+      const Vector3d vg = Aa * ws.S[a - 1].col(col).tail<3>();
+      const Vector3d wxl = wg.cross(lever);
+      Vector6d u;
+      u.head<3>() = vg + wxl;
+      u.tail<3>() = Ab.transpose() * wg;
+      Vector6d uabs;
+      uabs.head<3>() = vg.cwiseAbs() + wxl.cwiseAbs();
+      uabs.tail<3>() = u.tail<3>().cwiseAbs();
+      G.col(L.iv + col).segment(r0, n).noalias() += Jb * u;
+      Gabs.col(L.iv + col).segment(r0, n).noalias() += Jabs * uabs;
+      // (norms, not components: a bound that does not vanish where the geometry makes
+      // the entry vanish, for the branch passages' normalization)
+      const double sv = vg.norm() + wg.norm() * lever.norm(), sw = wg.norm();
+      for (int e = 0; e < n; ++e)
+        Gbound(r0 + e, L.iv + col) += jnorm_(e, 0) * sv + jnorm_(e, 1) * sw;
     }
   }
 }
@@ -700,7 +697,7 @@ long LoopClosures::massFactorsGeneration(const TreeWorkspace& ws) {
 }
 
 void LoopClosures::factor(const TreeModel& model, const TreeWorkspace& ws) {
-  info.rows = m + idle_;
+  info.rows = allRows();
   if (m == 0) {
     info.rank = 0;
     info.dependent = idle_;
@@ -728,7 +725,7 @@ void LoopClosures::factorNow(const TreeModel& model, const TreeWorkspace& ws) {
   if (zero_rows == m) {  // every row zero (free limits): nothing to solve, lambda = 0
     Y.setZero();
     info.rank = 0;
-    info.dependent = m + idle_;
+    info.dependent = allRows();
     all_zero_ = true;
     return;
   }
@@ -745,7 +742,7 @@ void LoopClosures::factorNow(const TreeModel& model, const TreeWorkspace& ws) {
       for (int k = 0; k < nv; ++k) tau_(k) = G(e, k);
       applyInverseMass(model, ws, tau_.data(), Y.col(e).data());
     }
-  info.dependent = m + idle_ - info.rank;  // (idle rows count as dependent ones: no motion moves them)
+  info.dependent = allRows() - info.rank;  // (idle rows count as dependent ones: no motion moves them)
 }
 
 void LoopClosures::solve(const Eigen::VectorXd& b, Eigen::VectorXd& x) const {
@@ -914,7 +911,7 @@ ClosureSolveInfo constrainedForwardDynamics(const TreeModel& model, const System
   if (passage) {
     // a branch passage (branch_passage.cpp): the regular directions by their equations,
     // the held ones at passage_ref's acceleration across the branch
-    if (!cl.regular_factor) cl.info = ClosureSolveInfo{cl.m + cl.idle_, cl.p_r_, cl.m + cl.idle_ - cl.p_r_};
+    if (!cl.regular_factor) cl.info = ClosureSolveInfo{cl.allRows(), cl.p_r_, cl.allRows() - cl.p_r_};
     cl.passageFactor(model, ws);
     cl.passageRhs(cl.gamma_q, cl.p_g_, true);
     cl.rowsTimes(cl.p_R_, qddot, cl.p_mu_);
@@ -990,7 +987,7 @@ ClosureProjectionReport projectClosurePositions(const TreeModel& model, const Sy
       cl.passageSolve(cl.p_g_, cl.p_mu_);
       cl.inverseMassRowsT(model, ws, cl.p_R_, cl.p_mu_, dv);
       dv = -dv;
-      rep.dependent = cl.m + cl.idle_ - cl.p_r_;
+      rep.dependent = cl.allRows() - cl.p_r_;
     } else {
       cl.factor(model, ws);
       rep.dependent = cl.info.dependent;
@@ -1049,7 +1046,7 @@ ClosureProjectionReport projectClosureVelocities(const TreeModel& model, const S
       forwardDynamicsAtKinematics(model, sys, zero, ws, qdd);  // M's factors at q (the same kinematics)
       if (passage) {
         cl.passageFactor(model, ws);
-        rep.dependent = cl.m + cl.idle_ - cl.p_r_;
+        rep.dependent = cl.allRows() - cl.p_r_;
       } else {
         cl.factor(model, ws);
         rep.dependent = cl.info.dependent;

@@ -140,6 +140,9 @@ class LoopClosures {
   int m = 0;                     // closure rows (less the idle ones: idleRowCount())
   // Rows of the closures' equations no motion of the tree moves, left out (idleRows())
   int idleRowCount() const { return idle_; }
+  // The coordinates closure row e may touch: those on its bodies' paths to the root (G, Gabs
+  // and Gbound are zero in every other column)
+  const std::vector<int>& rowColumns(int e) const { return ccols_[cl_of_[e]]; }
   int nv = 0;
   // The context the closures' equations read. By default the closure's own copies (from
   // initialState(sys): tracked angles per sys constraint, limit sides all 0 (free), drive
@@ -326,6 +329,7 @@ class LoopClosures {
   std::vector<const Joint*> sel_joint_;    // the closure's joint (kept rows of a joint), or null
   std::vector<int> idle_sys_rows_;
   int idle_ = 0;
+  int allRows() const { return m + idle_; }  // the closures' equations, idle ones too (info)
   std::vector<Eigen::MatrixXd> Jc_full_;
   Eigen::VectorXd Phi_full_, gamma_full_;
   std::vector<char> angle_;        // per velocity coordinate: an angle
