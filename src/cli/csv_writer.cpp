@@ -1,13 +1,37 @@
 #include "csv_writer.h"
 
-#include <iomanip>
+#include <charconv>
 
 namespace mechanism_sim {
 
+namespace {
+
+// A row's numbers as printf's %.12g writes them (std::to_chars with chars_format::general
+// and a precision is specified as that conversion, C++17 [utility.to.chars]), formatted into
+// one buffer and written at once: the stream's num_put went through a locale and vsnprintf
+// for every number, 3.6% of the humanoid's run through `simulate`.
+class RowBuffer {
+ public:
+  explicit RowBuffer(std::string& s) : s_(s) { s_.clear(); }
+  RowBuffer& number(double x) {
+    char buf[32];
+    const auto r = std::to_chars(buf, buf + sizeof buf, x, std::chars_format::general, 12);
+    s_.append(buf, r.ptr);
+    return *this;
+  }
+  RowBuffer& comma(double x) {
+    s_.push_back(',');
+    return number(x);
+  }
+
+ private:
+  std::string& s_;
+};
+
+}  // namespace
+
 CsvWriter::CsvWriter(std::ostream& out, const MechanismModel& model, bool poses, bool reactions)
-    : out_(out), model_(model), poses_(poses), reactions_(reactions) {
-  out_ << std::setprecision(12);
-}
+    : out_(out), model_(model), poses_(poses), reactions_(reactions) {}
 
 void CsvWriter::header() {
   out_ << "time";
@@ -23,20 +47,21 @@ void CsvWriter::header() {
 }
 
 void CsvWriter::row(const Sample& s) {
-  out_ << s.time;
-  for (size_t d = 0; d < s.position.size(); ++d) out_ << ',' << s.position[d] << ',' << s.velocity[d] << ',' << s.effort[d];
-  out_ << ',' << s.position_violation << ',' << s.velocity_violation;
+  RowBuffer b(line_);
+  b.number(s.time);
+  for (size_t d = 0; d < s.position.size(); ++d) b.comma(s.position[d]).comma(s.velocity[d]).comma(s.effort[d]);
+  b.comma(s.position_violation).comma(s.velocity_violation);
   if (reactions_)
     for (const JointReaction& r : s.reactions)
-      out_ << ',' << r.force.x() << ',' << r.force.y() << ',' << r.force.z() << ',' << r.torque.x() << ','
-           << r.torque.y() << ',' << r.torque.z();
+      b.comma(r.force.x()).comma(r.force.y()).comma(r.force.z()).comma(r.torque.x()).comma(r.torque.y()).comma(r.torque.z());
   if (poses_)
     for (const Eigen::Isometry3d& T : s.link_poses) {
       const Eigen::Quaterniond q(T.linear());
       const Eigen::Vector3d& p = T.translation();
-      out_ << ',' << p.x() << ',' << p.y() << ',' << p.z() << ',' << q.w() << ',' << q.x() << ',' << q.y() << ',' << q.z();
+      b.comma(p.x()).comma(p.y()).comma(p.z()).comma(q.w()).comma(q.x()).comma(q.y()).comma(q.z());
     }
-  out_ << '\n';
+  line_.push_back('\n');
+  out_.write(line_.data(), static_cast<std::streamsize>(line_.size()));
 }
 
 }  // namespace mechanism_sim

@@ -3,6 +3,7 @@
 // and torque in the joint frame on the child) and each link's world pose.
 #pragma once
 #include <ostream>
+#include <string>
 
 #include "mechanism_sim/urdf/model.h"
 #include "mechanism_sim/urdf/run_loop.h"
@@ -19,6 +20,7 @@ class CsvWriter {
   std::ostream& out_;
   const MechanismModel& model_;
   bool poses_, reactions_;
+  std::string line_;  // a row, formatted before it is written
 };
 
 }  // namespace mechanism_sim

@@ -55,6 +55,28 @@ TEST(SimulateCli, WritesTheDocumentedCsv) {
   EXPECT_LE(std::stod(rows.back()[7]), 1e-10);
 }
 
+// Every number is written as printf's %.12g writes it (the documented 12 significant
+// digits): reading a cell and writing it again with %.12g gives the same text.
+TEST(SimulateCli, NumbersHaveTwelveSignificantDigits) {
+  const std::string csv = ::testing::TempDir() + "/digits.csv";
+  const Result r = run(kSource + "/urdf/cylindrical_pendulum.urdf --duration 0.3 --csv " + csv +
+                       " --set sleeve_joint.rotation=0.5 --poses --reactions --quiet");
+  ASSERT_EQ(r.code, 0) << r.out;
+  const auto rows = readCsv(csv);
+  ASSERT_GT(rows.size(), 2u);
+  int long_ones = 0;
+  for (size_t i = 1; i < rows.size(); ++i) {
+    ASSERT_EQ(rows[i].size(), rows[0].size());
+    for (const std::string& c : rows[i]) {
+      char buf[40];
+      std::snprintf(buf, sizeof buf, "%.12g", std::stod(c));
+      EXPECT_EQ(c, buf);
+      long_ones += c.size() >= 13;
+    }
+  }
+  EXPECT_GT(long_ones, 100);  // (cells with all twelve digits, not only round numbers)
+}
+
 TEST(SimulateCli, SummaryReportsStepsViolationAndDependentEquations) {
   const Result r = run(kSource + "/urdf/four_bar.urdf --duration 0.5 --csv " + ::testing::TempDir() + "/fb.csv");
   ASSERT_EQ(r.code, 0) << r.out;
