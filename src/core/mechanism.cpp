@@ -276,7 +276,8 @@ const Evaluation& Mechanism::evaluated() const {
   if (described_) return *described_;
   if (stepper_ && stepper_->evaluation().stamp.describes(state_)) return *(described_ = &stepper_->evaluation());
   if (!query_eval_) query_eval_ = std::make_unique<Evaluation>(*sys_);
-  if (!query_eval_->stamp.describes(state_)) evaluateAt(*sys_, state_, *query_eval_);
+  // (queries read Phi, Phi_q, nu and the kinematics, never gamma: evaluated without rates)
+  if (!query_eval_->stamp.describes(state_)) evaluateAt(*sys_, state_, *query_eval_, false);
   return *(described_ = query_eval_.get());
 }
 

@@ -170,7 +170,8 @@ class Mechanism {
   std::vector<int> replaceDrives(std::vector<DriveSpec> drives, const std::vector<int>& from,
                                  std::vector<DriveRamp> references);
   // The evaluation at state_ (evaluation.h): the stepper's when its stamp describes
-  // state_, else the queries' own, evaluated on demand. Found once per state: until
+  // state_, else the queries' own, evaluated on demand without rates (its gamma is 0: no
+  // query reads it; evaluateConstraints). Found once per state: until
   // stateChanged(), the one found (a stamp's comparison reads all of x and u, and a sample
   // of the run loop asks some 300 queries of one state).
   const Evaluation& evaluated() const;
