@@ -85,5 +85,43 @@ TEST(EvaluationWithoutRates, QueriesReportTheFullEvaluationsViolations) {
   }
 }
 
+// The joint queries (position, velocity, acceleration) read a joint's coordinate rows found
+// once per state (Mechanism::coordinateRows): after every step, and after a restore() to an
+// earlier state, they are Joint::coordinates at the state they are asked of, to the bit.
+TEST(JointQueries, ReadTheCoordinatesOfTheCurrentState) {
+  for (const char* formulation : {"absolute", "joint"}) {
+    Mechanism m;
+    chain(m, formulation);
+    const System& sys = m.system();
+    auto check = [&](const char* when) {
+      Evaluation ev(sys);
+      evaluateAt(sys, m.state(), ev);
+      for (int j = 0; j < m.numJoints(); ++j) {
+        const Joint& jt = m.joint(j);
+        Row rows[kMaxJointDofs];
+        jt.coordinates(ev.kin[jt.bodyI()], ev.kin[jt.bodyJ()], m.state().tracked[jt.id()], rows);
+        for (int k = 0; k < jt.dof(); ++k) {
+          EXPECT_TRUE(sameBits(m.jointPosition(j, k), rows[k].Phi)) << formulation << " " << when << " joint " << j;
+          EXPECT_TRUE(sameBits(m.jointVelocity(j, k), rows[k].Phi_dot)) << formulation << " " << when << " joint " << j;
+          EXPECT_TRUE(sameBits(m.jointAcceleration(j, k),
+                               rowDot(sys, j, rows[k], m.state().acc.data()) - rows[k].gamma))
+              << formulation << " " << when << " joint " << j;
+        }
+      }
+    };
+    const Mechanism::Snapshot start = m.snapshot();
+    check("at the start");
+    const double q0 = m.jointPosition(1, 0);
+    for (int n = 0; n < 50; ++n) {
+      m.step(1e-3);
+      check("after a step");
+    }
+    EXPECT_NE(m.jointPosition(1, 0), q0);  // (it moved: the rows of the start would not do)
+    m.restore(start);
+    check("restored");
+    EXPECT_EQ(m.jointPosition(1, 0), q0);
+  }
+}
+
 }  // namespace
 }  // namespace mechanism_sim
