@@ -69,8 +69,9 @@ void loadKinematics(const System& sys, const double* x, const double* u, Evaluat
   ev.stamp.level = EvaluationStamp::kLoaded;
 }
 
-void evaluateConstraints(const System& sys, const State& st, Evaluation& ev) {
-  const EvalContext ctx = st.context();
+void evaluateConstraints(const System& sys, const State& st, Evaluation& ev, bool rates) {
+  EvalContext ctx = st.context();
+  ctx.rates = rates;
   const BodyKin* ptrs[kMaxConstraintBodies];
   for (int ci = 0; ci < sys.numConstraints(); ++ci) {
     const Constraint& c = *sys.constraints[ci];
@@ -96,15 +97,17 @@ void evaluateConstraints(const System& sys, const State& st, Evaluation& ev) {
           ev.J[ci].row(e).setZero(), ev.gamma[L.row + e] = 0.0, ev.nu[L.row + e] = 0.0;
         }
     }
+  if (!rates) ev.gamma.setZero();  // (the joints' is not meaningful, the other constraints' not asked for)
   ev.stamp.limit_side = st.limit_side;
   ev.stamp.t = st.t;
   ev.stamp.drive = st.drive;
+  ev.stamp.rates = rates;
   ev.stamp.level = EvaluationStamp::kEvaluated;
 }
 
-void evaluateAt(const System& sys, const State& s, Evaluation& ev) {
+void evaluateAt(const System& sys, const State& s, Evaluation& ev, bool rates) {
   loadKinematics(sys, s.x.data(), s.u.data(), ev);
-  evaluateConstraints(sys, s, ev);
+  evaluateConstraints(sys, s, ev, rates);
 }
 
 void jointRows(const System& sys, const Evaluation& ev, const State& s, int j, Row* rows) {

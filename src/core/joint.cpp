@@ -7,14 +7,15 @@ namespace mechanism_sim {
 JointGeometry Joint::geometry(const BodyKin& ki, const BodyKin& kj, unsigned parts) const {
   const Matrix3d& Ri = frame_i_.Rp;
   const Matrix3d& Rj = frame_j_.Rp;
+  const bool rates = !(parts & kNoRates);
   JointGeometry g;
-  if (parts & kBxI) fixedVector(ki, Ri.col(0), g.bx_i);
-  if (parts & kByI) fixedVector(ki, Ri.col(1), g.by_i);
-  if (parts & kBzI) fixedVector(ki, Ri.col(2), g.bz_i);
-  if (parts & kBxJ) fixedVector(kj, Rj.col(0), g.bx_j);
-  if (parts & kByJ) fixedVector(kj, Rj.col(1), g.by_j);
-  if (parts & kBzJ) fixedVector(kj, Rj.col(2), g.bz_j);
-  if (parts & kGap) gap(ki, frame_i_.sp_B, kj, frame_j_.sp_B, g.d);
+  if (parts & kBxI) fixedVector(ki, Ri.col(0), g.bx_i, rates);
+  if (parts & kByI) fixedVector(ki, Ri.col(1), g.by_i, rates);
+  if (parts & kBzI) fixedVector(ki, Ri.col(2), g.bz_i, rates);
+  if (parts & kBxJ) fixedVector(kj, Rj.col(0), g.bx_j, rates);
+  if (parts & kByJ) fixedVector(kj, Rj.col(1), g.by_j, rates);
+  if (parts & kBzJ) fixedVector(kj, Rj.col(2), g.bz_j, rates);
+  if (parts & kGap) gap(ki, frame_i_.sp_B, kj, frame_j_.sp_B, g.d, rates);
   return g;
 }
 

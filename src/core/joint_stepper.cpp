@@ -1,6 +1,7 @@
 // The joint-space formulation's stepper (joint_stepper.h).
 #include "mechanism_sim/core/joint_stepper.h"
 
+#include <algorithm>
 #include <cmath>
 #include <sstream>
 
@@ -150,19 +151,32 @@ void JointStepper::setDamping(const System& sys) {
   damp_index_of_v_.assign(model_.nv, -1);
   damp_path_.assign(nd, {});
   damp_path_v_.assign(nd, {});
-  damp_top_.assign(nd, -1);
   for (int i = 0; i < nd; ++i) {
     damp_index_of_v_[damped_[i].iv] = i;
     for (int k = link_of_v_[damped_[i].iv];; k = model_.links[k].parent - 1) {
       damp_path_[i].push_back(k);
       for (int v = 0; v < model_.links[k].nv; ++v) damp_path_v_[i].push_back(model_.links[k].iv + v);
-      if (model_.links[k].nv > 0) damp_top_[i] = k;
       if (model_.links[k].parent == 0) break;
     }
   }
+  // the coordinates two paths share are their common ancestors', the tail of each path
+  damp_shared_.clear();
+  damp_shared_first_.assign(nd + 1, 0);
+  for (int k = 0; k < nd; ++k) {
+    damp_shared_first_[k] = static_cast<int>(damp_shared_.size());
+    for (int l = 0; l < nd; ++l) {
+      const std::vector<int>& pl = damp_path_v_[l];
+      const std::vector<int>& pk = damp_path_v_[k];
+      int from = static_cast<int>(pl.size());
+      while (from > 0 && std::find(pk.begin(), pk.end(), pl[from - 1]) != pk.end()) --from;
+      if (from < static_cast<int>(pl.size())) damp_shared_.push_back({l, from});
+    }
+  }
+  damp_shared_first_[nd] = static_cast<int>(damp_shared_.size());
   damp_Zd_.setZero(model_.nv, nd), damp_Xd_.setZero(model_.nv, nd);  // (zero off each path, always)
   damp_Minv_.setZero(nd, nd);
   damp_Yd_.setZero(nd, closures_.m), damp_W_.setZero(nd, closures_.m);
+  damp_W_lo_.assign(closures_.m, 0), damp_W_hi_.assign(closures_.m, 0);
   damp_used_.reserve(closures_.m);
   damp_x_.setZero(model_.nv);
   damp_col_.setZero(nd);
@@ -646,9 +660,14 @@ bool JointStepper::classifyDamping(const System& sys, const State& s, double h) 
       // when the hand carries it. G M^-1 e_k is row k of M^-1 G^T.
       damp_col_ = damp_Minv_.col(next++);
       if (damp_touched_[i])  // (by columns: Eigen's product kernels cost more at these sizes)
-        // (a row on other branches of the closures has Yd 0 here: skipped, every bit as before)
+        // (a row on other branches of the closures has Yd 0 here: skipped, every bit as
+        // before; so are the entries where W's column is zero, which would change at most
+        // the sign of a zero entry, and |P_lk| is read)
         for (int e : damp_used_)
-          if (damp_Yd_(i, e) != 0.0) damp_col_ -= damp_W_.col(e) * damp_Yd_(i, e);
+          if (damp_Yd_(i, e) != 0.0) {
+            const int lo = damp_W_lo_[e], n = damp_W_hi_[e] - lo;
+            damp_col_.segment(lo, n) -= damp_W_.col(e).segment(lo, n) * damp_Yd_(i, e);
+          }
       const double exact = damp_rc_(i) * damp_rc_.dot(damp_col_.cwiseAbs());  // sum_l sqrt(c_k c_l) |P_lk|
       stiff = !(h * exact <= bound);
     }
@@ -713,10 +732,15 @@ void JointStepper::dampedInverseMass() {
   }
   for (size_t a = 0; a < damp_need_.size(); ++a) {
     const int k = damp_need_[a];
-    for (int l = 0; l < nd; ++l) {
-      double y = 0.0;  // (none where the two paths share no coordinate)
-      if (damp_top_[l] == damp_top_[k])
-        for (int v : damp_path_v_[l]) y += damp_Zd_(v, l) * damp_Xd_(v, k);
+    // over the coordinates the two paths share (none: 0): X_k is zero off k's path, so the
+    // terms left out are zeros, and the sum of the others, in the same order, has every
+    // bit it had over the whole path
+    damp_Minv_.col(a).setZero();
+    for (int p = damp_shared_first_[k]; p < damp_shared_first_[k + 1]; ++p) {
+      const int l = damp_shared_[p].l;
+      const std::vector<int>& path = damp_path_v_[l];
+      double y = 0.0;
+      for (size_t r = damp_shared_[p].from; r < path.size(); ++r) y += damp_Zd_(path[r], l) * damp_Xd_(path[r], k);
       damp_Minv_(l, a) = y;
     }
   }
@@ -759,7 +783,11 @@ void JointStepper::dampedInverseMass() {
   damp_used_.resize(kept);
   for (int l = 0; l < nd; ++l) {
     damp_touched_[l] = 0;
-    for (int e : damp_used_) damp_touched_[l] = damp_touched_[l] || damp_Yd_(l, e) != 0.0;
+    for (int e : damp_used_)
+      if (damp_Yd_(l, e) != 0.0) {
+        damp_touched_[l] = 1;
+        break;
+      }
   }
   // (G M^-1 G^T)^+ by the columns of those rows (the closures' own solve: dropped rows 0,
   // least norm where rows depend), then W over them
@@ -770,6 +798,11 @@ void JointStepper::dampedInverseMass() {
     damp_W_.col(f).setZero();
     for (int e : damp_used_)  // (rows on other branches than f's have mu 0 exactly: skipped)
       if (damp_mu_(e) != 0.0) damp_W_.col(f) += damp_Yd_.col(e) * damp_mu_(e);
+    // where the column is not zero (classifyDamping reads it there only)
+    int lo = 0, hi = nd;
+    while (lo < hi && damp_W_(lo, f) == 0.0) ++lo;
+    while (hi > lo && damp_W_(hi - 1, f) == 0.0) --hi;
+    damp_W_lo_[f] = lo, damp_W_hi_[f] = hi;
   }
 }
 

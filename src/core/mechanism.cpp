@@ -276,7 +276,8 @@ const Evaluation& Mechanism::evaluated() const {
   if (described_) return *described_;
   if (stepper_ && stepper_->evaluation().stamp.describes(state_)) return *(described_ = &stepper_->evaluation());
   if (!query_eval_) query_eval_ = std::make_unique<Evaluation>(*sys_);
-  if (!query_eval_->stamp.describes(state_)) evaluateAt(*sys_, state_, *query_eval_);
+  // (queries read Phi, Phi_q, nu and the kinematics, never gamma: evaluated without rates)
+  if (!query_eval_->stamp.describes(state_)) evaluateAt(*sys_, state_, *query_eval_, false);
   return *(described_ = query_eval_.get());
 }
 
@@ -290,20 +291,25 @@ Quaterniond Mechanism::orientation(int b) const {
   return Quaterniond(p[0], p[1], p[2], p[3]).normalized();
 }
 
+const Row* Mechanism::coordinateRows(int joint) const {
+  if (rows_.size() != sys_->joints.size()) rows_.resize(sys_->joints.size()), rows_found_.assign(rows_.size(), 0);
+  Row* rows = rows_[joint].data();
+  if (!rows_found_[joint]) {
+    const Joint& j = *sys_->joints[joint];
+    j.coordinates(kin(j.bodyI()), kin(j.bodyJ()), state_.tracked[j.id()], rows);
+    rows_found_[joint] = 1;
+  }
+  return rows;
+}
+
 double Mechanism::jointPosition(int joint, int k) const {
   checkCoordinate(joint, k);
-  const Joint& j = *sys_->joints[joint];
-  Row rows[kMaxJointDofs];
-  j.coordinates(kin(j.bodyI()), kin(j.bodyJ()), state_.tracked[j.id()], rows);
-  return rows[k].Phi;
+  return coordinateRows(joint)[k].Phi;
 }
 
 double Mechanism::jointVelocity(int joint, int k) const {
   checkCoordinate(joint, k);
-  const Joint& j = *sys_->joints[joint];
-  Row rows[kMaxJointDofs];
-  j.coordinates(kin(j.bodyI()), kin(j.bodyJ()), state_.tracked[j.id()], rows);
-  return rows[k].Phi_dot;
+  return coordinateRows(joint)[k].Phi_dot;
 }
 
 double Mechanism::jointEffort(int joint, int k) const {

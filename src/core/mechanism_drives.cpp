@@ -110,10 +110,8 @@ void Mechanism::commandDrivePath(int drive, std::shared_ptr<const DrivePath> pat
 // (State::acc: per moving body r_ddot, w_dot').
 double Mechanism::jointAcceleration(int joint, int k) const {
   checkCoordinate(joint, k);
-  const Joint& j = *sys_->joints[joint];
-  Row rows[kMaxJointDofs];
-  j.coordinates(kin(j.bodyI()), kin(j.bodyJ()), state_.tracked[j.id()], rows);
-  return rowDot(*sys_, joint, rows[k], state_.acc.data()) - rows[k].gamma;
+  const Row& row = coordinateRows(joint)[k];
+  return rowDot(*sys_, joint, row, state_.acc.data()) - row.gamma;
 }
 
 }  // namespace mechanism_sim

@@ -6,19 +6,27 @@
 
 namespace mechanism_sim {
 
-void fixedVector(const BodyKin& b, const Vector3d& ap, FixedVector& f) {
+void fixedVector(const BodyKin& b, const Vector3d& ap, FixedVector& f, bool rates) {
   f.a = b.A_Oi * ap;
   f.a_th = -timesTilde(b.A_Oi, ap);  // (8.10): delta a = -A_Oi tilde(a') dtheta'
+  if (!rates) {
+    f.a_dot.setZero(), f.a_cen.setZero();
+    return;
+  }
   const Vector3d wxa = b.w.cross(ap);
   f.a_dot = b.A_Oi * wxa;
   f.a_cen = b.A_Oi * b.w.cross(wxa);
 }
 
-void gap(const BodyKin& bi, const Vector3d& sp_iB, const BodyKin& bj, const Vector3d& sp_jB, Gap& g) {
+void gap(const BodyKin& bi, const Vector3d& sp_iB, const BodyKin& bj, const Vector3d& sp_jB, Gap& g, bool rates) {
   g.d = bj.r + bj.A_Oi * sp_jB - bi.r - bi.A_Oi * sp_iB;
-  const Vector3d wsi = bi.w.cross(sp_iB), wsj = bj.w.cross(sp_jB);
-  g.d_dot = bj.v + bj.A_Oi * wsj - bi.v - bi.A_Oi * wsi;
-  g.d_cen = bj.A_Oi * bj.w.cross(wsj) - bi.A_Oi * bi.w.cross(wsi);
+  if (rates) {
+    const Vector3d wsi = bi.w.cross(sp_iB), wsj = bj.w.cross(sp_jB);
+    g.d_dot = bj.v + bj.A_Oi * wsj - bi.v - bi.A_Oi * wsi;
+    g.d_cen = bj.A_Oi * bj.w.cross(wsj) - bi.A_Oi * bi.w.cross(wsi);
+  } else {
+    g.d_dot.setZero(), g.d_cen.setZero();
+  }
   // (7.16): delta d = delta r_j - A_Oj tilde(sp_jB) dtheta_j - delta r_i + A_Oi tilde(sp_iB) dtheta_i
   g.d_thi = timesTilde(bi.A_Oi, sp_iB);
   g.d_thj = -timesTilde(bj.A_Oi, sp_jB);

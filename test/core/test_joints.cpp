@@ -9,6 +9,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 
 #include "fd_util.h"
 #include "mechanism_sim/core/errors.h"
@@ -180,6 +181,50 @@ TEST_P(JointTypes, SelectedRowsAreTheFullEvaluationsRows) {
       }
     }
   }
+}
+
+// An evaluation without rates (EvalContext::rates false, the queries'): Phi and the
+// Jacobian have every bit of the full evaluation's (sign of zero included), and the
+// geometry it reads leaves the rates out (zero, where the full one has them).
+TEST_P(JointTypes, EvaluationWithoutRatesHasTheFullEvaluationsPhiAndJacobian) {
+  std::mt19937 rng(13);
+  auto same = [](double a, double b) { return a == b && std::signbit(a) == std::signbit(b); };
+  for (int n = 0; n < 20; ++n) {
+    auto joint = randomJoint(GetParam(), rng);
+    const std::vector<BodyKin> kin = {test::randomBody(rng), test::randomBody(rng)};
+    Tracked tr = joint->initialTracked();
+    track(*joint, kin, tr);
+    const Evaluation e = evaluate(*joint, kin, tr);
+    const int size = joint->size();
+    const BodyKin* ptrs[2] = {&kin[0], &kin[1]};
+    EvalContext ctx{&tr, nullptr};
+    ctx.rates = false;
+    Eigen::VectorXd Phi(size), gamma(size);
+    Eigen::MatrixXd J(size, 12);
+    joint->evaluate(ptrs, ctx, Phi, J, gamma);
+    for (int r = 0; r < size; ++r) {
+      EXPECT_TRUE(same(Phi(r), e.Phi(r))) << GetParam() << " row " << r << ": " << Phi(r) << " against " << e.Phi(r);
+      for (int c = 0; c < 12; ++c)
+        EXPECT_TRUE(same(J(r, c), e.J(r, c))) << GetParam() << " row " << r << " column " << c;
+    }
+  }
+  // the geometry without rates: the same values and variations, no rates
+  auto joint = randomJoint(GetParam(), rng);
+  const BodyKin ki = test::randomBody(rng), kj = test::randomBody(rng);
+  const JointGeometry full = joint->geometry(ki, kj), bare = joint->geometry(ki, kj, kAllParts | kNoRates);
+  for (auto [f, b] : {std::make_pair(&full.bx_i, &bare.bx_i), std::make_pair(&full.bz_j, &bare.bz_j)}) {
+    EXPECT_EQ(f->a, b->a);
+    EXPECT_EQ(f->a_th, b->a_th);
+    EXPECT_GT(f->a_dot.norm(), 0.0);
+    EXPECT_EQ(b->a_dot, Vector3d::Zero());
+    EXPECT_EQ(b->a_cen, Vector3d::Zero());
+  }
+  EXPECT_EQ(full.d.d, bare.d.d);
+  EXPECT_EQ(full.d.d_thi, bare.d.d_thi);
+  EXPECT_EQ(full.d.d_thj, bare.d.d_thj);
+  EXPECT_GT(full.d.d_dot.norm(), 0.0);
+  EXPECT_EQ(bare.d.d_dot, Vector3d::Zero());
+  EXPECT_EQ(bare.d.d_cen, Vector3d::Zero());
 }
 
 TEST_P(JointTypes, CoordinateRowsMatchFiniteDifferences) {

@@ -30,11 +30,15 @@ struct CoordinateEffort {
 // What constraints read besides the bodies: the State's tracked angles (indexed by
 // constraint id), the sides of the position limits (indexed by limit id), the time and
 // the velocity drives' references (indexed by drive id), for rheonomic equations.
+// rates false: Phi and its Jacobian are asked for alone (the queries' evaluation,
+// Mechanism::evaluated): a joint then leaves the rates out of its geometry (kNoRates), which
+// gives Phi and J every bit they have with them; gamma has no meaning then.
 struct EvalContext {
   const Tracked* tracked = nullptr;
   const signed char* limit_side = nullptr;
   double t = 0.0;
   const DriveRamp* drive = nullptr;
+  bool rates = true;
 };
 
 class Constraint {

@@ -48,6 +48,7 @@ struct EvaluationStamp {
   double t = 0.0;
   std::vector<signed char> limit_side;
   std::vector<DriveRamp> drive;
+  bool rates = true;  // gamma was computed (false: Phi, Phi_q and nu alone, what queries read)
   // The equations were evaluated at exactly this state (what queries need).
   bool describes(const State& s) const {
     return level >= kEvaluated && x == s.x && u == s.u && limit_side == s.limit_side && t == s.t && drive == s.drive;
@@ -77,10 +78,11 @@ struct Evaluation {
 void loadKinematics(const System& sys, const double* x, const double* u, std::vector<BodyKin>& kin);
 void loadKinematics(const System& sys, const double* x, const double* u, Evaluation& ev);
 // Phi, J, gamma, nu at the loaded kinematics, with the context (tracked angles, limit
-// sides, time, drives) and dropped rows of `context`.
-void evaluateConstraints(const System& sys, const State& context, Evaluation& ev);
+// sides, time, drives) and dropped rows of `context`. rates false: Phi, J and nu alone, the
+// same bits, for less (EvalContext::rates; gamma is set to 0).
+void evaluateConstraints(const System& sys, const State& context, Evaluation& ev, bool rates = true);
 // Both, at the State itself.
-void evaluateAt(const System& sys, const State& s, Evaluation& ev);
+void evaluateAt(const System& sys, const State& s, Evaluation& ev, bool rates = true);
 // The loaded states of a constraint's bodies in its bodies() order.
 inline void gather(const Evaluation& ev, const Constraint& c, const BodyKin** ptrs) {
   for (size_t k = 0; k < c.bodies().size(); ++k) ptrs[k] = &ev.kin[c.bodies()[k]];

@@ -29,9 +29,11 @@ struct JointParams {
 };
 
 // The joint frames' axes and the gap d_ij in one evaluation; a joint computes only those
-// it uses (Joint::equationAxes), the others stay unset.
+// it uses (Joint::equationAxes), the others stay unset. kNoRates, with any of them: their
+// values and variations alone (the rates FixedVector::a_dot, a_cen and Gap::d_dot, d_cen
+// zero), all that Phi and its Jacobian read (an evaluation without rates, EvalContext).
 enum GeometryPart : unsigned {
-  kBxI = 1, kByI = 2, kBzI = 4, kBxJ = 8, kByJ = 16, kBzJ = 32, kGap = 64, kAllParts = 127
+  kBxI = 1, kByI = 2, kBzI = 4, kBxJ = 8, kByJ = 16, kBzJ = 32, kGap = 64, kAllParts = 127, kNoRates = 128
 };
 struct JointGeometry {
   FixedVector bx_i, by_i, bz_i, bx_j, by_j, bz_j;
@@ -81,7 +83,7 @@ class Joint : public Constraint {
   void evaluate(const BodyKin* const* kin, const EvalContext& ctx, Eigen::Ref<Eigen::VectorXd> Phi,
                 Eigen::Ref<Eigen::MatrixXd> J, Eigen::Ref<Eigen::VectorXd> gamma) const final {
     RowWriter out(Phi, J, gamma);
-    equations(geometry(*kin[0], *kin[1], equationAxes()), *kin[0], *kin[1], ctx.tracked[id()], out);
+    equations(geometry(*kin[0], *kin[1], equationAxes() | ratesPart(ctx)), *kin[0], *kin[1], ctx.tracked[id()], out);
   }
   // evaluate() of the rows `rows` marks alone (bit e: row e; the others' Phi, J and gamma are
   // left as they were, or written): the same numbers on the marked rows. The closures leave
@@ -89,7 +91,8 @@ class Joint : public Constraint {
   void evaluateRows(const BodyKin* const* kin, const EvalContext& ctx, Eigen::Ref<Eigen::VectorXd> Phi,
                     Eigen::Ref<Eigen::MatrixXd> J, Eigen::Ref<Eigen::VectorXd> gamma, unsigned rows) const {
     RowWriter out(Phi, J, gamma, rows);
-    equations(geometry(*kin[0], *kin[1], equationAxesFor(rows)), *kin[0], *kin[1], ctx.tracked[id()], out);
+    equations(geometry(*kin[0], *kin[1], equationAxesFor(rows) | ratesPart(ctx)), *kin[0], *kin[1], ctx.tracked[id()],
+              out);
   }
   // Tracked angles are the coordinates k with trackedSlot(k) >= 0: track() stores their
   // values and rates, trackedRates() their rates.
@@ -126,6 +129,8 @@ class Joint : public Constraint {
   }
   // Point coincidence d_ij = 0.
   static void putPoint(const JointGeometry& g, RowWriter& out);
+  // The geometry's rates when the evaluation asks for them (kNoRates else).
+  static unsigned ratesPart(const EvalContext& ctx) { return ctx.rates ? 0u : unsigned{kNoRates}; }
 
  private:
   JointFrame frame_i_, frame_j_;

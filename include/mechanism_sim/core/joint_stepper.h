@@ -135,14 +135,22 @@ class JointStepper {
     double beta = -1.0;  // coordinateInverseMassBound
   };
   std::vector<Damped> damped_;  // every damped tree coordinate
-  // per damped_ entry: the links of its path to the root (its own first), their velocity
-  // coordinates, and the link nearest the root with coordinates; per velocity coordinate
-  // its link and its damped_ entry (-1: none)
+  // per damped_ entry: the links of its path to the root (its own first) and their velocity
+  // coordinates; per velocity coordinate its link and its damped_ entry (-1: none)
   std::vector<std::vector<int>> damp_path_, damp_path_v_;
-  std::vector<int> damp_top_, link_of_v_, damp_index_of_v_;
+  std::vector<int> link_of_v_, damp_index_of_v_;
+  // per damped_ entry k, the entries l whose paths share coordinates with k's (their common
+  // ancestors': the tail of l's path), from damp_shared_first_[k] on: l and where in
+  // damp_path_v_[l] the shared ones begin
+  struct Shared {
+    int l = 0, from = 0;
+  };
+  std::vector<Shared> damp_shared_;
+  std::vector<int> damp_shared_first_;
   Eigen::MatrixXd damp_Zd_, damp_Xd_;  // L^-T e_l and D^-1 L^-T e_l per damped_ entry l
   Eigen::MatrixXd damp_Minv_;          // (M^-1)_Dk, column a for damped_ entry damp_need_[a]
   Eigen::MatrixXd damp_Yd_, damp_W_;   // (M^-1 G^T)_D and W (damped x closure rows)
+  std::vector<int> damp_W_lo_, damp_W_hi_;  // per used closure row: W's column is zero off [lo, hi)
   std::vector<int> damp_used_;         // closure rows whose column of damp_Yd_ is not zero
   std::vector<int> damp_candidates_;   // damped_ entries whose P column is needed
   std::vector<int> damp_need_;         // ... and those closure rows need

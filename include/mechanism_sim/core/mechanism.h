@@ -4,6 +4,8 @@
 // value: snapshot() copies it, restore() assigns it) and the Stepper that advances it,
 // plus the Inputs set between steps.
 #pragma once
+#include <algorithm>
+#include <array>
 #include <memory>
 #include <string>
 #include <utility>
@@ -170,12 +172,16 @@ class Mechanism {
   std::vector<int> replaceDrives(std::vector<DriveSpec> drives, const std::vector<int>& from,
                                  std::vector<DriveRamp> references);
   // The evaluation at state_ (evaluation.h): the stepper's when its stamp describes
-  // state_, else the queries' own, evaluated on demand. Found once per state: until
+  // state_, else the queries' own, evaluated on demand without rates (its gamma is 0: no
+  // query reads it; evaluateConstraints). Found once per state: until
   // stateChanged(), the one found (a stamp's comparison reads all of x and u, and a sample
   // of the run loop asks some 300 queries of one state).
   const Evaluation& evaluated() const;
   // Every method that may change state_, the System or the steppers' evaluations calls it.
-  void stateChanged() { described_ = nullptr; }
+  void stateChanged() {
+    described_ = nullptr;
+    std::fill(rows_found_.begin(), rows_found_.end(), 0);
+  }
   // The multipliers of state_ and the evaluation whose Jacobian they go with: the State's
   // own (absolute formulation, independent equations), the least-norm ones from its
   // accelerations (absolute formulation, dependent equations), or in the joint formulation,
@@ -186,6 +192,9 @@ class Mechanism {
   // bringing the State to it.
   void useFormulation(bool settle);
   const BodyKin& kin(int b) const { return evaluated().kin.at(b); }
+  // Joint::coordinates of a joint at state_ (its rows, one per dof), computed once per state
+  // like evaluated(): a sample asks each dof's position, velocity and effort.
+  const Row* coordinateRows(int joint) const;
 
   std::shared_ptr<System> sys_;
   bool built_ = false;
@@ -197,6 +206,8 @@ class Mechanism {
   std::string formulation_why_;
   mutable std::unique_ptr<Evaluation> query_eval_;  // the queries' own evaluation
   mutable const Evaluation* described_ = nullptr;    // evaluated()'s, until stateChanged()
+  mutable std::vector<std::array<Row, kMaxJointDofs>> rows_;  // coordinateRows()' per joint,
+  mutable std::vector<char> rows_found_;                      // where found, until stateChanged()
   // The reactions' solves, with their own evaluations and scratch (queries leave stepping
   // alone): the least-norm one (absolute formulation, dependent equations), the tree pass
   // (joint formulation).

@@ -22,8 +22,9 @@ struct FixedVector {
   Vector3d a_dot;  // A_Oi (w x a')
   Vector3d a_cen;  // A_Oi (w x (w x a')): the part of a_ddot free of w_dot
 };
-// (Into f: a joint's geometry fills its members in place.)
-void fixedVector(const BodyKin& b, const Vector3d& ap, FixedVector& f);
+// (Into f: a joint's geometry fills its members in place.) Without rates: a and a_th alone,
+// what the value and the Jacobian read (a_dot and a_cen zero).
+void fixedVector(const BodyKin& b, const Vector3d& ap, FixedVector& f, bool rates = true);
 inline FixedVector fixedVector(const BodyKin& b, const Vector3d& ap) {
   FixedVector f;
   fixedVector(b, ap, f);
@@ -36,7 +37,9 @@ struct Gap {
   Matrix3d d_thi;  // dd/dtheta'_i = A_Oi tilde(sp_iB)                    (7.16)
   Matrix3d d_thj;  // dd/dtheta'_j = -A_Oj tilde(sp_jB)
 };
-void gap(const BodyKin& bi, const Vector3d& sp_iB, const BodyKin& bj, const Vector3d& sp_jB, Gap& g);
+// Without rates: d, d_thi and d_thj alone (d_dot and d_cen zero).
+void gap(const BodyKin& bi, const Vector3d& sp_iB, const BodyKin& bj, const Vector3d& sp_jB, Gap& g,
+         bool rates = true);
 inline Gap gap(const BodyKin& bi, const Vector3d& sp_iB, const BodyKin& bj, const Vector3d& sp_jB) {
   Gap g;
   gap(bi, sp_iB, bj, sp_jB, g);
