@@ -243,7 +243,11 @@ bool LoopClosures::findPassageNow() {
     // (U in full: with more rows than columns the rows' left null space is dependent too.
     // Up to 6 x 6, as a cut joint's rows over a planar loop's or a short spatial loop's
     // columns, in fixed-capacity storage: no dynamic-size overhead.)
-    if (kr <= 6 && kc <= 6) {
+    if (kr == 2 && kc == 3) {
+      const Eigen::Matrix<double, 2, 3> W = p_W_;
+      p_svd23_.compute(W, Eigen::ComputeFullU | Eigen::ComputeFullV);
+      directions(p_svd23_);
+    } else if (kr <= 6 && kc <= 6) {
       p_svd6_.compute(p_W_, Eigen::ComputeFullU | Eigen::ComputeThinV);
       directions(p_svd6_);
     } else {

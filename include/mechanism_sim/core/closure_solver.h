@@ -115,6 +115,19 @@ class ClosureSolver {
   int kept_ = 0;
   // z_e^T D^-1 z_f over the links of a list (D_k = S_k^T I^A_k S_k, ws.Dinv)
   double product(const TreeModel& model, const TreeWorkspace& ws, const std::vector<int>& links, int e, int f) const;
+  // The same over lists of links that have one coordinate each (or none: left out), as
+  // their coordinates, with D^-1 by coordinate (dinv_, set by factor()): the same terms in
+  // the same order
+  double product(const std::vector<int>& coords, int e, int f) const {
+    const double* ze = Z_.col(e).data();
+    const double* zf = Z_.col(f).data();
+    double s = 0.0;
+    for (int v : coords) s += ze[v] * dinv_(v) * zf[v];
+    return s;
+  }
+  std::vector<std::vector<int>> block_coords_, pair_coords_;  // per block (links_), per pair (shared_)
+  std::vector<char> block_simple_, pair_simple_;              // whether those lists apply
+  Eigen::VectorXd dinv_;
 };
 
 }  // namespace mechanism_sim

@@ -372,6 +372,10 @@ class LoopClosures {
   bool p_rate_set_ = false;
   Eigen::JacobiSVD<Eigen::MatrixXd> p_svd_;
   Eigen::JacobiSVD<Small6> p_svd6_;  // (the same up to 6 x 6)
+  // (and a planar loop's two rows over three columns, a four-bar's, in fixed-size storage:
+  // the same operations, bit for bit, at a quarter less cost; V in full, its first two
+  // columns the thin V's)
+  Eigen::JacobiSVD<Eigen::Matrix<double, 2, 3>> p_svd23_;
   int p_r_ = 0, p_band_ = 0;
   int p_excl_ = 0;  // rows of p_w_, p_z_: the held directions and the dependent ones
   bool p_near_ = false, p_reduce_ = false;
