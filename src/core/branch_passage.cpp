@@ -101,8 +101,7 @@ bool LoopClosures::closureRows(size_t c) {
 // summed over the columns in order, LLT's unblocked steps: pivot 0 not positive, or pivot
 // 1 after the elimination not positive, fails; a NaN passes, as there), so it decides as
 // the general path does.
-namespace {
-bool twoRowGate(const Eigen::Ref<const Eigen::MatrixXd>& W, double shift) {
+bool passageGateTwoRows(const Eigen::Ref<const Eigen::MatrixXd>& W, double shift) {
   double g00 = W(0, 0) * W(0, 0), g10 = W(1, 0) * W(0, 0), g11 = W(1, 0) * W(1, 0);
   for (Eigen::Index k = 1; k < W.cols(); ++k) g00 += W(0, k) * W(0, k), g10 += W(1, k) * W(0, k), g11 += W(1, k) * W(1, k);
   g00 -= shift, g11 -= shift;
@@ -110,7 +109,6 @@ bool twoRowGate(const Eigen::Ref<const Eigen::MatrixXd>& W, double shift) {
   const double l10 = g10 / std::sqrt(g00);
   return !(g11 - l10 * l10 <= 0.0);
 }
-}  // namespace
 
 bool LoopClosures::findPassage() {
   // (G, Gabs, Gbound and passage_hold as at the last call: its results stand)
@@ -170,7 +168,7 @@ bool LoopClosures::findPassageNow() {
         break;
       }
       if (p_W_.rows() == 2) {  // (a planar loop's two rows: the same test written out)
-        clear = twoRowGate(p_W_, kPassageGate * kPassageGate + kGateMargin);
+        clear = passageGateTwoRows(p_W_, kPassageGate * kPassageGate + kGateMargin);
         continue;
       }
       p_gram_.noalias() = p_W_ * p_W_.transpose();

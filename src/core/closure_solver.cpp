@@ -279,6 +279,19 @@ int ClosureSolver::factor(const TreeModel& model, const TreeWorkspace& ws, const
   return dense.factor(A_dense, &work_);
 }
 
+bool ClosureSolver::inwardOfRowsT(const Eigen::VectorXd& x, double* u) const {
+  for (int e = 0; e < m_; ++e)
+    if (x(e) != 0.0 && d_(e) == 0.0) return false;
+  std::fill(u, u + Z_.rows(), 0.0);
+  for (int e = 0; e < m_; ++e) {
+    const double xe = x(e);
+    if (xe == 0.0) continue;
+    const double* z = Z_.col(e).data();
+    for (int v : cols_[block_[e]]) u[v] += z[v] * xe;
+  }
+  return true;
+}
+
 void ClosureSolver::solve(const ScaledLeastNorm& dense, const Eigen::VectorXd& b, Eigen::VectorXd& x) const {
   if (!sparse_) {
     dense.solve(b, x);

@@ -333,8 +333,19 @@ bool LoopClosures::rowsTransposeTimes(const Eigen::MatrixXd& R, const Eigen::Vec
 
 void LoopClosures::inverseMassRowsT(const TreeModel& model, const TreeWorkspace& ws, const Eigen::MatrixXd& R,
                                     const Eigen::VectorXd& x, Eigen::VectorXd& out) {
-  if (rowsTransposeTimes(R, x, tau_)) applyInverseMass(model, ws, tau_.data(), out.data());
-  else out.setZero();
+  bool any = false;
+  for (int e = 0; e < m && !any; ++e) any = x(e) != 0.0;
+  if (!any) {
+    out.setZero();
+    return;
+  }
+  const ClosureSolver* rows = &R == &G ? &solver_ : &R == &p_R_ ? &p_solver_ : nullptr;
+  if (rows && rows->inwardOfRowsT(x, out.data())) {
+    outwardInverseMass(model, ws, out.data());
+    return;
+  }
+  rowsTransposeTimes(R, x, tau_);
+  applyInverseMass(model, ws, tau_.data(), out.data());
 }
 
 void LoopClosures::inverseMassGT(const Eigen::VectorXd& x, Eigen::VectorXd& out) const {
@@ -700,6 +711,10 @@ double LoopClosures::velocityResidual(const Eigen::VectorXd& qdot, const Eigen::
 void LoopClosures::applyInverseMass(const TreeModel& model, const TreeWorkspace& ws, const double* tau, double* out) {
   for (int k = 0; k < model.nb; ++k) pa_[k].setZero();
   for (int n = model.nb - 1; n >= 0; --n) inverseMassInward(model, ws, model.order[n] - 1, tau, out, pa_);  // u kept in out
+  outwardInverseMass(model, ws, out);
+}
+
+void LoopClosures::outwardInverseMass(const TreeModel& model, const TreeWorkspace& ws, double* out) {
   for (int b : model.order) {
     const int k = b - 1;
     const TreeLink& L = model.links[k];

@@ -1,13 +1,19 @@
 // The branch passages' decomposition of a planar loop's two rows over three columns
 // (branch_passage.cpp) runs Eigen's JacobiSVD in fixed-size storage; it must give the bits
 // of the fixed-capacity one it stands for (singular values, U, the first two columns of V),
-// near-dependent rows included, or the four-bars' results would change with it.
+// near-dependent rows included, or the four-bars' results would change with it. Its gate
+// for two rows (passageGateTwoRows) must decide as Eigen's LLT of W W^T - shift I, at the
+// gate too.
 #include <gtest/gtest.h>
 
 #include <cstring>
 #include <random>
 
+#include <Eigen/Cholesky>
+#include <Eigen/QR>
 #include <Eigen/SVD>
+
+#include "mechanism_sim/core/loop_closure.h"
 
 namespace mechanism_sim {
 namespace {
@@ -45,6 +51,38 @@ TEST(PassageSvd, FixedTwoByThreeMatchesFixedCapacityBitwise) {
       ++differ;
   }
   EXPECT_EQ(differ, 0);
+}
+
+TEST(PassageSvd, TwoRowGateDecidesAsTheCholeskyFactorization) {
+  std::mt19937 rng(11u);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  const double shift = kPassageGate * kPassageGate + 1e-10;
+  int differ = 0, at_gate = 0, passed_at_gate = 0;
+  for (int t = 0; t < 40000; ++t) {
+    const int k = 2 + t % 4;
+    Eigen::MatrixXd W(2, k);
+    if (t % 2) {  // the smaller singular value within 1e-15..1e-13 of the gate
+      const Eigen::MatrixXd V = Eigen::HouseholderQR<Eigen::MatrixXd>(Eigen::MatrixXd::Random(k, k)).householderQ();
+      const double th = 3.2 * u(rng);
+      Eigen::Matrix2d U, S;
+      U << std::cos(th), -std::sin(th), std::sin(th), std::cos(th);
+      S << 1.0 + 0.5 * u(rng), 0.0, 0.0, std::sqrt(shift) * (1.0 + (t % 4 == 1 ? 1e-15 : 1e-13) * u(rng));
+      W = U * S * V.leftCols(2).transpose();
+      ++at_gate;
+    } else {
+      for (int i = 0; i < 2; ++i)
+        for (int j = 0; j < k; ++j) W(i, j) = u(rng);
+    }
+    Eigen::MatrixXd gram = W * W.transpose();
+    gram.diagonal().array() -= shift;
+    const bool llt = Eigen::LLT<Eigen::MatrixXd>(gram).info() == Eigen::Success;
+    const bool gate = passageGateTwoRows(W, shift);
+    differ += llt != gate;
+    passed_at_gate += (t % 2) && gate;
+  }
+  EXPECT_EQ(differ, 0);
+  EXPECT_GT(passed_at_gate, at_gate / 10);  // (both sides of the gate were met)
+  EXPECT_LT(passed_at_gate, at_gate - at_gate / 10);
 }
 
 }  // namespace

@@ -87,6 +87,11 @@ class ClosureSolver {
   void solve(const ScaledLeastNorm& dense, const Eigen::VectorXd& b, Eigen::VectorXd& x) const;
   // Whether the last factor() kept row e.
   bool kept(int e) const { return d_(e) != 0.0; }
+  // u = L^-T R^T x (nv entries) from the last factor()'s passes on the rows themselves: the
+  // inward pass is linear in its input, so the pass on R^T x is Z x (RBDA 8.5's Z), summed
+  // over the rows' own coordinates. false, u untouched, where a row the factorization did
+  // not keep has x != 0 (its column of Z was not formed).
+  bool inwardOfRowsT(const Eigen::VectorXd& x, double* u) const;
   // Per block, its coordinates in the tree's order (R's entries elsewhere are zero).
   const std::vector<int>& blockCols(int b) const { return cols_[b]; }
 
