@@ -96,6 +96,20 @@ bool LoopClosures::closureRows(size_t c) {
   return true;
 }
 
+// The gate's test for two rows W (2 x kc, kc >= 2): whether the Cholesky factorization of
+// W W^T - shift I runs to completion, with the operations of Eigen's (the product's entries
+// summed over the columns in order, LLT's unblocked steps: pivot 0 not positive, or pivot
+// 1 after the elimination not positive, fails; a NaN passes, as there), so it decides as
+// the general path does.
+bool passageGateTwoRows(const Eigen::Ref<const Eigen::MatrixXd>& W, double shift) {
+  double g00 = W(0, 0) * W(0, 0), g10 = W(1, 0) * W(0, 0), g11 = W(1, 0) * W(1, 0);
+  for (Eigen::Index k = 1; k < W.cols(); ++k) g00 += W(0, k) * W(0, k), g10 += W(1, k) * W(0, k), g11 += W(1, k) * W(1, k);
+  g00 -= shift, g11 -= shift;
+  if (g00 <= 0.0) return false;
+  const double l10 = g10 / std::sqrt(g00);
+  return !(g11 - l10 * l10 <= 0.0);
+}
+
 bool LoopClosures::findPassage() {
   // (G, Gabs, Gbound and passage_hold as at the last call: its results stand)
   // (the rates matter to the held directions only: where none was held, any rates' results)
@@ -152,6 +166,10 @@ bool LoopClosures::findPassageNow() {
       if (p_W_.rows() > p_W_.cols() || p_W_.rows() > 6) {
         clear = false;
         break;
+      }
+      if (p_W_.rows() == 2) {  // (a planar loop's two rows: the same test written out)
+        clear = passageGateTwoRows(p_W_, kPassageGate * kPassageGate + kGateMargin);
+        continue;
       }
       p_gram_.noalias() = p_W_ * p_W_.transpose();
       p_gram_.diagonal().array() -= kPassageGate * kPassageGate + kGateMargin;
@@ -243,7 +261,11 @@ bool LoopClosures::findPassageNow() {
     // (U in full: with more rows than columns the rows' left null space is dependent too.
     // Up to 6 x 6, as a cut joint's rows over a planar loop's or a short spatial loop's
     // columns, in fixed-capacity storage: no dynamic-size overhead.)
-    if (kr <= 6 && kc <= 6) {
+    if (kr == 2 && kc == 3) {
+      const Eigen::Matrix<double, 2, 3> W = p_W_;
+      p_svd23_.compute(W, Eigen::ComputeFullU | Eigen::ComputeFullV);
+      directions(p_svd23_);
+    } else if (kr <= 6 && kc <= 6) {
       p_svd6_.compute(p_W_, Eigen::ComputeFullU | Eigen::ComputeThinV);
       directions(p_svd6_);
     } else {

@@ -158,6 +158,20 @@ ClosureSolver::ClosureSolver(const TreeModel& model, const std::vector<int>& blo
   d_.setZero(m_);
   work_.setZero(m_);
   pa_.assign(model.nb, Vector6d::Zero());
+  // product()'s lists as coordinates where every link on them has one (or none)
+  auto coords = [&](const std::vector<int>& links, std::vector<int>& out) {
+    out.clear();
+    for (int k : links) {
+      if (model.links[k].nv > 1) return false;
+      if (model.links[k].nv == 1) out.push_back(model.links[k].iv);
+    }
+    return true;
+  };
+  block_coords_.assign(nblocks, {}), block_simple_.assign(nblocks, 0);
+  for (int b = 0; b < nblocks; ++b) block_simple_[b] = coords(links_[b], block_coords_[b]);
+  pair_coords_.assign(pairs_.size(), {}), pair_simple_.assign(pairs_.size(), 0);
+  for (size_t p = 0; p < pairs_.size(); ++p) pair_simple_[p] = coords(shared_[p], pair_coords_[p]);
+  dinv_.setZero(model.nv);
 }
 
 void ClosureSolver::analyzeKept() {
@@ -206,6 +220,8 @@ double ClosureSolver::product(const TreeModel& model, const TreeWorkspace& ws, c
 int ClosureSolver::factor(const TreeModel& model, const TreeWorkspace& ws, const Eigen::MatrixXd& R,
                           const Eigen::VectorXd& keep, ScaledLeastNorm& dense, Eigen::MatrixXd& A_dense) {
   kept_ = 0;
+  for (int k = 0; k < model.nb; ++k)  // (D^-1 of the one-coordinate links, by coordinate)
+    if (model.links[k].nv == 1) dinv_(model.links[k].iv) = ws.Dinv[k](0, 0);
   for (int e = 0; e < m_; ++e) {
     d_(e) = 0.0;
     if (keep(e) == 0.0) continue;
@@ -214,7 +230,7 @@ int ClosureSolver::factor(const TreeModel& model, const TreeWorkspace& ws, const
     for (int v : cols_[block_[e]]) z[v] = R(e, v);  // (tau = R_e^T, then u in place)
     for (int k : links) pa_[k].setZero();
     for (int k : links) inverseMassInward(model, ws, k, z, z, pa_);
-    const double a = product(model, ws, links, e, e);
+    const double a = block_simple_[block_[e]] ? product(block_coords_[block_[e]], e, e) : product(model, ws, links, e, e);
     if (a > 0.0) {
       d_(e) = 1.0 / std::sqrt(a);
       ++kept_;
@@ -235,7 +251,8 @@ int ClosureSolver::factor(const TreeModel& model, const TreeWorkspace& ws, const
         if (d_(e) == 0.0) continue;
         for (int f = a == b ? e : first_[b]; f < first_[b + 1]; ++f) {
           if (d_(f) == 0.0) continue;
-          const double s = product(model, ws, shared_[p], e, f) * d_(e) * d_(f);
+          const double s =
+              (pair_simple_[p] ? product(pair_coords_[p], e, f) : product(model, ws, shared_[p], e, f)) * d_(e) * d_(f);
           Ax_[pos_[static_cast<size_t>(f) * m_ + e]] = s;
           Ax_[pos_[static_cast<size_t>(e) * m_ + f]] = s;
         }
@@ -260,6 +277,19 @@ int ClosureSolver::factor(const TreeModel& model, const TreeWorkspace& ws, const
   }
   for (int e = 0; e < m_; ++e) work_(e) = d_(e) != 0.0 ? 1.0 : 0.0;
   return dense.factor(A_dense, &work_);
+}
+
+bool ClosureSolver::inwardOfRowsT(const Eigen::VectorXd& x, double* u) const {
+  for (int e = 0; e < m_; ++e)
+    if (x(e) != 0.0 && d_(e) == 0.0) return false;
+  std::fill(u, u + Z_.rows(), 0.0);
+  for (int e = 0; e < m_; ++e) {
+    const double xe = x(e);
+    if (xe == 0.0) continue;
+    const double* z = Z_.col(e).data();
+    for (int v : cols_[block_[e]]) u[v] += z[v] * xe;
+  }
+  return true;
 }
 
 void ClosureSolver::solve(const ScaledLeastNorm& dense, const Eigen::VectorXd& b, Eigen::VectorXd& x) const {

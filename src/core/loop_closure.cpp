@@ -63,6 +63,25 @@ bool unchangedSince(const AlignedVector<M>& now, AlignedVector<M>& copy) {
   return same;
 }
 
+// Whether `now` holds the bits of `copy` (sizes included), as unchangedSince but without
+// copying: one comparison of the whole array for fixed-size elements (a memcmp over many
+// words costs less than the loop), element by element (their used part) otherwise.
+template <class M>
+bool sameBits(const AlignedVector<M>& now, const AlignedVector<M>& copy) {
+  if (now.size() != copy.size()) return false;
+  if (now.empty()) return true;
+  if constexpr (M::SizeAtCompileTime != Eigen::Dynamic) {
+    static_assert(sizeof(M) == sizeof(double) * M::SizeAtCompileTime, "elements without padding");
+    return std::memcmp(now.data(), copy.data(), sizeof(M) * now.size()) == 0;
+  } else {
+    for (size_t k = 0; k < now.size(); ++k) {
+      if (now[k].rows() != copy[k].rows() || now[k].cols() != copy[k].cols()) return false;
+      if (std::memcmp(now[k].data(), copy[k].data(), sizeof(double) * now[k].size()) != 0) return false;
+    }
+    return true;
+  }
+}
+
 // A limit whose side in the context is 0 (free): its row is zero (LimitConstraint).
 inline bool inactiveLimit(const Constraint& C, const EvalContext& ctx) {
   const int l = C.limit();
@@ -314,8 +333,19 @@ bool LoopClosures::rowsTransposeTimes(const Eigen::MatrixXd& R, const Eigen::Vec
 
 void LoopClosures::inverseMassRowsT(const TreeModel& model, const TreeWorkspace& ws, const Eigen::MatrixXd& R,
                                     const Eigen::VectorXd& x, Eigen::VectorXd& out) {
-  if (rowsTransposeTimes(R, x, tau_)) applyInverseMass(model, ws, tau_.data(), out.data());
-  else out.setZero();
+  bool any = false;
+  for (int e = 0; e < m && !any; ++e) any = x(e) != 0.0;
+  if (!any) {
+    out.setZero();
+    return;
+  }
+  const ClosureSolver* rows = &R == &G ? &solver_ : &R == &p_R_ ? &p_solver_ : nullptr;
+  if (rows && rows->inwardOfRowsT(x, out.data())) {
+    outwardInverseMass(model, ws, out.data());
+    return;
+  }
+  rowsTransposeTimes(R, x, tau_);
+  applyInverseMass(model, ws, tau_.data(), out.data());
 }
 
 void LoopClosures::inverseMassGT(const Eigen::VectorXd& x, Eigen::VectorXd& out) const {
@@ -338,13 +368,13 @@ bool LoopClosures::addCutJointEfforts(const TreeModel& model, const System& sys,
                                       const Inputs& in, Eigen::VectorXd& tau) {
   bool any = false;
   const EvalContext ctx = context();
-  loadKin(ws);
   for (int j : model.cut_joints) {
     if (j >= static_cast<int>(in.effort.size())) continue;
     const Joint& J = *sys.joints[j];
     bool nonzero = false;
     for (int k = 0; k < J.dof(); ++k) nonzero = nonzero || in.effort[j][k] != 0.0;
     if (!nonzero) continue;
+    if (!any) loadKin(ws);  // (the bodies' kinematics only for a cut joint that has an effort)
     any = true;
     Row rows[kMaxJointDofs];
     J.coordinates(kin_[J.bodyI()], kin_[J.bodyJ()], ctx.tracked[sys.joint_constraint[j]], rows);
@@ -582,6 +612,11 @@ void LoopClosures::evaluate(const TreeModel& model, const System& sys, const Tre
         mapBody(model, ws, b, Jdyn, Jdyn.cwiseAbs(), r0, n);
         continue;
       }
+      if (n == 2) {  // (a planar loop's two rows: fixed sizes throughout, the same operations)
+        const Eigen::Matrix<double, 2, 6, Eigen::RowMajor> Jb = Jdyn, Jabs = Jdyn.cwiseAbs();
+        mapBody(model, ws, b, Jb, Jabs, r0, n);
+        continue;
+      }
       const SmallRows Jb = Jdyn, Jabs = Jdyn.cwiseAbs();
       mapBody(model, ws, b, Jb, Jabs, r0, n);
     }
@@ -594,6 +629,8 @@ void LoopClosures::evaluate(const TreeModel& model, const System& sys, const Tre
 template <class JB, class JA>
 void LoopClosures::mapBody(const TreeModel& model, const TreeWorkspace& ws, int b, const JB& Jb, const JA& Jabs,
                            int r0, int n) {
+  constexpr int N = JB::RowsAtCompileTime;  // (Eigen::Dynamic, or the rows' number)
+  if constexpr (N != Eigen::Dynamic) n = N;
   const Matrix3d& Ab = ws.A[b - 1];
   const Vector3d& rb = ws.r[b - 1];
   // the rows' parts' norms for Gbound, once per body (they do not depend on the column)
@@ -613,8 +650,13 @@ void LoopClosures::mapBody(const TreeModel& model, const TreeWorkspace& ws, int 
       Vector6d uabs;
       uabs.head<3>() = vg.cwiseAbs() + wxl.cwiseAbs();
       uabs.tail<3>() = u.tail<3>().cwiseAbs();
-      G.col(L.iv + col).segment(r0, n).noalias() += Jb * u;
-      Gabs.col(L.iv + col).segment(r0, n).noalias() += Jabs * uabs;
+      if constexpr (N != Eigen::Dynamic) {
+        G.col(L.iv + col).template segment<N>(r0).noalias() += Jb * u;
+        Gabs.col(L.iv + col).template segment<N>(r0).noalias() += Jabs * uabs;
+      } else {
+        G.col(L.iv + col).segment(r0, n).noalias() += Jb * u;
+        Gabs.col(L.iv + col).segment(r0, n).noalias() += Jabs * uabs;
+      }
       // (norms, not components: a bound that does not vanish where the geometry makes
       // the entry vanish, for the branch passages' normalization)
       const double sv = vg.norm() + wg.norm() * lever.norm(), sw = wg.norm();
@@ -669,6 +711,10 @@ double LoopClosures::velocityResidual(const Eigen::VectorXd& qdot, const Eigen::
 void LoopClosures::applyInverseMass(const TreeModel& model, const TreeWorkspace& ws, const double* tau, double* out) {
   for (int k = 0; k < model.nb; ++k) pa_[k].setZero();
   for (int n = model.nb - 1; n >= 0; --n) inverseMassInward(model, ws, model.order[n] - 1, tau, out, pa_);  // u kept in out
+  outwardInverseMass(model, ws, out);
+}
+
+void LoopClosures::outwardInverseMass(const TreeModel& model, const TreeWorkspace& ws, double* out) {
   for (int b : model.order) {
     const int k = b - 1;
     const TreeLink& L = model.links[k];
@@ -690,10 +736,13 @@ void LoopClosures::applyInverseMass(const TreeModel& model, const TreeWorkspace&
 }
 
 long LoopClosures::massFactorsGeneration(const TreeWorkspace& ws) {
-  if (!(unchangedSince(ws.S, fac_S_) & unchangedSince(ws.E, fac_E_) & unchangedSince(ws.rho, fac_rho_) &
-        unchangedSince(ws.U, fac_U_) & unchangedSince(ws.Dinv, fac_Dinv_)))
-    ++ws_gen_;
-  return ws_gen_;
+  // (the poses first: they differ from the first moving link on when q does, and then the
+  // copies are taken without comparing the rest)
+  if (sameBits(ws.E, fac_E_) && sameBits(ws.rho, fac_rho_) && sameBits(ws.Dinv, fac_Dinv_) &&
+      sameBits(ws.U, fac_U_) && sameBits(ws.S, fac_S_))
+    return ws_gen_;
+  fac_E_ = ws.E, fac_rho_ = ws.rho, fac_Dinv_ = ws.Dinv, fac_U_ = ws.U, fac_S_ = ws.S;
+  return ++ws_gen_;
 }
 
 void LoopClosures::factor(const TreeModel& model, const TreeWorkspace& ws) {

@@ -38,24 +38,23 @@ void SparseLDLT::analyze(int n, const std::vector<int>& Ap, const std::vector<in
   Y_.assign(n, 0.0);
   pattern_.assign(n, 0);
   zero_.assign(n, 0);
-}
-
-int SparseLDLT::factorize(const double* Ax, double pivot_tol, bool skip_zero_pivots) {
-  int zeros = 0;
-  for (int k = 0; k < n_; ++k) {
-    // Row k of L by a sparse triangular solve (ldl_numeric).
-    Y_[k] = 0.0;
-    int top = n_;
+  // Per row k of L, what factorize() reads of the pattern, found here once (it depends on
+  // the pattern alone): the entries of A's column P_k on or above the diagonal (their
+  // places in Ax and their rows), and the nonzero pattern of row k of L in the order the
+  // sparse triangular solve takes it (ldl_numeric's reach along the elimination tree, the
+  // same walk from the same entries: every operation on the values as before).
+  Sp_.assign(n + 1, 0), Sx_.clear(), Si_.clear();
+  Rp_.assign(n + 1, 0), Ri_.assign(Lp_[n], 0);
+  std::fill(flag_.begin(), flag_.end(), -1);
+  int r = 0;
+  for (int k = 0; k < n; ++k) {
+    int top = n;
     flag_[k] = k;
-    Lnz_[k] = 0;
-    zero_[k] = 0;
     const int kk = P_[k];
-    double akk = 0.0;
     for (int p = Ap_[kk]; p < Ap_[kk + 1]; ++p) {
       int i = pinv_[Ai_[p]];
       if (i > k) continue;
-      Y_[i] += Ax[p];
-      if (i == k) akk += Ax[p];
+      Sx_.push_back(p), Si_.push_back(i);
       int len = 0;
       for (; flag_[i] != k; i = parent_[i]) {
         pattern_[len++] = i;
@@ -63,10 +62,29 @@ int SparseLDLT::factorize(const double* Ax, double pivot_tol, bool skip_zero_piv
       }
       while (len > 0) pattern_[--top] = pattern_[--len];
     }
+    Sp_[k + 1] = static_cast<int>(Sx_.size());
+    for (; top < n; ++top) Ri_[r++] = pattern_[top];
+    Rp_[k + 1] = r;
+  }
+}
+
+int SparseLDLT::factorize(const double* Ax, double pivot_tol, bool skip_zero_pivots) {
+  int zeros = 0;
+  for (int k = 0; k < n_; ++k) {
+    // Row k of L by a sparse triangular solve (ldl_numeric), on the pattern analyze() found.
+    Y_[k] = 0.0;
+    Lnz_[k] = 0;
+    zero_[k] = 0;
+    double akk = 0.0;
+    for (int s = Sp_[k]; s < Sp_[k + 1]; ++s) {
+      const int i = Si_[s];
+      Y_[i] += Ax[Sx_[s]];
+      if (i == k) akk += Ax[Sx_[s]];
+    }
     D_[k] = Y_[k];
     Y_[k] = 0.0;
-    for (; top < n_; ++top) {
-      const int i = pattern_[top];
+    for (int t = Rp_[k]; t < Rp_[k + 1]; ++t) {
+      const int i = Ri_[t];
       const double yi = Y_[i];
       Y_[i] = 0.0;
       const int p2 = Lp_[i] + Lnz_[i];

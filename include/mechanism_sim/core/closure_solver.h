@@ -87,6 +87,11 @@ class ClosureSolver {
   void solve(const ScaledLeastNorm& dense, const Eigen::VectorXd& b, Eigen::VectorXd& x) const;
   // Whether the last factor() kept row e.
   bool kept(int e) const { return d_(e) != 0.0; }
+  // u = L^-T R^T x (nv entries) from the last factor()'s passes on the rows themselves: the
+  // inward pass is linear in its input, so the pass on R^T x is Z x (RBDA 8.5's Z), summed
+  // over the rows' own coordinates. false, u untouched, where a row the factorization did
+  // not keep has x != 0 (its column of Z was not formed).
+  bool inwardOfRowsT(const Eigen::VectorXd& x, double* u) const;
   // Per block, its coordinates in the tree's order (R's entries elsewhere are zero).
   const std::vector<int>& blockCols(int b) const { return cols_[b]; }
 
@@ -115,6 +120,19 @@ class ClosureSolver {
   int kept_ = 0;
   // z_e^T D^-1 z_f over the links of a list (D_k = S_k^T I^A_k S_k, ws.Dinv)
   double product(const TreeModel& model, const TreeWorkspace& ws, const std::vector<int>& links, int e, int f) const;
+  // The same over lists of links that have one coordinate each (or none: left out), as
+  // their coordinates, with D^-1 by coordinate (dinv_, set by factor()): the same terms in
+  // the same order
+  double product(const std::vector<int>& coords, int e, int f) const {
+    const double* ze = Z_.col(e).data();
+    const double* zf = Z_.col(f).data();
+    double s = 0.0;
+    for (int v : coords) s += ze[v] * dinv_(v) * zf[v];
+    return s;
+  }
+  std::vector<std::vector<int>> block_coords_, pair_coords_;  // per block (links_), per pair (shared_)
+  std::vector<char> block_simple_, pair_simple_;              // whether those lists apply
+  Eigen::VectorXd dinv_;
 };
 
 }  // namespace mechanism_sim

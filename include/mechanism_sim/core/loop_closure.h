@@ -48,6 +48,11 @@
 
 namespace mechanism_sim {
 
+// The branch passages' gate for a closure of two normalized rows W (2 x k, k >= 2):
+// whether W W^T - shift I is positive definite as Eigen's LLT decides it (the same
+// operations in the same order; branch_passage.cpp).
+bool passageGateTwoRows(const Eigen::Ref<const Eigen::MatrixXd>& W, double shift);
+
 // Relative pivot threshold of the Jacobi-scaled G M^-1 G^T (unit diagonal).
 constexpr double kClosureRankThreshold = 1e-10;
 // A G entry counts as round-off when below this fraction of the size of its terms.
@@ -219,6 +224,8 @@ class LoopClosures {
   // out = M^-1 tau by articulated-body passes with zero velocity and gravity on the
   // articulated inertias in ws (forwardDynamics at the same q computed them).
   void applyInverseMass(const TreeModel& model, const TreeWorkspace& ws, const double* tau, double* out);
+  // Its outward pass alone: out holds u = L^-T tau (the inward pass's), q_ddot = M^-1 tau after.
+  void outwardInverseMass(const TreeModel& model, const TreeWorkspace& ws, double* out);
   // The same by the joint-space inertia factored at ws (closure_solver.h): factorMass(model,
   // ws) once (O(n d^2)), then each inverseMass(x) (x = M^-1 x in place) costs O(n d), less
   // for a unit vector. The closures' own solves factor it themselves.
@@ -372,6 +379,10 @@ class LoopClosures {
   bool p_rate_set_ = false;
   Eigen::JacobiSVD<Eigen::MatrixXd> p_svd_;
   Eigen::JacobiSVD<Small6> p_svd6_;  // (the same up to 6 x 6)
+  // (and a planar loop's two rows over three columns, a four-bar's, in fixed-size storage:
+  // the same operations, bit for bit, at a quarter less cost; V in full, its first two
+  // columns the thin V's)
+  Eigen::JacobiSVD<Eigen::Matrix<double, 2, 3>> p_svd23_;
   int p_r_ = 0, p_band_ = 0;
   int p_excl_ = 0;  // rows of p_w_, p_z_: the held directions and the dependent ones
   bool p_near_ = false, p_reduce_ = false;
@@ -411,8 +422,10 @@ class LoopClosures {
       if (std::fabs(G(e, k)) > kClosureZeroEntry * Gabs(e, k)) return false;
     return true;
   }
-  // out = M^-1 R^T x, R laid out as G (rows in the closures' slots), by an inverse-mass
-  // pass at ws (applyInverseMass)
+  // out = M^-1 R^T x, R laid out as G (rows in the closures' slots), at ws: R = G or the
+  // passages' p_R_ right after their factorization (factor(), passageFactor() at the same
+  // G or R and ws: every caller) from its passes on the rows (ClosureSolver::inwardOfRowsT)
+  // and the outward pass; any other R by an inverse-mass pass (applyInverseMass)
   void inverseMassRowsT(const TreeModel& model, const TreeWorkspace& ws, const Eigen::MatrixXd& R,
                         const Eigen::VectorXd& x, Eigen::VectorXd& out);
   void passageSolve(const Eigen::VectorXd& b, Eigen::VectorXd& x) const {

@@ -32,6 +32,9 @@ class SparseLDLT {
  private:
   int n_ = 0;
   std::vector<int> Ap_, Ai_, P_, pinv_, Lp_, parent_, Lnz_, Li_, flag_, pattern_;
+  // per row k (analyze()): A's entries on or above the diagonal, Ax places Sx_ and rows
+  // Si_ from Sp_[k]; row k's pattern in L, Ri_ from Rp_[k]
+  std::vector<int> Sp_, Sx_, Si_, Rp_, Ri_;
   std::vector<double> Lx_, D_;
   mutable std::vector<double> Y_;
   std::vector<char> zero_;
