@@ -55,6 +55,25 @@ void track(const Joint& joint, const std::vector<BodyKin>& kin, Tracked& tr) {
   EXPECT_EQ(rate, expected) << joint.type();
 }
 
+// A random joint of the type between two bodies at random poses, its angles tracked
+// there, and its evaluation: the tests' common start.
+struct PosedJoint {
+  std::unique_ptr<Joint> joint;
+  std::vector<BodyKin> kin;
+  Tracked tr;
+  Evaluation e;
+};
+
+PosedJoint posedJoint(const std::string& type, std::mt19937& rng) {
+  PosedJoint p;
+  p.joint = randomJoint(type, rng);
+  p.kin = {test::randomBody(rng), test::randomBody(rng)};
+  p.tr = p.joint->initialTracked();
+  track(*p.joint, p.kin, p.tr);  // track angles from this pose
+  p.e = evaluate(*p.joint, p.kin, p.tr);
+  return p;
+}
+
 // What each joint type is meant to allow, written here and not asked of the registry: the
 // relative motion of frame j in frame i (rotation R and translation t, frame i components)
 // that its coordinates q describe, how many equations it has, and the range its
@@ -141,11 +160,11 @@ TEST_P(JointTypes, JacobianAndGammaMatchFiniteDifferences) {
   jointCase(GetParam());  // fails for a type without a case (the checks here still run)
   std::mt19937 rng(11);
   for (int n = 0; n < 100; ++n) {
-    auto joint = randomJoint(GetParam(), rng);
-    const std::vector<BodyKin> kin = {test::randomBody(rng), test::randomBody(rng)};
-    Tracked tr = joint->initialTracked();
-    track(*joint, kin, tr);  // track angles from this pose
-    const Evaluation e = evaluate(*joint, kin, tr);
+    const PosedJoint p = posedJoint(GetParam(), rng);
+    const std::unique_ptr<Joint>& joint = p.joint;
+    const std::vector<BodyKin>& kin = p.kin;
+    const Tracked& tr = p.tr;
+    const Evaluation& e = p.e;
     ASSERT_EQ(e.Phi.size(), joint->size());
     auto f = [&](const std::vector<BodyKin>& k) { return evaluate(*joint, k, tr).Phi; };
     const double scale = 1.0 + e.J.cwiseAbs().maxCoeff();
@@ -161,11 +180,11 @@ TEST_P(JointTypes, JacobianAndGammaMatchFiniteDifferences) {
 TEST_P(JointTypes, SelectedRowsAreTheFullEvaluationsRows) {
   std::mt19937 rng(12);
   for (int n = 0; n < 20; ++n) {
-    auto joint = randomJoint(GetParam(), rng);
-    const std::vector<BodyKin> kin = {test::randomBody(rng), test::randomBody(rng)};
-    Tracked tr = joint->initialTracked();
-    track(*joint, kin, tr);
-    const Evaluation e = evaluate(*joint, kin, tr);
+    const PosedJoint p = posedJoint(GetParam(), rng);
+    const std::unique_ptr<Joint>& joint = p.joint;
+    const std::vector<BodyKin>& kin = p.kin;
+    const Tracked& tr = p.tr;
+    const Evaluation& e = p.e;
     const int size = joint->size();
     const BodyKin* ptrs[2] = {&kin[0], &kin[1]};
     const EvalContext ctx{&tr, nullptr};  // (constraint id 0, as evaluate() above)
@@ -190,11 +209,11 @@ TEST_P(JointTypes, EvaluationWithoutRatesHasTheFullEvaluationsPhiAndJacobian) {
   std::mt19937 rng(13);
   auto same = [](double a, double b) { return a == b && std::signbit(a) == std::signbit(b); };
   for (int n = 0; n < 20; ++n) {
-    auto joint = randomJoint(GetParam(), rng);
-    const std::vector<BodyKin> kin = {test::randomBody(rng), test::randomBody(rng)};
-    Tracked tr = joint->initialTracked();
-    track(*joint, kin, tr);
-    const Evaluation e = evaluate(*joint, kin, tr);
+    const PosedJoint p = posedJoint(GetParam(), rng);
+    const std::unique_ptr<Joint>& joint = p.joint;
+    const std::vector<BodyKin>& kin = p.kin;
+    const Tracked& tr = p.tr;
+    const Evaluation& e = p.e;
     const int size = joint->size();
     const BodyKin* ptrs[2] = {&kin[0], &kin[1]};
     EvalContext ctx{&tr, nullptr};
