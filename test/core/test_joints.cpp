@@ -160,13 +160,10 @@ TEST_P(JointTypes, JacobianAndGammaMatchFiniteDifferences) {
   jointCase(GetParam());  // fails for a type without a case (the checks here still run)
   std::mt19937 rng(11);
   for (int n = 0; n < 100; ++n) {
-    const PosedJoint p = posedJoint(GetParam(), rng);
-    const std::unique_ptr<Joint>& joint = p.joint;
-    const std::vector<BodyKin>& kin = p.kin;
-    const Tracked& tr = p.tr;
-    const Evaluation& e = p.e;
+    const auto [joint, kin, tr, e] = posedJoint(GetParam(), rng);
     ASSERT_EQ(e.Phi.size(), joint->size());
-    auto f = [&](const std::vector<BodyKin>& k) { return evaluate(*joint, k, tr).Phi; };
+    // (init-captures: C++17 captures no structured binding by name)
+    auto f = [&joint = joint, &tr = tr](const std::vector<BodyKin>& k) { return evaluate(*joint, k, tr).Phi; };
     const double scale = 1.0 + e.J.cwiseAbs().maxCoeff();
     EXPECT_LT((test::fdJacobian(f, kin) - e.J).cwiseAbs().maxCoeff(), 1e-7 * scale) << n;
     EXPECT_LT((test::fdGamma(f, kin) - e.gamma).cwiseAbs().maxCoeff(),
@@ -180,11 +177,7 @@ TEST_P(JointTypes, JacobianAndGammaMatchFiniteDifferences) {
 TEST_P(JointTypes, SelectedRowsAreTheFullEvaluationsRows) {
   std::mt19937 rng(12);
   for (int n = 0; n < 20; ++n) {
-    const PosedJoint p = posedJoint(GetParam(), rng);
-    const std::unique_ptr<Joint>& joint = p.joint;
-    const std::vector<BodyKin>& kin = p.kin;
-    const Tracked& tr = p.tr;
-    const Evaluation& e = p.e;
+    const auto [joint, kin, tr, e] = posedJoint(GetParam(), rng);
     const int size = joint->size();
     const BodyKin* ptrs[2] = {&kin[0], &kin[1]};
     const EvalContext ctx{&tr, nullptr};  // (constraint id 0, as evaluate() above)
@@ -209,11 +202,7 @@ TEST_P(JointTypes, EvaluationWithoutRatesHasTheFullEvaluationsPhiAndJacobian) {
   std::mt19937 rng(13);
   auto same = [](double a, double b) { return a == b && std::signbit(a) == std::signbit(b); };
   for (int n = 0; n < 20; ++n) {
-    const PosedJoint p = posedJoint(GetParam(), rng);
-    const std::unique_ptr<Joint>& joint = p.joint;
-    const std::vector<BodyKin>& kin = p.kin;
-    const Tracked& tr = p.tr;
-    const Evaluation& e = p.e;
+    const auto [joint, kin, tr, e] = posedJoint(GetParam(), rng);
     const int size = joint->size();
     const BodyKin* ptrs[2] = {&kin[0], &kin[1]};
     EvalContext ctx{&tr, nullptr};
