@@ -301,9 +301,25 @@ void JointStepper::writeAbsolute(const System& sys, State& s) {
     closures_.setContext(s.context());
     closures_.track(ws_, cut_constraints_, s.tracked);
   }
+  // the closures' violations at this state (closureViolation()): |Phi| and |G q_dot - nu|
+  // of their rows, evaluated at (s.q, s.qdot) by the accelerations above
+  end_violation_ = {0.0, 0.0};
+  if (closures_.m > 0) {
+    end_violation_[0] = closures_.Phi.head(closures_.m).cwiseAbs().maxCoeff();
+    if (end_rate_.size() != closures_.G.rows()) end_rate_.setZero(closures_.G.rows());
+    closures_.timesG(s.qdot, end_rate_);
+    end_violation_[1] = (end_rate_.head(closures_.m) - closures_.nu.head(closures_.m)).cwiseAbs().maxCoeff();
+  }
   q_end_ = s.q;
   v_end_ = s.qdot;
   fresh_ = true;
+}
+
+bool JointStepper::closureViolation(const State& s, double& position, double& velocity) const {
+  if (!fresh_ || q_end_.size() != s.q.size() || v_end_.size() != s.qdot.size() || q_end_ != s.q || v_end_ != s.qdot)
+    return false;
+  position = end_violation_[0], velocity = end_violation_[1];
+  return true;
 }
 
 // After the stages (or at a new state): limits that were passed become active (an
@@ -361,6 +377,7 @@ void JointStepper::settle(const System& sys, State& s, const Inputs& in) {
   closures_.rebind(sys);  // (a Mechanism's System is copied on write)
   // (a new state: no round-off of a step to carry)
   s.q_round.setZero(model_.nq), s.qdot_round.setZero(model_.nv);
+  s.damping_hold.left = 0;
   // A settled state has no motion before it: the closures' decomposition applies
   // (branch_passage.cpp: dependent rows dropped by geometry) but nothing is held by the motion.
   if (!model_.cut_joints.empty()) {
@@ -610,10 +627,55 @@ double coordinateInverseMassBound(const System& sys, const Joint& J, const Row& 
 //  3. Else P_lk itself, at the damped l only (dampedInverseMass: O(depth) an entry, where a
 //     column of P costs passes over the tree).
 // (1. decides only where 3. would decide the same: u_k >= s_k.)
-bool JointStepper::classifyDamping(const System& sys, const State& s, double h) {
+//
+// The set found is held for the next steps (s.damping_hold), as stiff solvers keep their
+// Jacobian over steps while it serves (Hairer & Wanner, "Solving ODEs II", IV.8): for at
+// most kHoldSteps, while no body has turned by more than kHoldMotion rad or moved by more
+// than kHoldMotion of the length scale from where it was found, under the same step, bound
+// and limit sides. Only where every coordinate's h s_k was at least kHoldMargin away from
+// the bound (above or below), and ln(h s_k) changed since the classification before at a
+// pace that over kHoldMotion would cover at most half its distance to ln(bound): P is a
+// smooth function of the configuration, but a nearly singular mass matrix (a light link
+// carrying a heavy one) can make it change by half within 0.2 rad, so the pace is
+// measured, not assumed. A coordinate near the bound, or nearing it fast, is classified
+// again every step. A set held gives the stages every bit the classification itself would
+// have given them (the test HeldClassificationSwitchesWhereEachStepsWould), and one whose
+// s_k crossed the bound unseen would still be stable: RK4's limit, 2.785, is 1.39 times its
+// bound of 2.
+namespace {
+constexpr int kHoldSteps = 16;
+constexpr double kHoldMotion = 0.05, kHoldMargin = 1.25;
+
+// How far the bodies are from their positions x0 (State::x): the largest of |r - r0| / L
+// and 2 |p - p0| (the rotation angle to first order; a quaternion's sign flip counts as far).
+double motionSince(const System& sys, const Eigen::VectorXd& x0, const Eigen::VectorXd& x) {
+  double d = 0.0;
+  for (int b = 0; b < sys.nb; ++b) {
+    const int o = BodyCoordinates::x(b);
+    d = std::max({d, (x.segment<3>(o) - x0.segment<3>(o)).norm() / sys.length_scale,
+                  2.0 * (x.segment<4>(o + 3) - x0.segment<4>(o + 3)).norm()});
+  }
+  return d;
+}
+}  // namespace
+
+bool JointStepper::classifyDamping(const System& sys, State& s, double h) {
   const double bound = tableau_->stiff_bound;
-  bool kinematics = false;
   const int nd = static_cast<int>(damped_.size());
+  State::DampingHold& hold = s.damping_hold;
+  if (hold.left > 0 && hold.h == h && hold.bound == bound && hold.stiff.size() == static_cast<size_t>(nd) &&
+      hold.limit_side == s.limit_side && hold.x.size() == s.x.size() && motionSince(sys, hold.x, s.x) <= kHoldMotion) {
+    --hold.left;
+    bool changed = false;
+    stiff_list_.clear();
+    for (int i = 0; i < nd; ++i) {
+      if (stiff_[i] != hold.stiff[i]) changed = true;
+      stiff_[i] = hold.stiff[i];
+      if (stiff_[i]) stiff_list_.push_back(i);
+    }
+    return changed;
+  }
+  bool kinematics = false;
   damp_candidates_.clear();
   double spread = 0.0;  // sum_l sqrt(c_l beta_l) (1.)
   for (int i = 0; i < nd; ++i) {
@@ -647,8 +709,21 @@ bool JointStepper::classifyDamping(const System& sys, const State& s, double h) 
   // (u_k NaN or infinite: no bound. 1 - 1e-9: where u_k = s_k, as for a body turning about
   // a principal axis through its centre on the ground, the two may differ by round-off.)
   const double below = bound * (1.0 - 1e-9);
-  for (int i = 0; i < nd; ++i)
-    if (!(h * damp_rcb_[i] * spread <= below) && h * damp_filter_[i] > bound / 4) damp_candidates_.push_back(i);
+  // (the set may be held: every coordinate kHoldMargin from the bound, changing slowly)
+  bool margin = true;
+  const bool before = hold.rate.size() == static_cast<size_t>(nd) && hold.h == h && hold.bound == bound &&
+                      hold.limit_side == s.limit_side && hold.x.size() == s.x.size();
+  const double moved = before ? motionSince(sys, hold.x, s.x) : 0.0;
+  hold.rate.resize(nd);
+  for (int i = 0; i < nd; ++i) {
+    const double upper = h * damp_rcb_[i] * spread, filter = h * damp_filter_[i];
+    if (!(upper <= below) && filter > bound / 4) {
+      damp_candidates_.push_back(i);
+      continue;
+    }
+    margin = margin && (upper <= bound / kHoldMargin || filter <= bound / (4 * kHoldMargin));
+    hold.rate[i] = std::nan("");  // (no exact rate: the margin is the bound's or the filter's)
+  }
   if (!damp_candidates_.empty()) dampedInverseMass();
   bool changed = false;
   stiff_list_.clear();
@@ -669,12 +744,25 @@ bool JointStepper::classifyDamping(const System& sys, const State& s, double h) 
             damp_col_.segment(lo, n) -= damp_W_.col(e).segment(lo, n) * damp_Yd_(i, e);
           }
       const double exact = damp_rc_(i) * damp_rc_.dot(damp_col_.cwiseAbs());  // sum_l sqrt(c_k c_l) |P_lk|
-      stiff = !(h * exact <= bound);
+      const double rate = h * exact;
+      stiff = !(rate <= bound);
+      // the pace since the classification before, per unit of motion, of ln(rate) (below
+      // 1e-3 of the bound as at it: a rate that far below is not near it, and a coordinate
+      // a limit holds has a rate of round-off): kHoldMotion at that pace may use at most
+      // half the distance to the bound, and that at least ln(kHoldMargin)
+      const double distance = std::fabs(std::log(rate / bound)), floor = 1e-3 * bound;
+      const double change =
+          !before ? HUGE_VAL : std::fabs(std::log(std::max(rate, floor) / std::max(hold.rate[i], floor)));
+      margin = margin && distance >= std::log(kHoldMargin) &&
+               (change == 0.0 || change * kHoldMotion <= 0.5 * distance * moved);
+      hold.rate[i] = rate;
     }
     if (stiff != static_cast<bool>(stiff_[i])) changed = true;
     stiff_[i] = stiff;
     if (stiff) stiff_list_.push_back(i);
   }
+  hold.left = margin ? kHoldSteps : 0;
+  hold.stiff = stiff_, hold.x = s.x, hold.limit_side = s.limit_side, hold.h = h, hold.bound = bound;
   return changed;
 }
 

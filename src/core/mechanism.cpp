@@ -36,6 +36,7 @@ System& Mechanism::editable() {
   stateChanged();
   if (built_) sys_ = std::make_shared<System>(*sys_);
   if (joint_) joint_->invalidate();  // (the State's accelerations were of the old System)
+  state_.damping_hold.left = 0;      // (its damping classification too)
   return *sys_;
 }
 
@@ -449,6 +450,14 @@ std::vector<Reaction> Mechanism::jointReactions() const {
 
 double Mechanism::positionViolation() const { return mechanism_sim::positionViolation(evaluated()); }
 double Mechanism::velocityViolation() const { return mechanism_sim::velocityViolation(*sys_, evaluated(), state_.u); }
+double Mechanism::stepPositionViolation() const {
+  double p = 0.0, v = 0.0;
+  return joint_ && joint_->closureViolation(state_, p, v) ? p : positionViolation();
+}
+double Mechanism::stepVelocityViolation() const {
+  double p = 0.0, v = 0.0;
+  return joint_ && joint_->closureViolation(state_, p, v) ? v : velocityViolation();
+}
 double Mechanism::relativePositionViolation() const { return positionResidual(*sys_, evaluated()); }
 double Mechanism::relativeVelocityViolation() const {
   std::vector<std::array<double, 2>> scales(sys_->nb);

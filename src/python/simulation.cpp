@@ -26,10 +26,11 @@ void Simulation::restartRecord() {
   track();
 }
 
-// As RunLoop::advance and trackPeaks, after every step.
+// As RunLoop::advance and trackPeaks, after every step: the equations a step can leave
+// violated (every one at the state now: worstPositionViolation(), as RunLoop's).
 void Simulation::track() {
-  worst_position_ = std::max(worst_position_, model_->positionViolation());
-  worst_velocity_ = std::max(worst_velocity_, model_->velocityViolation());
+  worst_position_ = std::max(worst_position_, model_->stepPositionViolation());
+  worst_velocity_ = std::max(worst_velocity_, model_->stepVelocityViolation());
   for (DrivePeak& p : peaks_) {
     const double e = model_->effort(p.dof);
     if (std::fabs(e) > std::fabs(p.effort)) p.effort = e, p.time = model_->time();
@@ -133,7 +134,7 @@ void Simulation::reset() {
 // simulate's summary (runSummary, run_loop.h) and the notes; test_python.py compares the two
 // line by line.
 std::string Simulation::summary() const {
-  const std::string line = runSummary(*model_, steps_, last_h_, wall_, worst_position_, worst_velocity_, peaks_);
+  const std::string line = runSummary(*model_, steps_, last_h_, wall_, worstPositionViolation(), worstVelocityViolation(), peaks_);
   std::string out = path_ + ": " + line + "\n";
   for (const std::string& note : model_->notes()) out += path_ + ": " + note + "\n";
   return out;

@@ -4,6 +4,7 @@
 // tracks them), so that summary() prints the CLI's line. ROS-free and Python-free: the
 // bindings (module.cpp) only convert.
 #pragma once
+#include <algorithm>
 #include <map>
 #include <memory>
 #include <string>
@@ -57,8 +58,10 @@ class Simulation {
 
   long steps() const { return steps_; }
   double wallTime() const { return wall_; }
-  double worstPositionViolation() const { return worst_position_; }
-  double worstVelocityViolation() const { return worst_velocity_; }
+  // as RunLoop's: every equation at the start and now, those a step can leave violated
+  // after every step
+  double worstPositionViolation() const { return std::max(worst_position_, model_->positionViolation()); }
+  double worstVelocityViolation() const { return std::max(worst_velocity_, model_->velocityViolation()); }
   const std::vector<DrivePeak>& drivePeaks() const { return peaks_; }
   // The lines simulate prints on stderr after a run of these steps: "PATH: assembled to
   // ...; solver: ..." and "PATH: NOTE" per note (newline-terminated).

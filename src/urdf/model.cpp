@@ -33,6 +33,8 @@ double MechanismModel::kineticEnergy() const { return mechanism_->kineticEnergy(
 double MechanismModel::potentialEnergy() const { return mechanism_->potentialEnergy(); }
 double MechanismModel::positionViolation() const { return mechanism_->positionViolation(); }
 double MechanismModel::velocityViolation() const { return mechanism_->velocityViolation(); }
+double MechanismModel::stepPositionViolation() const { return mechanism_->stepPositionViolation(); }
+double MechanismModel::stepVelocityViolation() const { return mechanism_->stepVelocityViolation(); }
 
 Eigen::Isometry3d MechanismModel::linkPose(int link) const {
   const Link& l = links_.at(link);

@@ -25,8 +25,9 @@ void RunLoop::advance(long steps, const std::function<void()>& tick) {
   for (long s = 1; s <= steps; ++s) {
     model_.step(h_);
     ++steps_;
-    worst_position_ = std::max(worst_position_, model_.positionViolation());
-    worst_velocity_ = std::max(worst_velocity_, model_.velocityViolation());
+    // (the equations a step can leave violated; every equation: worstPositionViolation())
+    worst_position_ = std::max(worst_position_, model_.stepPositionViolation());
+    worst_velocity_ = std::max(worst_velocity_, model_.stepVelocityViolation());
     trackPeaks();
     if (tick && (steps_ & 63) == 0) tick();
   }

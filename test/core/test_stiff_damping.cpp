@@ -180,5 +180,52 @@ TEST(StiffDamping, MillimetresBehaveAsMetres) {
   }
 }
 
+// A light link 1 (0.0101 kg m^2 about its axle) carrying a 1 kg link 2 on a damped elbow
+// (c = 50 N m s / rad) turned by an effort of 500 N m, no gravity: the elbow's constrained
+// inverse inertia swings from 180 (straight) to 4.8 (bent square) and 21 (folded) 1/(kg m^2)
+// as it turns, so at 1 ms its decay rate h c P crosses the bound of 2 as it turns, fast near
+// the straight pose (the mass matrix is nearly singular there). The joint formulation holds
+// its classification over steps where the rates were far from the bound and changing slowly
+// (joint_stepper.cpp). Against the same run classified at every step (the hold cleared
+// before each step through a snapshot): every bit the same, while the hold served hundreds
+// of steps. A switch one step late would move the elbow by a first-order step's error.
+TEST(StiffDamping, HeldClassificationSwitchesWhereEachStepsWould) {
+  Mechanism run[2];
+  for (Mechanism& m : run) {
+    const int l1 = m.addBody(body("link1", 0.04, Vector3d(1e-4, 1e-4, 1e-4), Vector3d(0.5, 0, 0)));
+    const int l2 = m.addBody(body("link2", 1.0, Vector3d(0.01, 0.01, 0.01), Vector3d(1.5, 0, 0)));
+    m.addJoint(makeJoint("revolute", "shoulder", Mechanism::kGround, frame(Vector3d::Zero()), l1,
+                         frame(Vector3d(-0.5, 0, 0))));
+    m.addJoint(makeJoint("revolute", "elbow", l1, frame(Vector3d(0.5, 0, 0)), l2, frame(Vector3d(-0.5, 0, 0))));
+    m.setGravity(Vector3d::Zero());
+    m.setJointDamping(1, 0, 50.0);
+    m.setIntegrator(formulationOptions("joint"));
+    m.build();
+    m.assemble({}, {});
+    m.setJointEffort(1, 0, 500.0);
+  }
+  int switches = 0, held = 0;
+  char stiff = -1;
+  for (int s = 1; s <= 2000; ++s) {
+    run[0].step(1e-3);
+    Mechanism::Snapshot each = run[1].snapshot();
+    each.damping_hold.left = 0;
+    run[1].restore(each);
+    run[1].step(1e-3);
+    const State::DampingHold& hold = run[0].state().damping_hold;
+    ASSERT_EQ(hold.stiff.size(), 1u);
+    if (stiff >= 0 && hold.stiff[0] != stiff) ++switches;
+    stiff = hold.stiff[0];
+    if (hold.left > 0 && hold.left < 16) ++held;  // (a step that took the held set)
+    for (int j = 0; j < 2; ++j) {
+      ASSERT_EQ(run[0].jointPosition(j, 0), run[1].jointPosition(j, 0)) << "t = " << run[0].time();
+      ASSERT_EQ(run[0].jointVelocity(j, 0), run[1].jointVelocity(j, 0)) << "t = " << run[0].time();
+    }
+  }
+  EXPECT_GT(run[0].jointPosition(1, 0), 6 * M_PI);  // (three turns)
+  EXPECT_GE(switches, 6);
+  EXPECT_GT(held, 500);
+}
+
 }  // namespace
 }  // namespace mechanism_sim

@@ -9,6 +9,7 @@ import csv
 import json
 import math
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -50,9 +51,16 @@ def simulate_row(model, row, keys, options):
     header = lines[0].split(",")
     data = np.array([[float(x) for x in line.split(",")] for line in lines[1:]])
     col = {name: data[:, i] for i, name in enumerate(header)}
-    result = {"time": col["time"][-1],
-              "largest_violation.position": col["constraint.position"].max(),
-              "largest_violation.velocity": col["constraint.velocity"].max()}
+    result = {"time": col["time"][-1]}
+    # the summary's largest violations (3 digits): of every equation at the start and the
+    # end (the CSV's first and last rows: at least those), between them of those a step can
+    # leave violated (in joint coordinates the closures', the same equations the CSV's rows
+    # check with every other one, in other round-off)
+    summary = re.search(r"largest violation ([^ ]+) \(position\), ([^ ;]+) \(velocity\)", out.stderr)
+    for k, kind in enumerate(("position", "velocity")):
+        c = col["constraint." + kind]
+        result["largest_violation." + kind] = float(summary.group(k + 1))
+        result["_least." + kind] = max(c[0], c[-1])
     for name in header:
         if name.endswith(".fx"):
             joint = name[:-3]
@@ -72,8 +80,12 @@ def assert_rows_equal_simulate(model, rows, keys, options):
         assert "error" not in want, want
         assert row["status"] == "ok", row
         result_columns = [c for c in row if c not in keys and c not in ("status", "message")]
-        assert sorted(result_columns) == sorted(want), (sorted(result_columns), sorted(want))
+        assert sorted(result_columns) == sorted(c for c in want if not c.startswith("_")), (sorted(result_columns), sorted(want))
         for c in result_columns:
+            if c.startswith("largest_violation."):  # the summary's %.2e, at least the CSV's ends
+                assert float(row[c]) == pytest.approx(want[c], rel=5e-3), (c, row)
+                assert float(row[c]) >= want["_least." + c.split(".")[1]] * (1 - 1e-11), (c, row)
+                continue
             # simulate's CSV has 12 significant digits; the sweep's values the double's repr
             assert float(row[c]) == pytest.approx(want[c], rel=1e-11, abs=1e-300), (c, row)
 

@@ -80,6 +80,12 @@ class JointStepper {
   // is not positive and finite; s is then as it was.
   void step(const System& sys, State& s, const Inputs& in, double h);
   const SolverStats& stats() const { return stats_; }
+  // The largest |Phi| and |G q_dot - nu| of the closures' rows (loop closures, couplers,
+  // limits, drives: the equations on the tree's coordinates, the same numbers as their
+  // absolute equations') at s, when s is the state this stepper's last step or settle()
+  // left (else false): the tree joints' own equations hold by construction in joint
+  // coordinates, so these are what a step can leave violated.
+  bool closureViolation(const State& s, double& position, double& velocity) const;
   // The inputs or the System changed: the accelerations a State holds are not reused.
   void invalidate() { fresh_ = false; }
   // The System's joint damping changed (Mechanism::setJointDamping): which coordinates are
@@ -98,8 +104,10 @@ class JointStepper {
   bool project(const System& sys, State& s);
   // Joint damping (the absolute formulation's rule, stiff_damping.cpp, in joint
   // coordinates): which damped coordinates are stiff at this step (ws_ at s.q's factors);
-  // returns whether the set changed. The others stay in the stages as efforts.
-  bool classifyDamping(const System& sys, const State& s, double h);
+  // returns whether the set changed. The others stay in the stages as efforts. The set
+  // found is held in s.damping_hold for the next steps where no coordinate was near the
+  // bound (kHold* in joint_stepper.cpp).
+  bool classifyDamping(const System& sys, State& s, double h);
   // For classifyDamping, at ws_'s articulated factors (q0): the columns of M^-1 of the
   // candidates (damp_candidates_) at the damped coordinates, and with closures
   // (M^-1 G^T) and W = (M^-1 G^T) (G M^-1 G^T)^+ there (damp_Yd_, damp_W_).
@@ -179,6 +187,8 @@ class JointStepper {
   // s.qddot is q_ddot at (q_end_, v_end_) under the current inputs: stage 1 of the next step
   bool fresh_ = false;
   Eigen::VectorXd q_end_, v_end_;
+  std::array<double, 2> end_violation_{{0.0, 0.0}};  // closureViolation() at (q_end_, v_end_)
+  Eigen::VectorXd end_rate_;                         // G q_dot there
   // State::q_round and qdot_round at the step's start (restored when the step fails)
   Eigen::VectorXd comp_q_, comp_v_;
   Eigen::VectorXd a_ref_;  // q_ddot at the step's start: what a branch passage holds

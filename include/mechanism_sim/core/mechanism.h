@@ -153,6 +153,13 @@ class Mechanism {
   std::vector<Reaction> jointReactions() const;
   double positionViolation() const;  // max |Phi|
   double velocityViolation() const;  // max |Phi_q v|
+  // The same over the equations a step can leave violated, cheap after a step (what run
+  // loops check at every step): every equation in absolute coordinates (the step's own
+  // evaluation); in joint coordinates the closures' rows (loop closures, couplers, limits,
+  // drives), whose values the step computed, while the tree joints' equations hold by
+  // construction there (to round-off; positionViolation() evaluates them too).
+  double stepPositionViolation() const;
+  double stepVelocityViolation() const;
   // The same relative to the size of each equation's terms (scale-free; what the
   // projections' tolerances bound).
   double relativePositionViolation() const;

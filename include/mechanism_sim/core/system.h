@@ -182,6 +182,21 @@ struct State {
   // the round-off of q and qdot's last update, carried into the next step (joint_stepper.cpp:
   // compensated summation); zero after settle
   Eigen::VectorXd q_round, qdot_round;
+  // The joint formulation's damping classification, held over the next steps while the
+  // mechanism has not moved far from where it was found (joint_stepper.cpp, classifyDamping:
+  // the stiff set and the decay rates h s_k found, per damped coordinate; the positions x,
+  // step h, tableau bound and limit sides it was found at; how many more steps it may serve,
+  // 0: none). A snapshot carries it, so a restored State classifies as the run it came from;
+  // settle() and a changed System clear it.
+  struct DampingHold {
+    std::vector<char> stiff;
+    std::vector<double> rate;
+    Eigen::VectorXd x;
+    std::vector<signed char> limit_side;
+    double h = 0.0, bound = 0.0;
+    int left = 0;
+  };
+  DampingHold damping_hold;
   EvalContext context() const { return EvalContext{tracked.data(), limit_side.data(), t, drive.data()}; }
 };
 

@@ -134,6 +134,10 @@ class MechanismModel {
   Eigen::Isometry3d reactionFrame(int joint) const;
   double positionViolation() const;  // largest |Phi|
   double velocityViolation() const;  // largest |Phi_q v|
+  // Over the equations a step can leave violated (Mechanism::stepPositionViolation): cheap
+  // after a step.
+  double stepPositionViolation() const;
+  double stepVelocityViolation() const;
 
   // ---- running
   // Commanded effort along a dof, clamped to its effort limit; a velocity limit cuts the

@@ -4,6 +4,7 @@
 // and the wall time per step. The node adds wall-clock pacing on top (src/node/pacer.h).
 // ROS-free.
 #pragma once
+#include <algorithm>
 #include <functional>
 #include <string>
 #include <vector>
@@ -55,8 +56,12 @@ class RunLoop {
   long stepsPerSample() const { return steps_per_sample_; }
   long steps() const { return steps_; }  // since construction or reset()
   // Largest violations at any step since construction or reset() (the start included).
-  double worstPositionViolation() const { return worst_position_; }
-  double worstVelocityViolation() const { return worst_velocity_; }
+  // The largest violations since the start (or reset()): of every equation at the start
+  // and at the latest sample, and after every step of those a step can leave violated
+  // (MechanismModel::stepPositionViolation: every one in absolute coordinates, the
+  // closures' in joint coordinates, where the tree's hold by construction).
+  double worstPositionViolation() const { return std::max(worst_position_, sample_.position_violation); }
+  double worstVelocityViolation() const { return std::max(worst_velocity_, sample_.velocity_violation); }
   double stepWallTime() const { return step_wall_; }  // seconds per step in the last advance
   // Joint reactions in every sample (off by default: they cost a solve where equations
   // are dependent).
