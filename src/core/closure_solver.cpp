@@ -168,6 +168,7 @@ ClosureSolver::ClosureSolver(const TreeModel& model, const std::vector<int>& blo
     return true;
   };
   block_coords_.assign(nblocks, {}), block_simple_.assign(nblocks, 0);
+  block_kept_.assign(nblocks, 0);
   for (int b = 0; b < nblocks; ++b) block_simple_[b] = coords(links_[b], block_coords_[b]);
   pair_coords_.assign(pairs_.size(), {}), pair_simple_.assign(pairs_.size(), 0);
   for (size_t p = 0; p < pairs_.size(); ++p) pair_simple_[p] = coords(shared_[p], pair_coords_[p]);
@@ -245,8 +246,15 @@ int ClosureSolver::factor(const TreeModel& model, const TreeWorkspace& ws, const
       analyzeKept();
     }
     std::fill(Ax_.begin(), Ax_.begin() + cAp_[kc_], 0.0);
+    // (blocks with no row kept add nothing: free limits are blocks of one zero row)
+    const int nblocks = static_cast<int>(first_.size()) - 1;
+    for (int a = 0; a < nblocks; ++a) {
+      block_kept_[a] = 0;
+      for (int e = first_[a]; e < first_[a + 1] && !block_kept_[a]; ++e) block_kept_[a] = d_(e) != 0.0;
+    }
     for (size_t p = 0; p < pairs_.size(); ++p) {
       const int a = pairs_[p].first, b = pairs_[p].second;
+      if (!block_kept_[a] || !block_kept_[b]) continue;
       for (int e = first_[a]; e < first_[a + 1]; ++e) {
         if (d_(e) == 0.0) continue;
         for (int f = a == b ? e : first_[b]; f < first_[b + 1]; ++f) {

@@ -9,6 +9,7 @@
 #include "mechanism_sim/core/joint_space.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <string>
 
@@ -445,8 +446,14 @@ void jointTransform(const TreeLink& L, const double* q, const double* qd, Matrix
 
 // ---- kinematics (RBDA 7.3, table 7.1 first loop, without the dynamics)
 
+long nextWorkspaceGeneration() {
+  static std::atomic<long> last{0};
+  return ++last;
+}
+
 void forwardKinematics(const TreeModel& model, const Eigen::VectorXd& q, const Eigen::VectorXd& qdot,
                        TreeWorkspace& ws) {
+  ws.generation = nextWorkspaceGeneration();
   Matrix3d R;
   Vector3d t;
   for (int b : model.order) {
@@ -613,6 +620,7 @@ void forwardDynamics(const TreeModel& model, const System& sys, const Eigen::Vec
 
 void forwardDynamicsAtKinematics(const TreeModel& model, const System& sys, const Eigen::VectorXd& tau,
                                  TreeWorkspace& ws, Eigen::VectorXd& qddot, const Inputs* loads) {
+  ws.generation = nextWorkspaceGeneration();
   // Pass 1 (continued): I^A_i = I_i, p^A_i = v_i x* I_i v_i - f^x_i (as table 7.1 starts
   // them). Welded bodies are in their hosts' I_i and f^x_i (joint_space.h): the passes skip them.
   for (int b : model.order) {

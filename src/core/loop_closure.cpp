@@ -55,31 +55,13 @@ bool unchangedSince(const Eigen::MatrixBase<M>& now, M& copy) {
   if (!same) copy = now;
   return same;
 }
+
 template <class M>
 bool unchangedSince(const AlignedVector<M>& now, AlignedVector<M>& copy) {
   bool same = now.size() == copy.size();
   if (!same) copy.resize(now.size());
   for (size_t k = 0; k < now.size(); ++k) same &= unchangedSince(now[k], copy[k]);
   return same;
-}
-
-// Whether `now` holds the bits of `copy` (sizes included), as unchangedSince but without
-// copying: one comparison of the whole array for fixed-size elements (a memcmp over many
-// words costs less than the loop), element by element (their used part) otherwise.
-template <class M>
-bool sameBits(const AlignedVector<M>& now, const AlignedVector<M>& copy) {
-  if (now.size() != copy.size()) return false;
-  if (now.empty()) return true;
-  if constexpr (M::SizeAtCompileTime != Eigen::Dynamic) {
-    static_assert(sizeof(M) == sizeof(double) * M::SizeAtCompileTime, "elements without padding");
-    return std::memcmp(now.data(), copy.data(), sizeof(M) * now.size()) == 0;
-  } else {
-    for (size_t k = 0; k < now.size(); ++k) {
-      if (now[k].rows() != copy[k].rows() || now[k].cols() != copy[k].cols()) return false;
-      if (std::memcmp(now[k].data(), copy[k].data(), sizeof(double) * now[k].size()) != 0) return false;
-    }
-    return true;
-  }
 }
 
 // A limit whose side in the context is 0 (free): its row is zero (LimitConstraint).
@@ -314,6 +296,10 @@ std::vector<std::vector<char>> LoopClosures::idleRows(const TreeModel& model, co
 
 void LoopClosures::rowsTimes(const Eigen::MatrixXd& R, const Eigen::VectorXd& v, Eigen::VectorXd& out) const {
   for (int e = 0; e < m; ++e) {
+    if (rows_of_[cl_of_[e]] == RowsOf::kZero && &R == &G) {  // (a free limit's row: 0)
+      out(e) = 0.0;
+      continue;
+    }
     double s = 0.0;
     for (int k : ccols_[cl_of_[e]]) s += R(e, k) * v(k);
     out(e) = s;
@@ -735,15 +721,7 @@ void LoopClosures::outwardInverseMass(const TreeModel& model, const TreeWorkspac
   }
 }
 
-long LoopClosures::massFactorsGeneration(const TreeWorkspace& ws) {
-  // (the poses first: they differ from the first moving link on when q does, and then the
-  // copies are taken without comparing the rest)
-  if (sameBits(ws.E, fac_E_) && sameBits(ws.rho, fac_rho_) && sameBits(ws.Dinv, fac_Dinv_) &&
-      sameBits(ws.U, fac_U_) && sameBits(ws.S, fac_S_))
-    return ws_gen_;
-  fac_E_ = ws.E, fac_rho_ = ws.rho, fac_Dinv_ = ws.Dinv, fac_U_ = ws.U, fac_S_ = ws.S;
-  return ++ws_gen_;
-}
+long LoopClosures::massFactorsGeneration(const TreeWorkspace& ws) { return ws.generation; }
 
 void LoopClosures::factor(const TreeModel& model, const TreeWorkspace& ws) {
   info.rows = allRows();

@@ -303,14 +303,30 @@ const Row* Mechanism::coordinateRows(int joint) const {
   return rows;
 }
 
+// In joint coordinates a tree joint's coordinate is the State's own q (and its rate q_dot):
+// the poses are written from them, and Joint::coordinates at those poses gives the same
+// numbers to round-off. -1 where the joint is not on the tree, is spherical (a quaternion
+// in q, a rotation vector as its coordinates) or the absolute formulation runs.
+int Mechanism::treeCoordinate(int joint, bool rate) const {
+  if (!joint_ || state_.q.size() == 0) return -1;
+  const TreeModel& model = joint_->model();
+  const int link = model.joint_link[joint];
+  if (link < 0) return -1;
+  const TreeLink& L = model.links[link];
+  if (L.kind == TreeJointKind::kSpherical || L.kind == TreeJointKind::kFree) return -1;
+  return rate ? L.iv : L.iq;
+}
+
 double Mechanism::jointPosition(int joint, int k) const {
   checkCoordinate(joint, k);
-  return coordinateRows(joint)[k].Phi;
+  const int i = treeCoordinate(joint, false);
+  return i >= 0 ? state_.q[i + k] : coordinateRows(joint)[k].Phi;
 }
 
 double Mechanism::jointVelocity(int joint, int k) const {
   checkCoordinate(joint, k);
-  return coordinateRows(joint)[k].Phi_dot;
+  const int i = treeCoordinate(joint, true);
+  return i >= 0 ? state_.qdot[i + k] : coordinateRows(joint)[k].Phi_dot;
 }
 
 double Mechanism::jointEffort(int joint, int k) const {

@@ -110,6 +110,8 @@ void Mechanism::commandDrivePath(int drive, std::shared_ptr<const DrivePath> pat
 // (State::acc: per moving body r_ddot, w_dot').
 double Mechanism::jointAcceleration(int joint, int k) const {
   checkCoordinate(joint, k);
+  const int i = treeCoordinate(joint, true);  // (the joint formulation's own q_ddot)
+  if (i >= 0) return state_.qddot[i + k];
   const Row& row = coordinateRows(joint)[k];
   return rowDot(*sys_, joint, row, state_.acc.data()) - row.gamma;
 }

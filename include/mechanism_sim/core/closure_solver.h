@@ -132,6 +132,7 @@ class ClosureSolver {
   }
   std::vector<std::vector<int>> block_coords_, pair_coords_;  // per block (links_), per pair (shared_)
   std::vector<char> block_simple_, pair_simple_;              // whether those lists apply
+  std::vector<char> block_kept_;                              // per block: a row kept (factor)
   Eigen::VectorXd dinv_;
 };
 

@@ -176,7 +176,13 @@ struct TreeWorkspace {
   AlignedVector<SmallMatrix> Dinv;  // (S^T IA S)^-1
   AlignedVector<SmallVector> u;     // tau - S^T pA
   AlignedVector<Vector6d> f;        // RNEA: force transmitted by the joint
+  // A number no other write has had (across workspaces), taken each time forwardKinematics
+  // or the articulated passes rewrite the poses, subspaces or factors (E, rho, S, U, Dinv):
+  // what a cache of results computed from them keys on (LoopClosures' factorization).
+  long generation = 0;
 };
+// The next such number (thread-safe).
+long nextWorkspaceGeneration();
 
 // One link k of the inverse-mass inward pass (the articulated-body algorithm with zero
 // velocity and no external force, RBDA table 7.1, passes on the factors U, D^-1 in ws):

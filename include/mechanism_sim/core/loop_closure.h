@@ -446,16 +446,12 @@ class LoopClosures {
   AlignedVector<MotionSubspace> pose_S_;
   Eigen::VectorXd pose_q_;                  // or the tree's q there (evaluate(..., q))
   bool pose_by_q_ = false, pose_by_x_ = false;  // which of the two the last mapping kept
-  AlignedVector<MotionSubspace> fac_S_, fac_U_;  // ws's articulated factors at the last look
-  AlignedVector<Matrix3d> fac_E_;
-  AlignedVector<Vector3d> fac_rho_;
-  AlignedVector<SmallMatrix> fac_Dinv_;
   long g_gen_ = 0;   // G, Gabs, Gbound
-  long ws_gen_ = 0;  // ws's articulated factors, as massFactorsGeneration() saw them
   long p_gen_ = 0;   // findPassage()'s results
   long p_at_g_ = -1, fac_at_g_ = -1, fac_at_ws_ = -1, pfac_at_p_ = -1, pfac_at_ws_ = -1;
   bool p_at_hold_ = true, fac_Y_ = false;
   ClosureSolveInfo fac_info_;
+  // ws's articulated factors' generation (TreeWorkspace::generation)
   long massFactorsGeneration(const TreeWorkspace& ws);
   void factorNow(const TreeModel& model, const TreeWorkspace& ws);
   bool findPassageNow();

@@ -135,12 +135,18 @@ class Mechanism {
   Quaterniond orientation(int b) const;
   // Joint coordinate k: position, rate, and the effort the joint applies along it
   // (commanded effort minus damping plus friction, plus a limit's reaction and a drive's
-  // effort).
+  // effort). Joint::coordinates at the state's poses; in the joint formulation a tree
+  // joint's (but a spherical one's) are the State's own q, q_dot, q_ddot (treeCoordinate),
+  // which those poses were written from (the same numbers to round-off).
   double jointPosition(int joint, int k) const;
   double jointVelocity(int joint, int k) const;
   double jointEffort(int joint, int k) const;
   // Its acceleration in the current state: G_k a - gamma_k (joint.h).
   double jointAcceleration(int joint, int k) const;
+  // Where a tree joint's coordinates start in State::q (rate: in q_dot and q_ddot) in the
+  // joint formulation; -1 for a loop's cut joint, a spherical joint, or in the absolute
+  // formulation.
+  int treeCoordinate(int joint, bool rate) const;
   Reaction reaction(int constraint) const;
   // Per joint: the force and torque (global, torque about the joint point B_j) that the
   // joint exerts on its body j: its constraint, its limits, its drives, its share of the
