@@ -801,6 +801,10 @@ void bodyAccelerations(const TreeModel& model, TreeWorkspace& ws, const Eigen::V
 
 void positionRates(const TreeModel& model, const Eigen::VectorXd& q, const Eigen::VectorXd& qdot,
                    Eigen::VectorXd& qrate) {
+  if (model.nq == model.nv) {  // (no quaternion: q_dot itself)
+    qrate = qdot;
+    return;
+  }
   qrate.resize(model.nq);
   for (const TreeLink& L : model.links) {
     switch (L.kind) {

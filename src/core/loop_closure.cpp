@@ -669,12 +669,15 @@ void LoopClosures::velocityRows(const Eigen::VectorXd& qdot, const Eigen::Vector
   for (size_t i = 0; i < constraints.size(); ++i) {
     for (int e = row[i]; e < row[i] + nrows_[i]; ++e) {
       double s = -nu(e), sc = std::fabs(nu(e));
-      for (int k : ccols_[i]) {
-        s += G(e, k) * qdot(k);
-        // (each coordinate's rate floored at kFloor of the motion, as the absolute
-        // formulation floors each body's: a loop that locks coordinates leaves their rates
-        // at round-off, and round-off over round-off judged nothing)
-        sc += Gabs(e, k) * (std::fabs(qdot(k)) + (reference ? std::fabs((*reference)(k)) : 0.0) + kFloor * V / unit_(k));
+      // (each coordinate's rate floored at kFloor of the motion, as the absolute
+      // formulation floors each body's: a loop that locks coordinates leaves their rates
+      // at round-off, and round-off over round-off judged nothing; a free limit's row of G
+      // and Gabs is zero)
+      if (rows_of_[i] != RowsOf::kZero) {
+        for (int k : ccols_[i]) {
+          s += G(e, k) * qdot(k);
+          sc += Gabs(e, k) * (std::fabs(qdot(k)) + (reference ? std::fabs((*reference)(k)) : 0.0) + kFloor * V / unit_(k));
+        }
       }
       if (direct_[i].n > 0)
         for (int k = 0; k < direct_[i].n; ++k) sc += std::fabs(direct_[i].coef[k]) * V / unit_(direct_[i].col[k]);
