@@ -141,6 +141,14 @@ void setConstantSubspace(TreeLink& L) {
   const Vector3d w = L.Rc * S.col(0).head<3>();
   L.S0.tail<3>() = L.Rc * S.col(0).tail<3>() + L.sc.cross(w);
   L.S0.head<3>() = w;
+  // Rp Rz(a) Rc^T = sum_j (Rp Rz).col(j) Rc.col(j)^T with (Rp Rz).col(0) = cos Rp0 + sin Rp1,
+  // (Rp Rz).col(1) = cos Rp1 - sin Rp0, (Rp Rz).col(2) = Rp2
+  const Matrix3d& P = L.Rp;
+  const Matrix3d& C = L.Rc;
+  L.Kc = P.col(0) * C.col(0).transpose() + P.col(1) * C.col(1).transpose();
+  L.Ks = P.col(1) * C.col(0).transpose() - P.col(0) * C.col(1).transpose();
+  L.K0 = P.col(2) * C.col(2).transpose();
+  L.kc = L.Kc * L.sc, L.ks = L.Ks * L.sc, L.k0 = L.sp - L.K0 * L.sc;
 }
 
 }  // namespace
@@ -472,22 +480,22 @@ void forwardKinematics(const TreeModel& model, const Eigen::VectorXd& q, const E
       // R = Rz(+-q) (revolute, screw) or 1 (prismatic), t along z (jointTransform; reversed,
       // the inverse pose):
       // Rp Rz mixes two columns of Rp, the product's first factor done in 12 products
+      // (TreeLink::Kc, Ks, K0: the pose's constant parts)
       const double qk = q(L.iq);
       double tz = 0.0;
       if (L.kind == TreeJointKind::kPrismatic) {
-        Rrel.noalias() = L.Rp * L.Rc.transpose();
-        tz = qk;
+        Rrel = L.Kc + L.K0;
+        tz = L.reversed ? -qk : qk;  // (the inverse pose: -R^T t, and R^T z = z)
+        ws.rho[k] = L.k0 - L.kc + tz * L.Rp.col(2);
       } else {
         const double angle = L.reversed ? -qk : qk, ca = std::cos(angle), sa = std::sin(angle);
-        Matrix3d M;
-        M.col(0) = ca * L.Rp.col(0) + sa * L.Rp.col(1);
-        M.col(1) = ca * L.Rp.col(1) - sa * L.Rp.col(0);
-        M.col(2) = L.Rp.col(2);
-        Rrel.noalias() = M * L.Rc.transpose();
-        if (L.kind == TreeJointKind::kScrew) tz = L.params.alpha * (qk - L.params.phi0);
+        Rrel = ca * L.Kc + sa * L.Ks + L.K0;
+        ws.rho[k] = L.k0 - ca * L.kc - sa * L.ks;
+        if (L.kind == TreeJointKind::kScrew) {
+          tz = L.params.alpha * (qk - L.params.phi0);
+          ws.rho[k] += (L.reversed ? -tz : tz) * L.Rp.col(2);
+        }
       }
-      if (L.reversed) tz = -tz;  // (the inverse pose: -R^T t, and R^T z = z)
-      ws.rho[k] = L.sp + tz * L.Rp.col(2) - Rrel * L.sc;
       cJ.setZero();
       vJ = L.S0 * qdot(L.iv);
     } else {

@@ -109,6 +109,12 @@ struct TreeLink {
   // forwardKinematics then computes only the pose (RBDA ch. 4: S constant for these).
   bool constant_S = false;
   Vector6d S0 = Vector6d::Zero();
+  // For those, the pose as constant parts (forwardKinematics): with R = Rz(angle),
+  // Rrel = Rp R Rc^T = cos K_c + sin K_s + K_0 and the child's centre
+  // rho = sp + t_z Rp z - Rrel sc = k_0 + t_z Rp z - cos k_c - sin k_s (k_c = K_c sc,
+  // k_s = K_s sc, k_0 = sp - K_0 sc); a prismatic joint's Rrel is K_0 + K_c (angle 0).
+  Matrix3d Kc = Matrix3d::Zero(), Ks = Matrix3d::Zero(), K0 = Matrix3d::Zero();
+  Vector3d kc = Vector3d::Zero(), ks = Vector3d::Zero(), k0 = Vector3d::Zero();
   // Fixed links: the constant pose of the child relative to the parent (E0: parent -> child
   // components, rho0: the child's centre relative to the parent's, parent components), and
   // relative to the host (Eh, rhoh), the moving body (0: ground) the welded group moves with.
