@@ -897,8 +897,8 @@ void LoopClosures::track(const TreeWorkspace& ws, const std::vector<int>& which,
   for (int c : which) {
     const Constraint& C = *sys_->constraints[c];
     for (size_t s = 0; s < C.bodies().size(); ++s) ptrs[s] = &kin_[C.bodies()[s]];
-    Tracked tr = tracked[c], rate;
-    C.track(ptrs, ctx, tr, rate);
+    Tracked tr = tracked[c];
+    C.trackAngles(ptrs, ctx, tr);  // (their rates are not kept)
     tracked[c] = tr;
   }
 }

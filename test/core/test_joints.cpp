@@ -195,6 +195,30 @@ TEST_P(JointTypes, SelectedRowsAreTheFullEvaluationsRows) {
   }
 }
 
+// The coordinates' values alone (coordinateValues, a revolute's or a screw's angle computed
+// without its variation and rates) are coordinates()' Phi to the bit, and trackAngles() moves
+// the tracked angles as track() does, near a reference some turns away too.
+TEST_P(JointTypes, CoordinateValuesAndTrackedAnglesAreTheFullOnesBits) {
+  std::mt19937 rng(15);
+  std::uniform_real_distribution<double> turns(-3.0, 3.0);
+  auto same = [](double a, double b) { return a == b && std::signbit(a) == std::signbit(b); };
+  for (int n = 0; n < 40; ++n) {
+    auto [joint, kin, tr, e] = posedJoint(GetParam(), rng);
+    for (double& a : tr) a += 2.0 * M_PI * std::round(turns(rng)) + 0.4 * turns(rng);
+    Row rows[kMaxJointDofs];
+    joint->coordinates(kin[0], kin[1], tr, rows);
+    double q[kMaxJointDofs];
+    joint->coordinateValues(kin[0], kin[1], tr, q);
+    for (int k = 0; k < joint->dof(); ++k)
+      EXPECT_TRUE(same(q[k], rows[k].Phi)) << GetParam() << " coordinate " << k << ": " << q[k] << " against " << rows[k].Phi;
+    const BodyKin* ptrs[2] = {&kin[0], &kin[1]};
+    Tracked full = tr, alone = tr, rate;
+    joint->track(ptrs, EvalContext{&tr, nullptr}, full, rate);
+    joint->trackAngles(ptrs, EvalContext{&tr, nullptr}, alone);
+    for (size_t s = 0; s < full.size(); ++s) EXPECT_TRUE(same(alone[s], full[s])) << GetParam() << " slot " << s;
+  }
+}
+
 // An evaluation without rates (EvalContext::rates false, the queries'): Phi and the
 // Jacobian have every bit of the full evaluation's (sign of zero included), and the
 // geometry it reads leaves the rates out (zero, where the full one has them).

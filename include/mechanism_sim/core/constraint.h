@@ -64,6 +64,12 @@ class Constraint {
   virtual void track(const BodyKin* const* /*kin*/, const EvalContext& /*ctx*/, Tracked& /*t*/, Tracked& rate) const {
     rate = Tracked{};
   }
+  // track()'s angles alone (the same bits), where their rates are not wanted: the joint
+  // stepper's cut joints after a step. A joint computes the angles without the rates.
+  virtual void trackAngles(const BodyKin* const* kin, const EvalContext& ctx, Tracked& t) const {
+    Tracked rate;
+    track(kin, ctx, t, rate);
+  }
   // Rates of the tracked angles at (kin): a step predicts its stages' branch references
   // from them, so a joint may turn more than pi in one step.
   virtual void trackedRates(const BodyKin* const* /*kin*/, const EvalContext& /*ctx*/, Tracked& rate) const {

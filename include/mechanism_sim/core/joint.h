@@ -77,6 +77,9 @@ class Joint : public Constraint {
   // acts on the bodies as G_k^T tau_k.
   // The tracked angles t are the branch references (State).
   virtual void coordinates(const BodyKin& ki, const BodyKin& kj, const Tracked& t, Row* out) const = 0;
+  // Their values alone, q[k] = out[k].Phi of coordinates() bit for bit (a joint type that
+  // has a cheaper way computes nothing else; by default coordinates() itself).
+  virtual void coordinateValues(const BodyKin& ki, const BodyKin& kj, const Tracked& t, double* q) const;
 
   const Joint* jointOn(int b) const override { return b == bodyJ() ? this : nullptr; }
 
@@ -97,6 +100,7 @@ class Joint : public Constraint {
   // Tracked angles are the coordinates k with trackedSlot(k) >= 0: track() stores their
   // values and rates, trackedRates() their rates.
   void track(const BodyKin* const* kin, const EvalContext& ctx, Tracked& t, Tracked& rate) const final;
+  void trackAngles(const BodyKin* const* kin, const EvalContext& ctx, Tracked& t) const final;
   void trackedRates(const BodyKin* const* kin, const EvalContext& ctx, Tracked& rate) const final;
 
   JointGeometry geometry(const BodyKin& ki, const BodyKin& kj, unsigned parts = kAllParts) const;
@@ -129,6 +133,9 @@ class Joint : public Constraint {
   }
   // Point coincidence d_ij = 0.
   static void putPoint(const JointGeometry& g, RowWriter& out);
+  // relativeAngle(bx_i, by_i, bx_j)'s value alone (relativeAngleValue), the axes' global
+  // components computed as geometry() computes them: the bits of coordinates()' angle.
+  double relativeAngleValueOf(const BodyKin& ki, const BodyKin& kj, double phi_ref) const;
   // The geometry's rates when the evaluation asks for them (kNoRates else).
   static unsigned ratesPart(const EvalContext& ctx) { return ctx.rates ? 0u : unsigned{kNoRates}; }
 
