@@ -195,6 +195,38 @@ TEST_P(JointTypes, SelectedRowsAreTheFullEvaluationsRows) {
   }
 }
 
+// evaluateSelected (the closures' kept rows written straight to their places): the marked
+// rows of evaluate(), in order, compact, to the bit (sign of zero included), and no row past
+// them written.
+TEST_P(JointTypes, CompactSelectedRowsAreTheFullEvaluationsRows) {
+  std::mt19937 rng(16);
+  auto same = [](double a, double b) { return a == b && std::signbit(a) == std::signbit(b); };
+  for (int n = 0; n < 20; ++n) {
+    const auto [joint, kin, tr, e] = posedJoint(GetParam(), rng);
+    const int size = joint->size();
+    const BodyKin* ptrs[2] = {&kin[0], &kin[1]};
+    const EvalContext ctx{&tr, nullptr};
+    for (unsigned mask = 1; mask < (1u << size); ++mask) {
+      Eigen::VectorXd Phi = Eigen::VectorXd::Constant(size, -7.0), gamma = Phi;
+      Eigen::MatrixXd J = Eigen::MatrixXd::Constant(size, 12, -7.0);
+      joint->evaluateSelected(ptrs, ctx, Phi, J, gamma, mask);
+      int k = 0;
+      for (int r = 0; r < size; ++r) {
+        if (!(mask & (1u << r))) continue;
+        EXPECT_TRUE(same(Phi(k), e.Phi(r))) << GetParam() << " mask " << mask << " row " << r;
+        EXPECT_TRUE(same(gamma(k), e.gamma(r))) << GetParam() << " mask " << mask << " row " << r;
+        for (int c = 0; c < 12; ++c) EXPECT_TRUE(same(J(k, c), e.J(r, c))) << GetParam() << " mask " << mask << " row " << r;
+        ++k;
+      }
+      for (; k < size; ++k) {
+        EXPECT_EQ(Phi(k), -7.0) << GetParam() << " mask " << mask;
+        EXPECT_EQ(gamma(k), -7.0) << GetParam() << " mask " << mask;
+        EXPECT_EQ(J.row(k).cwiseAbs().maxCoeff(), 7.0) << GetParam() << " mask " << mask;
+      }
+    }
+  }
+}
+
 // The coordinates' values alone (coordinateValues, a revolute's or a screw's angle computed
 // without its variation and rates) are coordinates()' Phi to the bit, and trackAngles() moves
 // the tracked angles as track() does, near a reference some turns away too.

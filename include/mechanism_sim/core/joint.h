@@ -97,6 +97,15 @@ class Joint : public Constraint {
     equations(geometry(*kin[0], *kin[1], equationAxesFor(rows) | ratesPart(ctx)), *kin[0], *kin[1], ctx.tracked[id()],
               out);
   }
+  // The same rows written compactly: row e of the rows `rows` marks (at most the first 32),
+  // in their order, into row e of Phi, J and gamma (as many rows as marks), the same bits;
+  // nothing else written. (The closures' kept rows go straight to their places.)
+  void evaluateSelected(const BodyKin* const* kin, const EvalContext& ctx, Eigen::Ref<Eigen::VectorXd> Phi,
+                        Eigen::Ref<Eigen::MatrixXd> J, Eigen::Ref<Eigen::VectorXd> gamma, unsigned rows) const {
+    RowWriter out(Phi, J, gamma, rows, true);
+    equations(geometry(*kin[0], *kin[1], equationAxesFor(rows) | ratesPart(ctx)), *kin[0], *kin[1], ctx.tracked[id()],
+              out);
+  }
   // Tracked angles are the coordinates k with trackedSlot(k) >= 0: track() stores their
   // values and rates, trackedRates() their rates.
   void track(const BodyKin* const* kin, const EvalContext& ctx, Tracked& t, Tracked& rate) const final;
