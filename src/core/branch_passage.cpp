@@ -67,31 +67,54 @@ namespace mechanism_sim {
 // relative to each other (p_cols_), and its term-normalized rows W (p_W_, scales p_dr_).
 // false: no such rows or columns.
 bool LoopClosures::closureRows(size_t c) {
-  const int n = nrows_[c];
+  const int n = nrows_[c], r0 = row[c];
   p_rows_.clear();
   p_cols_.clear();
-  for (int e = row[c]; e < row[c] + n; ++e)
-    if (!roundoffRow(e)) p_rows_.push_back(e);
-  if (p_rows_.empty()) return false;
-  // The columns that move the closure's bodies relative to each other: not those of a
-  // link that carries the whole loop (an arm holding a gripper's four-bar), where G is
-  // round-off but Gbound is not (it would shrink every singular value by the loop's size
-  // over the distance to that link).
-  for (int k : ccols_[c]) {
-    bool used = false;
-    for (int e : p_rows_) used = used || std::fabs(G(e, k)) > kClosureZeroEntry * Gabs(e, k);
-    if (used) p_cols_.push_back(k);
+  // An entry is used where it is not round-off against its terms (roundoffRow's test). The
+  // closure's rows are those with a used entry; its columns, those that move its bodies
+  // relative to each other, are those with a used entry in one of those rows, i.e. in any
+  // row (a round-off row has none): not the columns of a link that carries the whole loop
+  // (an arm holding a gripper's four-bar), where G is round-off but Gbound is not (it would
+  // shrink every singular value by the loop's size over the distance to that link). One
+  // test per entry, the columns' entries read where they lie (G is column-major, a
+  // closure's rows adjacent).
+  if (n > 32) {  // (more rows than the mask holds: row by row)
+    for (int e = r0; e < r0 + n; ++e)
+      if (!roundoffRow(e)) p_rows_.push_back(e);
+    for (int k : ccols_[c]) {
+      bool used = false;
+      for (int e : p_rows_) used = used || std::fabs(G(e, k)) > kClosureZeroEntry * Gabs(e, k);
+      if (used) p_cols_.push_back(k);
+    }
+  } else {
+    const Eigen::Index ld = G.rows();
+    unsigned rows_used = 0;
+    for (int k : ccols_[c]) {
+      const double* g = G.data() + k * ld + r0;
+      const double* a = Gabs.data() + k * ld + r0;
+      unsigned used = 0;
+      for (int e = 0; e < n; ++e) used |= std::fabs(g[e]) > kClosureZeroEntry * a[e] ? 1u << e : 0u;
+      if (used) p_cols_.push_back(k);
+      rows_used |= used;
+    }
+    for (int e = 0; e < n; ++e)
+      if (rows_used >> e & 1u) p_rows_.push_back(r0 + e);
   }
   const int kr = static_cast<int>(p_rows_.size()), kc = static_cast<int>(p_cols_.size());
-  if (kc == 0) return false;
+  if (kr == 0 || kc == 0) return false;
   p_W_.resize(kr, kc);
   p_dr_.resize(kr);
+  const Eigen::Index ld = G.rows();
   for (int i = 0; i < kr; ++i) {
     const int e = p_rows_[i];
     double n2 = 0.0;
-    for (int k : p_cols_) n2 += (Gbound(e, k) / unit_(k)) * (Gbound(e, k) / unit_(k));
-    p_dr_(i) = 1.0 / std::sqrt(n2);
-    for (int j = 0; j < kc; ++j) p_W_(i, j) = G(e, p_cols_[j]) / unit_(p_cols_[j]) * p_dr_(i);
+    for (int k : p_cols_) {
+      const double b = Gbound.data()[k * ld + e] / unit_(k);
+      n2 += b * b;
+    }
+    const double dr = 1.0 / std::sqrt(n2);
+    p_dr_(i) = dr;
+    for (int j = 0; j < kc; ++j) p_W_(i, j) = G.data()[p_cols_[j] * ld + e] / unit_(p_cols_[j]) * dr;
   }
   return true;
 }

@@ -33,6 +33,31 @@ void coordinateTree(const TreeModel& model, std::vector<int>& order, std::vector
   }
 }
 
+// inverseMassInward (joint_space.h) on two rows' columns of Z at once, in place, with their
+// forces p0 and p1: each column gets that pass's operations in its order (the same bits);
+// the link is visited once for both.
+inline void inverseMassInwardTwo(const TreeModel& model, const TreeWorkspace& ws, int k, double* z0, double* z1,
+                                 AlignedVector<Vector6d>& p0, AlignedVector<Vector6d>& p1) {
+  const TreeLink& L = model.links[k];
+  Vector6d pa = p0[k], pb = p1[k];
+  for (int i = 0; i < L.nv; ++i) {
+    z0[L.iv + i] = z0[L.iv + i] - ws.S[k].col(i).dot(pa);
+    z1[L.iv + i] = z1[L.iv + i] - ws.S[k].col(i).dot(pb);
+  }
+  if (L.parent == 0) return;
+  if (L.nv == 1) {
+    pa += ws.U[k].col(0) * (ws.Dinv[k](0, 0) * z0[L.iv]);
+    pb += ws.U[k].col(0) * (ws.Dinv[k](0, 0) * z1[L.iv]);
+  } else if (L.nv > 0) {
+    const SmallVector ua = Eigen::Map<const SmallVector>(z0 + L.iv, L.nv);
+    const SmallVector ub = Eigen::Map<const SmallVector>(z1 + L.iv, L.nv);
+    pa += ws.U[k] * (ws.Dinv[k] * ua);
+    pb += ws.U[k] * (ws.Dinv[k] * ub);
+  }
+  p0[L.parent - 1] += transformForceBack(ws.E[k], ws.rho[k], pa);
+  p1[L.parent - 1] += transformForceBack(ws.E[k], ws.rho[k], pb);
+}
+
 }  // namespace
 
 TreeMassFactor::TreeMassFactor(const TreeModel& model) {
@@ -158,6 +183,7 @@ ClosureSolver::ClosureSolver(const TreeModel& model, const std::vector<int>& blo
   d_.setZero(m_);
   work_.setZero(m_);
   pa_.assign(model.nb, Vector6d::Zero());
+  pb_ = pa_;
   // product()'s lists as coordinates where every link on them has one (or none)
   auto coords = [&](const std::vector<int>& links, std::vector<int>& out) {
     out.clear();
@@ -223,19 +249,34 @@ int ClosureSolver::factor(const TreeModel& model, const TreeWorkspace& ws, const
   kept_ = 0;
   for (int k = 0; k < model.nb; ++k)  // (D^-1 of the one-coordinate links, by coordinate)
     if (model.links[k].nv == 1) dinv_(model.links[k].iv) = ws.Dinv[k](0, 0);
-  for (int e = 0; e < m_; ++e) {
-    d_(e) = 0.0;
-    if (keep(e) == 0.0) continue;
-    const std::vector<int>& links = links_[block_[e]];
-    double* z = Z_.col(e).data();
-    for (int v : cols_[block_[e]]) z[v] = R(e, v);  // (tau = R_e^T, then u in place)
-    for (int k : links) pa_[k].setZero();
-    for (int k : links) inverseMassInward(model, ws, k, z, z, pa_);
-    const double a = block_simple_[block_[e]] ? product(block_coords_[block_[e]], e, e) : product(model, ws, links, e, e);
+  auto scale = [&](int e) {  // the Jacobi scale of a kept row from its diagonal entry z_e^T D^-1 z_e
+    const int b = block_[e];
+    const double a = block_simple_[b] ? product(block_coords_[b], e, e) : product(model, ws, links_[b], e, e);
     if (a > 0.0) {
       d_(e) = 1.0 / std::sqrt(a);
       ++kept_;
     }
+  };
+  for (int e = 0; e < m_; ++e) {
+    d_(e) = 0.0;
+    if (keep(e) == 0.0) continue;
+    const int b = block_[e];
+    const std::vector<int>& links = links_[b];
+    double* z = Z_.col(e).data();
+    if (e + 1 < m_ && block_[e + 1] == b && keep(e + 1) != 0.0) {  // (two rows of a block: one pass over its links)
+      d_(e + 1) = 0.0;
+      double* z1 = Z_.col(e + 1).data();
+      for (int v : cols_[b]) z[v] = R(e, v), z1[v] = R(e + 1, v);
+      for (int k : links) pa_[k].setZero(), pb_[k].setZero();
+      for (int k : links) inverseMassInwardTwo(model, ws, k, z, z1, pa_, pb_);
+      scale(e), scale(e + 1);
+      ++e;
+      continue;
+    }
+    for (int v : cols_[b]) z[v] = R(e, v);  // (tau = R_e^T, then u in place)
+    for (int k : links) pa_[k].setZero();
+    for (int k : links) inverseMassInward(model, ws, k, z, z, pa_);
+    scale(e);
   }
   sparse_ = kept_ > 0;  // (few rows too: the pivots decide, as for many; closure_solver.h)
   if (sparse_) {

@@ -19,6 +19,12 @@ JointGeometry Joint::geometry(const BodyKin& ki, const BodyKin& kj, unsigned par
   return g;
 }
 
+double Joint::relativeAngleValueOf(const BodyKin& ki, const BodyKin& kj, double phi_ref) const {
+  const Vector3d bxp_i = frame_i_.Rp.col(0), byp_i = frame_i_.Rp.col(1), bxp_j = frame_j_.Rp.col(0);
+  const Vector3d bx_i = ki.A_Oi * bxp_i, by_i = ki.A_Oi * byp_i, bx_j = kj.A_Oi * bxp_j;  // (fixedVector's a)
+  return relativeAngleValue(bx_i, by_i, bx_j, phi_ref);
+}
+
 void Joint::track(const BodyKin* const* kin, const EvalContext&, Tracked& t, Tracked& rate) const {
   rate = Tracked{};
   Row rows[kMaxJointDofs];
@@ -28,6 +34,22 @@ void Joint::track(const BodyKin* const* kin, const EvalContext&, Tracked& t, Tra
       t[trackedSlot(k)] = rows[k].Phi;  // unwrapped near the old value
       rate[trackedSlot(k)] = rows[k].Phi_dot;
     }
+}
+
+void Joint::trackAngles(const BodyKin* const* kin, const EvalContext&, Tracked& t) const {
+  bool any = false;
+  for (int k = 0; k < dof(); ++k) any = any || trackedSlot(k) >= 0;
+  if (!any) return;
+  double q[kMaxJointDofs];
+  coordinateValues(*kin[0], *kin[1], t, q);  // (reads t: written after)
+  for (int k = 0; k < dof(); ++k)
+    if (trackedSlot(k) >= 0) t[trackedSlot(k)] = q[k];  // unwrapped near the old value
+}
+
+void Joint::coordinateValues(const BodyKin& ki, const BodyKin& kj, const Tracked& t, double* q) const {
+  Row rows[kMaxJointDofs];
+  coordinates(ki, kj, t, rows);
+  for (int k = 0; k < dof(); ++k) q[k] = rows[k].Phi;
 }
 
 void Joint::trackedRates(const BodyKin* const* kin, const EvalContext& ctx, Tracked& rate) const {

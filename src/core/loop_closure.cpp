@@ -547,12 +547,12 @@ void LoopClosures::evaluate(const TreeModel& model, const System& sys, const Tre
     for (size_t s = 0; s < bodies.size(); ++s) ptrs[s] = &kin_[bodies[s]];
     if (sel_[i].empty()) {
       C.evaluate(ptrs, ctx, Phi.segment(r0, n), Jc[i], gamma.segment(r0, n));
-    } else {  // the rows some motion moves (layout(): the idle ones left out), then copied
+    } else if (sel_joint_[i]) {  // the rows some motion moves (layout(): the idle ones left out): a joint
+      // computes those alone, straight into their places
+      sel_joint_[i]->evaluateSelected(ptrs, ctx, Phi.segment(r0, n), Jc[i], gamma.segment(r0, n), sel_mask_[i]);
+    } else {  // (the whole evaluation, the kept rows copied)
       const int nc = C.size();
-      if (sel_joint_[i])  // (a joint computes those alone)
-        sel_joint_[i]->evaluateRows(ptrs, ctx, Phi_full_.head(nc), Jc_full_[i], gamma_full_.head(nc), sel_mask_[i]);
-      else
-        C.evaluate(ptrs, ctx, Phi_full_.head(nc), Jc_full_[i], gamma_full_.head(nc));
+      C.evaluate(ptrs, ctx, Phi_full_.head(nc), Jc_full_[i], gamma_full_.head(nc));
       for (int e = 0; e < n; ++e) {
         const int f = sel_[i][e];
         Phi(r0 + e) = Phi_full_(f), gamma(r0 + e) = gamma_full_(f);
@@ -585,7 +585,7 @@ void LoopClosures::evaluate(const TreeModel& model, const System& sys, const Tre
       gamma_q.segment(r0, n).noalias() -= Jc[i].middleCols<6>(6 * s).topRows(n) * acc;
     }
     if (poses_same && rows_of_[i] == RowsOf::kMapped && unchangedSince(Jc[i], Jc_mapped_[i])) continue;
-    Jc_mapped_[i] = Jc[i];  // (same size: no allocation)
+    std::copy_n(Jc[i].data(), Jc[i].size(), Jc_mapped_[i].data());  // (the same size: a plain copy)
     rows_of_[i] = RowsOf::kMapped;
     clear(i);
     for (size_t s = 0; s < bodies.size(); ++s) {
@@ -897,8 +897,8 @@ void LoopClosures::track(const TreeWorkspace& ws, const std::vector<int>& which,
   for (int c : which) {
     const Constraint& C = *sys_->constraints[c];
     for (size_t s = 0; s < C.bodies().size(); ++s) ptrs[s] = &kin_[C.bodies()[s]];
-    Tracked tr = tracked[c], rate;
-    C.track(ptrs, ctx, tr, rate);
+    Tracked tr = tracked[c];
+    C.trackAngles(ptrs, ctx, tr);  // (their rates are not kept)
     tracked[c] = tr;
   }
 }

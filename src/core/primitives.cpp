@@ -115,6 +115,11 @@ Row relativeAngle(const FixedVector& bx_i, const FixedVector& by_i, const FixedV
   return angleOf(Cn1(bx_i, bx_j), Cn1(by_i, bx_j), phi_ref);
 }
 
+// (angleOf's Phi of the two C(n1) values)
+double relativeAngleValue(const Vector3d& bx_i, const Vector3d& by_i, const Vector3d& bx_j, double phi_ref) {
+  return unwrapNear(std::atan2(by_i.dot(bx_j), bx_i.dot(bx_j)), phi_ref);
+}
+
 // (7.38)  delta phi = e'_z^T (A_ij dtheta'_j - dtheta'_i)
 Row12 variation738(const BodyKin& bi, const BodyKin& bj, const Vector3d& ezp_i) {
   Row12 J = Row12::Zero();

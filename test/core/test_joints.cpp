@@ -195,6 +195,62 @@ TEST_P(JointTypes, SelectedRowsAreTheFullEvaluationsRows) {
   }
 }
 
+// evaluateSelected (the closures' kept rows written straight to their places): the marked
+// rows of evaluate(), in order, compact, to the bit (sign of zero included), and no row past
+// them written.
+TEST_P(JointTypes, CompactSelectedRowsAreTheFullEvaluationsRows) {
+  std::mt19937 rng(16);
+  auto same = [](double a, double b) { return a == b && std::signbit(a) == std::signbit(b); };
+  for (int n = 0; n < 20; ++n) {
+    const auto [joint, kin, tr, e] = posedJoint(GetParam(), rng);
+    const int size = joint->size();
+    const BodyKin* ptrs[2] = {&kin[0], &kin[1]};
+    const EvalContext ctx{&tr, nullptr};
+    for (unsigned mask = 1; mask < (1u << size); ++mask) {
+      Eigen::VectorXd Phi = Eigen::VectorXd::Constant(size, -7.0), gamma = Phi;
+      Eigen::MatrixXd J = Eigen::MatrixXd::Constant(size, 12, -7.0);
+      joint->evaluateSelected(ptrs, ctx, Phi, J, gamma, mask);
+      int k = 0;
+      for (int r = 0; r < size; ++r) {
+        if (!(mask & (1u << r))) continue;
+        EXPECT_TRUE(same(Phi(k), e.Phi(r))) << GetParam() << " mask " << mask << " row " << r;
+        EXPECT_TRUE(same(gamma(k), e.gamma(r))) << GetParam() << " mask " << mask << " row " << r;
+        for (int c = 0; c < 12; ++c) EXPECT_TRUE(same(J(k, c), e.J(r, c))) << GetParam() << " mask " << mask << " row " << r;
+        ++k;
+      }
+      for (; k < size; ++k) {
+        EXPECT_EQ(Phi(k), -7.0) << GetParam() << " mask " << mask;
+        EXPECT_EQ(gamma(k), -7.0) << GetParam() << " mask " << mask;
+        EXPECT_EQ(J.row(k).cwiseAbs().maxCoeff(), 7.0) << GetParam() << " mask " << mask;
+      }
+    }
+  }
+}
+
+// The coordinates' values alone (coordinateValues, a revolute's or a screw's angle computed
+// without its variation and rates) are coordinates()' Phi to the bit, and trackAngles() moves
+// the tracked angles as track() does, near a reference some turns away too.
+TEST_P(JointTypes, CoordinateValuesAndTrackedAnglesAreTheFullOnesBits) {
+  std::mt19937 rng(15);
+  std::uniform_real_distribution<double> turns(-3.0, 3.0);
+  auto same = [](double a, double b) { return a == b && std::signbit(a) == std::signbit(b); };
+  for (int n = 0; n < 40; ++n) {
+    auto [joint, kin, tr, e] = posedJoint(GetParam(), rng);
+    for (double& a : tr) a += 2.0 * M_PI * std::round(turns(rng)) + 0.4 * turns(rng);
+    Row rows[kMaxJointDofs];
+    joint->coordinates(kin[0], kin[1], tr, rows);
+    double q[kMaxJointDofs];
+    joint->coordinateValues(kin[0], kin[1], tr, q);
+    for (int k = 0; k < joint->dof(); ++k)
+      EXPECT_TRUE(same(q[k], rows[k].Phi)) << GetParam() << " coordinate " << k << ": " << q[k] << " against " << rows[k].Phi;
+    const BodyKin* ptrs[2] = {&kin[0], &kin[1]};
+    Tracked full = tr, alone = tr, rate;
+    joint->track(ptrs, EvalContext{&tr, nullptr}, full, rate);
+    joint->trackAngles(ptrs, EvalContext{&tr, nullptr}, alone);
+    for (size_t s = 0; s < full.size(); ++s) EXPECT_TRUE(same(alone[s], full[s])) << GetParam() << " slot " << s;
+  }
+}
+
 // An evaluation without rates (EvalContext::rates false, the queries'): Phi and the
 // Jacobian have every bit of the full evaluation's (sign of zero included), and the
 // geometry it reads leaves the rates out (zero, where the full one has them).

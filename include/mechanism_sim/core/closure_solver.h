@@ -114,7 +114,7 @@ class ClosureSolver {
   void analyzeKept();
   Eigen::MatrixXd Z_;                         // L^-T R^T (nv x m): the inward pass's u
   Eigen::VectorXd d_, work_;                  // Jacobi scale (0: dropped); scratch
-  AlignedVector<Vector6d> pa_;                // the inward pass's forces
+  AlignedVector<Vector6d> pa_, pb_;           // the inward pass's forces (pb_: a second row's)
   SparseLDLT ldlt_;
   bool sparse_ = false;
   int kept_ = 0;

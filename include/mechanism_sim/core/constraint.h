@@ -64,6 +64,12 @@ class Constraint {
   virtual void track(const BodyKin* const* /*kin*/, const EvalContext& /*ctx*/, Tracked& /*t*/, Tracked& rate) const {
     rate = Tracked{};
   }
+  // track()'s angles alone (the same bits), where their rates are not wanted: the joint
+  // stepper's cut joints after a step. A joint computes the angles without the rates.
+  virtual void trackAngles(const BodyKin* const* kin, const EvalContext& ctx, Tracked& t) const {
+    Tracked rate;
+    track(kin, ctx, t, rate);
+  }
   // Rates of the tracked angles at (kin): a step predicts its stages' branch references
   // from them, so a joint may turn more than pi in one step.
   virtual void trackedRates(const BodyKin* const* /*kin*/, const EvalContext& /*ctx*/, Tracked& rate) const {
@@ -103,13 +109,20 @@ class RowWriter {
  public:
   // wanted: a bit per row (bit e: row e), the rows the caller reads; a helper that writes
   // several rows may skip computing them when none is wanted (wants(), skip()).
+  // compact: only the wanted rows are written, in their order, into the outputs' first
+  // rows (rows past the 32nd are not wanted then).
   RowWriter(Eigen::Ref<Eigen::VectorXd> Phi, Eigen::Ref<Eigen::MatrixXd> J,
-            Eigen::Ref<Eigen::VectorXd> gamma, unsigned wanted = ~0u)
-      : Phi_(Phi), J_(J), gamma_(gamma), wanted_(wanted) {}
+            Eigen::Ref<Eigen::VectorXd> gamma, unsigned wanted = ~0u, bool compact = false)
+      : Phi_(Phi), J_(J), gamma_(gamma), wanted_(wanted), compact_(compact) {}
   // Whether any of the next n rows is wanted; skip(n) passes them, written or not.
   bool wants(int n) const { return n_ >= 32 || ((wanted_ >> n_) & ((n >= 32 ? ~0u : (1u << n) - 1u))) != 0; }
   void skip(int n) { n_ += n; }
   void put(const Row& row) {
+    if (compact_) {
+      if (wanted(n_)) Phi_(k_) = row.Phi, J_.row(k_) = row.J, gamma_(k_) = row.gamma, ++k_;
+      ++n_;
+      return;
+    }
     Phi_(n_) = row.Phi;
     J_.row(n_) = row.J;
     gamma_(n_) = row.gamma;
@@ -117,6 +130,12 @@ class RowWriter {
   }
   // The three rows of a three-row primitive.
   void put(const Rows3& rows) {
+    if (compact_) {
+      for (int r = 0; r < 3; ++r)
+        if (wanted(n_ + r)) Phi_(k_) = rows.Phi(r), J_.row(k_) = rows.J.row(r), gamma_(k_) = rows.gamma(r), ++k_;
+      n_ += 3;
+      return;
+    }
     Phi_.segment<3>(n_) = rows.Phi;
     J_.middleRows<3>(n_) = rows.J;
     gamma_.segment<3>(n_) = rows.gamma;
@@ -129,7 +148,10 @@ class RowWriter {
   Eigen::Ref<Eigen::MatrixXd> J_;
   Eigen::Ref<Eigen::VectorXd> gamma_;
   unsigned wanted_;
+  bool compact_;
   int n_ = 0;
+  int k_ = 0;  // (compact: rows written)
+  bool wanted(int n) const { return n < 32 && ((wanted_ >> n) & 1u); }
 };
 
 }  // namespace mechanism_sim

@@ -77,6 +77,9 @@ class Joint : public Constraint {
   // acts on the bodies as G_k^T tau_k.
   // The tracked angles t are the branch references (State).
   virtual void coordinates(const BodyKin& ki, const BodyKin& kj, const Tracked& t, Row* out) const = 0;
+  // Their values alone, q[k] = out[k].Phi of coordinates() bit for bit (a joint type that
+  // has a cheaper way computes nothing else; by default coordinates() itself).
+  virtual void coordinateValues(const BodyKin& ki, const BodyKin& kj, const Tracked& t, double* q) const;
 
   const Joint* jointOn(int b) const override { return b == bodyJ() ? this : nullptr; }
 
@@ -94,9 +97,19 @@ class Joint : public Constraint {
     equations(geometry(*kin[0], *kin[1], equationAxesFor(rows) | ratesPart(ctx)), *kin[0], *kin[1], ctx.tracked[id()],
               out);
   }
+  // The same rows written compactly: row e of the rows `rows` marks (at most the first 32),
+  // in their order, into row e of Phi, J and gamma (as many rows as marks), the same bits;
+  // nothing else written. (The closures' kept rows go straight to their places.)
+  void evaluateSelected(const BodyKin* const* kin, const EvalContext& ctx, Eigen::Ref<Eigen::VectorXd> Phi,
+                        Eigen::Ref<Eigen::MatrixXd> J, Eigen::Ref<Eigen::VectorXd> gamma, unsigned rows) const {
+    RowWriter out(Phi, J, gamma, rows, true);
+    equations(geometry(*kin[0], *kin[1], equationAxesFor(rows) | ratesPart(ctx)), *kin[0], *kin[1], ctx.tracked[id()],
+              out);
+  }
   // Tracked angles are the coordinates k with trackedSlot(k) >= 0: track() stores their
   // values and rates, trackedRates() their rates.
   void track(const BodyKin* const* kin, const EvalContext& ctx, Tracked& t, Tracked& rate) const final;
+  void trackAngles(const BodyKin* const* kin, const EvalContext& ctx, Tracked& t) const final;
   void trackedRates(const BodyKin* const* kin, const EvalContext& ctx, Tracked& rate) const final;
 
   JointGeometry geometry(const BodyKin& ki, const BodyKin& kj, unsigned parts = kAllParts) const;
@@ -129,6 +142,9 @@ class Joint : public Constraint {
   }
   // Point coincidence d_ij = 0.
   static void putPoint(const JointGeometry& g, RowWriter& out);
+  // relativeAngle(bx_i, by_i, bx_j)'s value alone (relativeAngleValue), the axes' global
+  // components computed as geometry() computes them: the bits of coordinates()' angle.
+  double relativeAngleValueOf(const BodyKin& ki, const BodyKin& kj, double phi_ref) const;
   // The geometry's rates when the evaluation asks for them (kNoRates else).
   static unsigned ratesPart(const EvalContext& ctx) { return ctx.rates ? 0u : unsigned{kNoRates}; }
 

@@ -304,7 +304,7 @@ class LoopClosures {
   bool passageFound() const { return p_reduce_; }
 
   // The tracked angles of the System constraints `which` (tracked: indexed by System
-  // constraint, e.g. State::tracked) moved to ws's kinematics (Constraint::track, reading
+  // constraint, e.g. State::tracked) moved to ws's kinematics (Constraint::trackAngles, reading
   // context()), after an accepted step: the joint stepper's cut joints.
   void track(const TreeWorkspace& ws, const std::vector<int>& which, std::vector<Tracked>& tracked);
 

@@ -76,6 +76,9 @@ Row angleOf(const Row& c, const Row& s, double phi_ref);
 // the seed's (7.38): delta phi = bzp_i^T (A_ij dtheta_j - dtheta_i).
 Row relativeAngle(const FixedVector& bx_i, const FixedVector& by_i, const FixedVector& bx_j,
                   double phi_ref);
+// Its value alone, from the vectors' global components (FixedVector::a): the same
+// operations as relativeAngle's Phi, so the same bits, without the variation and the rates.
+double relativeAngleValue(const Vector3d& bx_i, const Vector3d& by_i, const Vector3d& bx_j, double phi_ref);
 // The seed's (7.38) as printed, for checks: delta phi = e'_z^T (A_ij dtheta_j - dtheta_i).
 Row12 variation738(const BodyKin& bi, const BodyKin& bj, const Vector3d& ezp_i);
 

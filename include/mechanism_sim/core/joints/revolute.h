@@ -24,6 +24,9 @@ class RevoluteJoint : public Joint {
   int dof() const override { return static_cast<int>(kDofNames.size()); }
   bool holdsAxesParallel() const override { return true; }
   void coordinates(const BodyKin& ki, const BodyKin& kj, const Tracked& t, Row* out) const override;
+  void coordinateValues(const BodyKin& ki, const BodyKin& kj, const Tracked& t, double* q) const override {
+    q[0] = relativeAngleValueOf(ki, kj, t[0]);  // (coordinates()' relativeAngle, its value alone)
+  }
 
  protected:
   void equations(const JointGeometry& g, const BodyKin& ki, const BodyKin& kj,

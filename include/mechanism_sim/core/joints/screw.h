@@ -27,6 +27,9 @@ class ScrewJoint : public Joint {
   double alpha() const { return alpha_; }
   JointParams params() const override { return JointParams{alpha_, phi0_}; }
   void coordinates(const BodyKin& ki, const BodyKin& kj, const Tracked& t, Row* out) const override;
+  void coordinateValues(const BodyKin& ki, const BodyKin& kj, const Tracked& t, double* q) const override {
+    q[0] = relativeAngleValueOf(ki, kj, t[0]);  // (coordinates()' relativeAngle, its value alone)
+  }
 
  protected:
   void equations(const JointGeometry& g, const BodyKin& ki, const BodyKin& kj,
