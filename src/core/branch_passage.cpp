@@ -86,6 +86,19 @@ bool LoopClosures::closureRows(size_t c) {
       for (int e : p_rows_) used = used || std::fabs(G(e, k)) > kClosureZeroEntry * Gabs(e, k);
       if (used) p_cols_.push_back(k);
     }
+  } else if (n == 2) {  // (a planar loop's two rows: both tests of a column at once)
+    const Eigen::Index ld = G.rows();
+    const double* g = G.data() + r0;
+    const double* a = Gabs.data() + r0;
+    unsigned rows_used = 0;
+    for (int k : ccols_[c]) {
+      const unsigned used = (std::fabs(g[k * ld]) > kClosureZeroEntry * a[k * ld] ? 1u : 0u) |
+                            (std::fabs(g[k * ld + 1]) > kClosureZeroEntry * a[k * ld + 1] ? 2u : 0u);
+      if (used) p_cols_.push_back(k);
+      rows_used |= used;
+    }
+    if (rows_used & 1u) p_rows_.push_back(r0);
+    if (rows_used & 2u) p_rows_.push_back(r0 + 1);
   } else {
     const Eigen::Index ld = G.rows();
     unsigned rows_used = 0;
@@ -105,16 +118,21 @@ bool LoopClosures::closureRows(size_t c) {
   p_W_.resize(kr, kc);
   p_dr_.resize(kr);
   const Eigen::Index ld = G.rows();
+  const int* cols = p_cols_.data();
+  const double* unit = unit_.data();
+  double* W = p_W_.data();  // (column-major, kr rows)
   for (int i = 0; i < kr; ++i) {
     const int e = p_rows_[i];
+    const double* gb = Gbound.data() + e;
+    const double* g = G.data() + e;
     double n2 = 0.0;
-    for (int k : p_cols_) {
-      const double b = Gbound.data()[k * ld + e] / unit_(k);
+    for (int j = 0; j < kc; ++j) {
+      const double b = gb[cols[j] * ld] / unit[cols[j]];
       n2 += b * b;
     }
     const double dr = 1.0 / std::sqrt(n2);
     p_dr_(i) = dr;
-    for (int j = 0; j < kc; ++j) p_W_(i, j) = G.data()[p_cols_[j] * ld + e] / unit_(p_cols_[j]) * dr;
+    for (int j = 0; j < kc; ++j) W[j * kr + i] = g[cols[j] * ld] / unit[cols[j]] * dr;
   }
   return true;
 }

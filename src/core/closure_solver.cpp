@@ -293,17 +293,21 @@ int ClosureSolver::factor(const TreeModel& model, const TreeWorkspace& ws, const
       block_kept_[a] = 0;
       for (int e = first_[a]; e < first_[a + 1] && !block_kept_[a]; ++e) block_kept_[a] = d_(e) != 0.0;
     }
+    const double* d = d_.data();
+    const int* pos = pos_.data();
+    double* Ax = Ax_.data();
     for (size_t p = 0; p < pairs_.size(); ++p) {
       const int a = pairs_[p].first, b = pairs_[p].second;
       if (!block_kept_[a] || !block_kept_[b]) continue;
-      for (int e = first_[a]; e < first_[a + 1]; ++e) {
-        if (d_(e) == 0.0) continue;
-        for (int f = a == b ? e : first_[b]; f < first_[b + 1]; ++f) {
-          if (d_(f) == 0.0) continue;
-          const double s =
-              (pair_simple_[p] ? product(pair_coords_[p], e, f) : product(model, ws, shared_[p], e, f)) * d_(e) * d_(f);
-          Ax_[pos_[static_cast<size_t>(f) * m_ + e]] = s;
-          Ax_[pos_[static_cast<size_t>(e) * m_ + f]] = s;
+      const int a_end = first_[a + 1], b_first = first_[b], b_end = first_[b + 1];
+      const bool simple = pair_simple_[p];
+      for (int e = first_[a]; e < a_end; ++e) {
+        if (d[e] == 0.0) continue;
+        for (int f = a == b ? e : b_first; f < b_end; ++f) {
+          if (d[f] == 0.0) continue;
+          const double s = (simple ? product(pair_coords_[p], e, f) : product(model, ws, shared_[p], e, f)) * d[e] * d[f];
+          Ax[pos[static_cast<size_t>(f) * m_ + e]] = s;
+          Ax[pos[static_cast<size_t>(e) * m_ + f]] = s;
         }
       }
     }

@@ -301,7 +301,9 @@ void LoopClosures::rowsTimes(const Eigen::MatrixXd& R, const Eigen::VectorXd& v,
       continue;
     }
     double s = 0.0;
-    for (int k : ccols_[cl_of_[e]]) s += R(e, k) * v(k);
+    const double* r = R.data() + e;  // (row e: stride R.rows())
+    const Eigen::Index ld = R.rows();
+    for (int k : ccols_[cl_of_[e]]) s += r[k * ld] * v(k);
     out(e) = s;
   }
 }

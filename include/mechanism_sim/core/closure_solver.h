@@ -126,8 +126,9 @@ class ClosureSolver {
   double product(const std::vector<int>& coords, int e, int f) const {
     const double* ze = Z_.col(e).data();
     const double* zf = Z_.col(f).data();
+    const double* dinv = dinv_.data();
     double s = 0.0;
-    for (int v : coords) s += ze[v] * dinv_(v) * zf[v];
+    for (int v : coords) s += ze[v] * dinv[v] * zf[v];
     return s;
   }
   std::vector<std::vector<int>> block_coords_, pair_coords_;  // per block (links_), per pair (shared_)
