@@ -64,6 +64,9 @@ struct PosedJoint {
   Evaluation e;
 };
 
+// Whether a and b hold the same bits (the sign of zero included).
+bool same(double a, double b) { return a == b && std::signbit(a) == std::signbit(b); }
+
 PosedJoint posedJoint(const std::string& type, std::mt19937& rng) {
   PosedJoint p;
   p.joint = randomJoint(type, rng);
@@ -200,7 +203,6 @@ TEST_P(JointTypes, SelectedRowsAreTheFullEvaluationsRows) {
 // them written.
 TEST_P(JointTypes, CompactSelectedRowsAreTheFullEvaluationsRows) {
   std::mt19937 rng(16);
-  auto same = [](double a, double b) { return a == b && std::signbit(a) == std::signbit(b); };
   for (int n = 0; n < 20; ++n) {
     const auto [joint, kin, tr, e] = posedJoint(GetParam(), rng);
     const int size = joint->size();
@@ -233,7 +235,6 @@ TEST_P(JointTypes, CompactSelectedRowsAreTheFullEvaluationsRows) {
 TEST_P(JointTypes, CoordinateValuesAndTrackedAnglesAreTheFullOnesBits) {
   std::mt19937 rng(15);
   std::uniform_real_distribution<double> turns(-3.0, 3.0);
-  auto same = [](double a, double b) { return a == b && std::signbit(a) == std::signbit(b); };
   for (int n = 0; n < 40; ++n) {
     auto [joint, kin, tr, e] = posedJoint(GetParam(), rng);
     for (double& a : tr) a += 2.0 * M_PI * std::round(turns(rng)) + 0.4 * turns(rng);
@@ -256,7 +257,6 @@ TEST_P(JointTypes, CoordinateValuesAndTrackedAnglesAreTheFullOnesBits) {
 // geometry it reads leaves the rates out (zero, where the full one has them).
 TEST_P(JointTypes, EvaluationWithoutRatesHasTheFullEvaluationsPhiAndJacobian) {
   std::mt19937 rng(13);
-  auto same = [](double a, double b) { return a == b && std::signbit(a) == std::signbit(b); };
   for (int n = 0; n < 20; ++n) {
     const auto [joint, kin, tr, e] = posedJoint(GetParam(), rng);
     const int size = joint->size();
