@@ -663,8 +663,13 @@ bool JointStepper::classifyDamping(const System& sys, State& s, double h) {
   const double bound = tableau_->stiff_bound;
   const int nd = static_cast<int>(damped_.size());
   State::DampingHold& hold = s.damping_hold;
-  if (hold.left > 0 && hold.h == h && hold.bound == bound && hold.stiff.size() == static_cast<size_t>(nd) &&
-      hold.limit_side == s.limit_side && hold.x.size() == s.x.size() && motionSince(sys, hold.x, s.x) <= kHoldMotion) {
+  // (whether the hold was found under this step, bound and limit sides, and how far the
+  // bodies have moved since: both for holding it and for the pace below)
+  const bool before = hold.rate.size() == static_cast<size_t>(nd) && hold.stiff.size() == static_cast<size_t>(nd) &&
+                      hold.h == h && hold.bound == bound && hold.limit_side == s.limit_side &&
+                      hold.x.size() == s.x.size();
+  const double moved = before ? motionSince(sys, hold.x, s.x) : 0.0;
+  if (before && hold.left > 0 && moved <= kHoldMotion) {
     --hold.left;
     bool changed = false;
     stiff_list_.clear();
@@ -711,9 +716,6 @@ bool JointStepper::classifyDamping(const System& sys, State& s, double h) {
   const double below = bound * (1.0 - 1e-9);
   // (the set may be held: every coordinate kHoldMargin from the bound, changing slowly)
   bool margin = true;
-  const bool before = hold.rate.size() == static_cast<size_t>(nd) && hold.h == h && hold.bound == bound &&
-                      hold.limit_side == s.limit_side && hold.x.size() == s.x.size();
-  const double moved = before ? motionSince(sys, hold.x, s.x) : 0.0;
   hold.rate.resize(nd);
   for (int i = 0; i < nd; ++i) {
     const double upper = h * damp_rcb_[i] * spread, filter = h * damp_filter_[i];
