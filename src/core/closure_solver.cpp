@@ -40,6 +40,16 @@ inline void inverseMassInwardTwo(const TreeModel& model, const TreeWorkspace& ws
                                  AlignedVector<Vector6d>& p0, AlignedVector<Vector6d>& p1) {
   const TreeLink& L = model.links[k];
   Vector6d pa = p0[k], pb = p1[k];
+  if (L.tie >= 0) {  // (inverseMassInward's tied link)
+    const double r = L.tie_mult;
+    const int m = model.links[L.tie].iv;
+    z0[m] += r * z0[L.iv] - r * ws.S[k].col(0).dot(pa);
+    z1[m] += r * z1[L.iv] - r * ws.S[k].col(0).dot(pb);
+    z0[L.iv] = z1[L.iv] = 0.0;
+    p0[L.parent - 1] += transformForceBack(ws.E[k], ws.rho[k], pa);
+    p1[L.parent - 1] += transformForceBack(ws.E[k], ws.rho[k], pb);
+    return;
+  }
   for (int i = 0; i < L.nv; ++i) {
     z0[L.iv + i] = z0[L.iv + i] - ws.S[k].col(i).dot(pa);
     z1[L.iv + i] = z1[L.iv + i] - ws.S[k].col(i).dot(pb);

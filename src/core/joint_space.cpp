@@ -13,6 +13,7 @@
 #include <cmath>
 #include <string>
 
+#include "mechanism_sim/core/couplers.h"
 #include "mechanism_sim/core/errors.h"
 
 namespace mechanism_sim {
@@ -189,7 +190,50 @@ std::string jointSpaceUnsupported(const System& sys, bool loops_as_closures) {
   return std::string();
 }
 
-TreeModel::TreeModel(const System& sys) {
+// Couplers the recursions hold (TreeModel's embed_couplers, TreeLink::tie): links visited
+// parents first, so a master's own tie (it may have none) and the ties of the links between
+// it and a slave are settled when the slave is.
+namespace {
+void embedCouplers(const System& sys, TreeModel& model) {
+  std::vector<std::vector<int>> as_slave(model.nb);  // per link: the couplers whose slave it carries
+  auto linkOf = [&](const Joint& J) {
+    for (int j = 0; j < sys.numJoints(); ++j)
+      if (&*sys.joints[j] == &J) return model.joint_link[j];
+    return -1;
+  };
+  for (int c = 0; c < sys.numConstraints(); ++c) {
+    const auto* cc = dynamic_cast<const CoordinateCoupler*>(&*sys.constraints[c]);
+    if (!cc || cc->coordinateA() != 0 || cc->coordinateB() != 0) continue;
+    const int a = linkOf(cc->jointA()), b = linkOf(cc->jointB());
+    if (a < 0 || b < 0 || a == b) continue;
+    auto one = [](const TreeLink& L) {
+      return L.nv == 1 && (L.kind == TreeJointKind::kRevolute || L.kind == TreeJointKind::kPrismatic ||
+                           L.kind == TreeJointKind::kScrew);
+    };
+    if (!one(model.links[a]) || !one(model.links[b])) continue;
+    as_slave[a].push_back(c);
+  }
+  for (int body : model.order) {
+    const int a = body - 1;
+    TreeLink& L = model.links[a];
+    for (int c : as_slave[a]) {
+      const auto& cc = static_cast<const CoordinateCoupler&>(*sys.constraints[c]);
+      const int m = linkOf(cc.jointB());
+      if (model.links[m].tie >= 0) continue;  // (a master that is itself tied: a closure row)
+      int k = L.parent - 1;
+      while (k >= 0 && k != m && (model.links[k].kind == TreeJointKind::kFixed || model.links[k].tie == m))
+        k = model.links[k].parent - 1;
+      if (k != m) continue;
+      L.tie = m, L.tie_coupler = c, L.tie_mult = cc.multiplier(), L.tie_offset = cc.offset();
+      model.links[m].tie_master = true;
+      model.ties.push_back(a);
+      break;
+    }
+  }
+}
+}  // namespace
+
+TreeModel::TreeModel(const System& sys, bool embed_couplers) {
   nb = sys.numBodies() - 1;
   if (sys.nb != nb || nb < 1)
     throw UsageError("TreeModel: the System must be finalized and have a moving body");
@@ -321,6 +365,19 @@ TreeModel::TreeModel(const System& sys) {
     H.mass += B.m;
     H.mc += B.m * L.rhoh;
   }
+  if (embed_couplers) embedCouplers(sys, *this);
+}
+
+void TreeModel::holdTies(Eigen::VectorXd& q, Eigen::VectorXd& qdot, Eigen::VectorXd* q_round,
+                         Eigen::VectorXd* qdot_round) const {
+  for (int k : ties) {
+    const TreeLink& L = links[k];
+    const TreeLink& M = links[L.tie];
+    q(L.iq) = L.tie_mult * q(M.iq) + L.tie_offset;
+    qdot(L.iv) = L.tie_mult * qdot(M.iv);
+    if (q_round && q_round->size() == nq) (*q_round)(L.iq) = L.tie_mult * (*q_round)(M.iq);
+    if (qdot_round && qdot_round->size() == nv) (*qdot_round)(L.iv) = L.tie_mult * (*qdot_round)(M.iv);
+  }
 }
 
 Eigen::VectorXd TreeModel::neutralPositions(const System& sys) const {
@@ -346,6 +403,8 @@ TreeWorkspace::TreeWorkspace(const TreeModel& model) {
   v.assign(n, Vector6d::Zero());
   c = cJ = a = pA = f = v;
   IA.assign(n, Matrix6d::Zero());
+  W.assign(n, Vector6d::Zero());
+  dd.assign(n, 0.0), beta.assign(n, 0.0);
   S.resize(n), U.resize(n), Dinv.resize(n), u.resize(n);
   for (int k = 0; k < n; ++k) {
     const int nv = model.links[k].nv;
@@ -636,10 +695,12 @@ void forwardDynamicsAtKinematics(const TreeModel& model, const System& sys, cons
     const TreeLink& L = model.links[k];
     if (L.kind == TreeJointKind::kFixed) continue;
     if (L.composite) {
+      if (L.tie >= 0 || L.tie_master) ws.W[k].setZero(), ws.dd[k] = 0.0, ws.beta[k] = 0.0;
       ws.IA[k] = L.Ic0;
       ws.pA[k] = crossForce(ws.v[k], L.Ic0 * ws.v[k]) - groupExternalForce(sys, L, ws, model, loads);
       continue;
     }
+    if (L.tie >= 0 || L.tie_master) ws.W[k].setZero(), ws.dd[k] = 0.0, ws.beta[k] = 0.0;
     const Body& B = sys.bodies[b];
     ws.IA[k].setZero();
     ws.IA[k].topLeftCorner<3, 3>() = B.Jp;
@@ -655,12 +716,39 @@ void forwardDynamicsAtKinematics(const TreeModel& model, const System& sys, cons
     if (L.kind == TreeJointKind::kFixed) continue;
     Matrix6d& IA = ws.IA[k];
     Vector6d pa = ws.pA[k];
+    if (L.tie >= 0) {
+      // A tied link (TreeLink::tie): its motion is X v_parent + s q_dot_m with s = r S, so
+      // nothing is eliminated here; with [a; q_ddot_m] -> [f; (m's equation)] through
+      // [I^A W; W^T dd] and the bias (p^A; beta), the parent receives (T = [X s; 0 1])
+      //   I^A_p += X^T I^A X,  W_p += X^T (I^A s + W),  dd_p += s^T (I^A s + W) + s^T W + dd,
+      //   p^A_p += X^T (p^A + I^A c),  beta_p += (I^A s + W)^T c + s^T p^A + beta - r tau_s.
+      // (Jain, "Robot and Multibody Dynamics" ch. 11: constraint embedding.)
+      const Vector6d s = L.tie_mult * ws.S[k].col(0);
+      const Vector6d Us = IA * s + ws.W[k];
+      ws.Dinv[k](0, 0) = 0.0;
+      ws.U[k].col(0) = Us;
+      const int p = L.aparent - 1;
+      Matrix3d E;
+      Vector3d rho;
+      articulatedTransform(model, ws, k, E, rho);
+      ws.W[p] += transformForceBack(E, rho, Us);
+      ws.dd[p] += s.dot(Us) + s.dot(ws.W[k]) + ws.dd[k];
+      ws.beta[p] += Us.dot(ws.c[k]) + s.dot(pa) + ws.beta[k] - L.tie_mult * tau(L.iv);
+      pa += IA * ws.c[k];
+      addTransformedInertia(E, rho, IA, ws.IA[p]);
+      ws.pA[p] += transformForceBack(E, rho, pa);
+      continue;
+    }
     if (L.nv == 1) {  // the common case without the small-matrix machinery
-      const Vector6d U = IA * ws.S[k].col(0);
-      const double D = ws.S[k].col(0).dot(U);
+      Vector6d U = IA * ws.S[k].col(0);
+      double D = ws.S[k].col(0).dot(U), u = tau(L.iv) - ws.S[k].col(0).dot(pa);
+      if (L.tie_master) {  // the tied links' terms (above): U = I^A S + W, D, u
+        U += ws.W[k];
+        D = ws.S[k].col(0).dot(U) + ws.S[k].col(0).dot(ws.W[k]) + ws.dd[k];
+        u -= ws.beta[k];
+      }
       if (!(D > 0.0)) notPositive(sys, L, D);
       const double Dinv = 1.0 / D;
-      const double u = tau(L.iv) - ws.S[k].col(0).dot(pa);
       ws.U[k].col(0) = U;
       ws.Dinv[k](0, 0) = Dinv;
       ws.u[k](0) = u;
@@ -706,7 +794,11 @@ void forwardDynamicsAtKinematics(const TreeModel& model, const System& sys, cons
     const TreeLink& L = model.links[k];
     Vector6d ap = ws.c[k];
     if (L.parent != 0) ap += transformMotion(ws.E[k], ws.rho[k], ws.a[L.parent - 1]);
-    if (L.nv == 1) {
+    if (L.tie >= 0) {  // (its master, an ancestor, is done)
+      const double qdd = L.tie_mult * qddot(model.links[L.tie].iv);
+      qddot(L.iv) = qdd;
+      ws.a[k] = ap + ws.S[k].col(0) * qdd;
+    } else if (L.nv == 1) {
       const double qdd = ws.Dinv[k](0, 0) * (ws.u[k](0) - ws.U[k].col(0).dot(ap));
       qddot(L.iv) = qdd;
       ws.a[k] = ap + ws.S[k].col(0) * qdd;

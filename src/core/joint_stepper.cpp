@@ -115,7 +115,8 @@ Formulation chooseFormulation(const System& sys, Formulation asked, std::string*
   return Formulation::kAbsolute;
 }
 
-JointStepper::JointStepper(const System& sys) : model_(sys), ws_(model_), closures_(model_, sys) {
+JointStepper::JointStepper(const System& sys, bool embed_couplers)
+    : model_(sys, embed_couplers), ws_(model_), closures_(model_, sys) {
   const std::string unsupported = jointFormulationUnsupported(sys);
   if (!unsupported.empty()) throw ModelError("the joint formulation cannot run this mechanism: " + unsupported);
   tableau_ = &tableau(parseMethod(sys.options.method));
@@ -279,6 +280,9 @@ void JointStepper::writeAbsolute(const System& sys, State& s) {
   // the closures' multipliers (drives, limits, couplers) in their System rows; a free
   // limit's is 0. The tree joints' rows have none: a reactions query computes them
   // (Mechanism::multipliers(), treeJointMultipliers: tree_reactions.h).
+  // (a coupler the tree holds has no multiplier of the solve: the reactions query gives it,
+  // treeJointMultipliers)
+  for (int k : model_.ties) s.lambda[sys.layout[model_.links[k].tie_coupler].row] = 0.0;
   if (closures_.m > 0) {
     closures_.systemMultipliers(s.lambda);
     for (size_t l = 0; l < sys.limits.size(); ++l)
@@ -327,6 +331,9 @@ bool JointStepper::closureViolation(const State& s, double& position, double& ve
 // positions and velocities are projected onto the closures, the accelerations solved, and
 // limits that would pull let go (solved again), as the absolute formulation's finishStep.
 void JointStepper::finish(const System& sys, State& s, const Inputs& in) {
+  // the couplers the tree holds (TreeLink::tie) exactly: the stages kept them to round-off
+  // (a linear invariant of the ODE is one of every Runge-Kutta method)
+  model_.holdTies(s.q, s.qdot, &s.q_round, &s.qdot_round);
   bool evaluated = false;
   if (closures_.m > 0) {
     closures_.setContext(s.context());
@@ -548,14 +555,24 @@ void JointStepper::frictionFor(const System& sys, State& s, double h) {
     for (int k = 0; k < L.nv; ++k) {
       if (!(f[k] > 0.0)) continue;
       rate[k] = s.qdot(L.iv + k) / h + s.qddot(L.iv + k);
-      if (!mass) closures_.factorMass(model_, ws_), mass = true;
+      // (with ties the articulated passes: the factored joint-space inertia is the tree's
+      // without them)
+      const bool ties = !model_.ties.empty();
+      if (!mass && !ties) closures_.factorMass(model_, ws_), mass = true;
       fric_y_.setZero();
       fric_y_(L.iv + k) = 1.0;
-      closures_.inverseMass(fric_y_.data());
+      if (ties) closures_.applyInverseMass(model_, ws_, fric_y_.data(), fric_y_.data());
+      else closures_.inverseMass(fric_y_.data());
       if (closures_.m > 0) {
         closures_.timesG(fric_y_, damp_r_);
         closures_.solve(damp_r_, damp_mu_);
-        closures_.inverseMassGT(damp_mu_, fric_e_);
+        if (ties) {
+          const int m = closures_.m;
+          fric_e_.noalias() = closures_.G.topRows(m).transpose() * damp_mu_.head(m);
+          closures_.applyInverseMass(model_, ws_, fric_e_.data(), fric_e_.data());
+        } else {
+          closures_.inverseMassGT(damp_mu_, fric_e_);
+        }
         fric_y_ -= fric_e_;
       }
       for (int l = 0; l < L.nv; ++l)

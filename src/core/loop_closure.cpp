@@ -79,6 +79,7 @@ LoopClosures::LoopClosures(const TreeModel& model, const System& sys) : model_(&
   std::vector<char> tree_joint(sys.numConstraints(), 0);
   for (int j = 0; j < sys.numJoints(); ++j)
     if (model.joint_link[j] >= 0) tree_joint[sys.joint_constraint[j]] = 1;
+  for (int k : model.ties) tree_joint[model.links[k].tie_coupler] = 1;  // (couplers the tree holds)
   for (int c = 0; c < sys.numConstraints(); ++c)
     if (!tree_joint[c]) constraints.push_back(c);
   // per velocity coordinate: the length that makes its rate a speed (the length scale for
@@ -701,6 +702,10 @@ double LoopClosures::velocityResidual(const Eigen::VectorXd& qdot, const Eigen::
 // application of RBDA 8.3.
 void LoopClosures::applyInverseMass(const TreeModel& model, const TreeWorkspace& ws, const double* tau, double* out) {
   for (int k = 0; k < model.nb; ++k) pa_[k].setZero();
+  if (!model.ties.empty() && tau != out) {  // (ties: in place, inverseMassInward)
+    std::copy(tau, tau + model.nv, out);
+    tau = out;
+  }
   for (int n = model.nb - 1; n >= 0; --n) inverseMassInward(model, ws, model.order[n] - 1, tau, out, pa_);  // u kept in out
   outwardInverseMass(model, ws, out);
 }
@@ -711,7 +716,11 @@ void LoopClosures::outwardInverseMass(const TreeModel& model, const TreeWorkspac
     const TreeLink& L = model.links[k];
     Vector6d ap = Vector6d::Zero();
     if (L.parent != 0) ap = transformMotion(ws.E[k], ws.rho[k], a_[L.parent - 1]);
-    if (L.nv == 1) {
+    if (L.tie >= 0) {  // a tied link: r times its master's (done: an ancestor)
+      const double qdd = L.tie_mult * out[model.links[L.tie].iv];
+      out[L.iv] = qdd;
+      a_[k] = ap + ws.S[k].col(0) * qdd;
+    } else if (L.nv == 1) {
       const double qdd = ws.Dinv[k](0, 0) * (out[L.iv] - ws.U[k].col(0).dot(ap));
       out[L.iv] = qdd;
       a_[k] = ap + ws.S[k].col(0) * qdd;

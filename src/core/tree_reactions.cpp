@@ -36,6 +36,9 @@ void treeJointMultipliers(const System& sys, const TreeModel& model, const State
   std::fill(w.tree.begin(), w.tree.end(), 0);
   for (int j = 0; j < sys.numJoints(); ++j)
     if (model.joint_link[j] >= 0) w.tree[sys.joint_constraint[j]] = 1;
+  // couplers the tree holds (TreeLink::tie): solved below, at their slaves' links
+  for (int k : model.ties) w.tree[model.links[k].tie_coupler] = 1;
+  w.tie_effort.assign(model.nb, 0.0);
   for (int c = 0; c < sys.numConstraints(); ++c) {
     if (w.tree[c]) continue;  // a tree joint: solved below
     const ConstraintLayout& L = sys.layout[c];
@@ -94,7 +97,20 @@ void treeJointMultipliers(const System& sys, const TreeModel& model, const State
     rhs.tail<3>() /= Lscale;
     const Vector6d x = Eigen::PartialPivLU<Matrix6d>(A).solve(rhs);
     lambda.segment(L.row, L.size) = x.head(L.size);
-    if (dof > 0) worst_tau = std::max(worst_tau, (A.rightCols(dof) * x.tail(dof)).norm());
+    // A held coupler q_s = r q_m + o (TreeLink::tie) acts as efforts -lambda along q_s and
+    // r lambda along q_m (couplers.h), left out of the loads: the slave's joint transmits
+    // -lambda along its coordinate beyond the applied efforts, which gives lambda, and the
+    // master's r lambda (the transmitted wrenches are what the loads would have made them).
+    Vector6d x_rest = x;
+    if (link.tie >= 0) {
+      const double lc = -x(L.size);
+      lambda[sys.layout[link.tie_coupler].row] = lc;
+      w.tie_effort[link.tie] += link.tie_mult * lc;
+      x_rest(L.size) = 0.0;
+    } else if (link.tie_master) {
+      x_rest(L.size) -= w.tie_effort[k];
+    }
+    if (dof > 0) worst_tau = std::max(worst_tau, (A.rightCols(dof) * x_rest.tail(dof)).norm());
     largest = std::max(largest, rhs.norm());
   }
   w.worst_effort = largest > 0.0 ? worst_tau / largest : 0.0;

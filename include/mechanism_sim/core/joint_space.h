@@ -134,6 +134,15 @@ struct TreeLink {
   std::vector<int> welded;
   double mass = 0.0;
   Vector3d mc = Vector3d::Zero();
+  // An embedded coupler (TreeModel's embed_couplers; Jain, "Robot and Multibody Dynamics"
+  // ch. 11, constraint embedding, for a linear coupling): this link's one coordinate is
+  // tie_mult q_master + tie_offset, its master the link `tie` (an ancestor, the links
+  // between them welded or tied to the same master), tie_coupler the coupler's constraint.
+  // The articulated passes carry the coordinate up to the master's link and eliminate it
+  // there (tie_master: a link that some link below it is tied to).
+  int tie = -1, tie_coupler = -1;
+  double tie_mult = 0.0, tie_offset = 0.0;
+  bool tie_master = false;
 };
 
 // Empty when the joint-space formulation can run the System; otherwise a sentence naming
@@ -149,7 +158,11 @@ std::string jointSpaceUnsupported(const System& sys, bool loops_as_closures = fa
 struct TreeModel {
   // Throws UsageError for a System that is not finalized, ModelError for a tree joint of a
   // type the recursion has no model of, or a joint from a body to itself.
-  explicit TreeModel(const System& sys);
+  // embed_couplers: a coupler (URDF mimic) q_s = r q_m + o between one-coordinate tree
+  // joints whose master m is an ancestor of s, with only welded links or links tied to the
+  // same master between them, is held by the recursions themselves (TreeLink::tie) instead
+  // of as a closure row; `ties` lists those slave links, parents first.
+  explicit TreeModel(const System& sys, bool embed_couplers = false);
 
   int nb = 0;                   // moving bodies
   int nq = 0, nv = 0;           // position and velocity coordinates
@@ -157,6 +170,11 @@ struct TreeModel {
   std::vector<int> order;       // moving bodies, each after its parent (b, 1..nb)
   std::vector<int> joint_link;  // per sys joint: its link (body - 1); -1 for a cut joint
   std::vector<int> cut_joints;  // sys joints that close loops (not on the tree), ascending
+  std::vector<int> ties;        // links tied to a master's coordinate (embed_couplers), parents first
+  // q_s = r q_m + o and q_dot_s = r q_dot_m of every tie (their round-off in q_round and
+  // qdot_round likewise, when given): what the integration holds up to round-off, exactly.
+  void holdTies(Eigen::VectorXd& q, Eigen::VectorXd& qdot, Eigen::VectorXd* q_round = nullptr,
+                Eigen::VectorXd* qdot_round = nullptr) const;
 
   const TreeLink& link(int b) const { return links[b - 1]; }
   // A neutral joint state: zero coordinates, identity quaternions, free bodies where the
@@ -182,6 +200,10 @@ struct TreeWorkspace {
   AlignedVector<SmallMatrix> Dinv;  // (S^T IA S)^-1
   AlignedVector<SmallVector> u;     // tau - S^T pA
   AlignedVector<Vector6d> f;        // RNEA: force transmitted by the joint
+  // Ties (TreeLink::tie): per link, the articulated quantities that couple it to the tied
+  // coordinate it carries up, W (6) and its own inertia dd, and the bias beta (pass 2)
+  AlignedVector<Vector6d> W;
+  std::vector<double> dd, beta;
   // A number no other write has had (across workspaces), taken each time forwardKinematics
   // or the articulated passes rewrite the poses, subspaces or factors (E, rho, S, U, Dinv):
   // what a cache of results computed from them keys on (LoopClosures' factorization).
@@ -195,10 +217,20 @@ long nextWorkspaceGeneration();
 // u_k = tau_k - S_k^T p_k into out (tau and out may be the same array), and the parent's
 // p += X^T (p_k + U_k D_k^-1 u_k). The caller visits children before parents with p zeroed
 // first: LoopClosures::applyInverseMass over every link, ClosureSolver over one row's paths.
+// With ties (TreeLink::tie) tau and out must be the same array: a tied link adds
+// r (tau_s - S_s^T p_s) to its master's entry, which the master's own step then reads as
+// its tau, and leaves 0 at its own (its coordinate is not eliminated there).
 inline void inverseMassInward(const TreeModel& model, const TreeWorkspace& ws, int k, const double* tau, double* out,
                               AlignedVector<Vector6d>& p) {
   const TreeLink& L = model.links[k];
   Vector6d pa = p[k];
+  if (L.tie >= 0) {  // a tied link (TreeLink::tie): its effort and S^T p go to the master's u
+    const double r = L.tie_mult, ts = tau[L.iv];
+    out[model.links[L.tie].iv] += r * ts - r * ws.S[k].col(0).dot(pa);
+    out[L.iv] = 0.0;
+    p[L.parent - 1] += transformForceBack(ws.E[k], ws.rho[k], pa);
+    return;
+  }
   for (int i = 0; i < L.nv; ++i) out[L.iv + i] = tau[L.iv + i] - ws.S[k].col(i).dot(pa);
   if (L.parent == 0) return;
   if (L.nv == 1) {

@@ -69,7 +69,10 @@ double coordinateInverseMassBound(const Joint& J, const Row& row, const BodyInve
 class JointStepper {
  public:
   // Throws ModelError when the joint formulation cannot run sys (jointSpaceUnsupported).
-  explicit JointStepper(const System& sys);
+  // embed_couplers: the couplers the tree can hold (TreeModel's embed_couplers) are held by
+  // its recursions, not solved as closure rows (false: every coupler a row, as the tests'
+  // cross-check runs it).
+  explicit JointStepper(const System& sys, bool embed_couplers = true);
   void setMethod(Method m) { tableau_ = &tableau(m); }
 
   // The joint state of s from its absolute state (an assembled or restored State: joint

@@ -32,7 +32,8 @@ struct TreeReactionWorkspace {
   State context;   // the State's evaluation context, with no row dropped
   AlignedVector<Vector6d> load;  // per moving body: [f (global); n' (body)] at its centre of
                                  // mass, everything on it but its tree joint
-  std::vector<char> tree;        // per constraint: a joint of the tree
+  std::vector<char> tree;        // per constraint: a joint of the tree, or a coupler it holds
+  std::vector<double> tie_effort;  // per link: the held couplers' efforts on its coordinate
   double worst_effort = 0.0;     // of the last call: largest |tau| (relative), see below
 };
 

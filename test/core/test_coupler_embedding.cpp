@@ -1,0 +1,177 @@
+// Couplers the joint-space tree holds itself (TreeModel's embed_couplers, TreeLink::tie:
+// constraint embedding of a URDF mimic whose master is an ancestor of its slave) against
+// the same couplers solved as closure rows, the way the joint formulation ran every coupler
+// before: one mechanism, a hand whose fingers follow its palm's joint through a welded
+// plate (two revolute slaves in a chain, a prismatic one below them, a free joint below a
+// slave), a limit, damping, Coulomb friction and an effort on slaves, and a coupler the tree
+// cannot hold (a sibling of its master's link: a closure row either way). At one state the
+// accelerations and every multiplier agree to round-off; over 2 s the motions agree, the
+// held couplers hold exactly, and the absolute formulation moves the same way.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <string>
+#include <vector>
+
+#include "bodies.h"
+#include "mechanism_sim/core/joint_stepper.h"
+#include "mechanism_sim/core/mechanism.h"
+#include "mechanism_sim/core/tree_reactions.h"
+
+namespace mechanism_sim {
+namespace {
+
+using test_util::frame;
+
+Matrix3d axisTo(const Vector3d& z) {  // a rotation whose z column is z
+  return Eigen::Quaterniond::FromTwoVectors(Vector3d::UnitZ(), z.normalized()).toRotationMatrix();
+}
+
+// The hand (bodies at their centres, identity orientations, every joint at 0 to start).
+// Joints: 0 wrist (ground-base), 1 palm (master), 2 plate (fixed), 3 finger (r 0.9),
+// 4 finger tip (r -0.6, offset 0.05; limits), 5 slider (prismatic, r 0.02 m/rad), 6 flap
+// (free, below the finger), 7 thumb (r 0.5: a sibling, a closure row).
+void hand(Mechanism& m, const char* formulation) {
+  std::vector<Vector3d> r{Vector3d::Zero()};
+  auto add = [&](const char* name, double mass, const Vector3d& at) {
+    r.push_back(at);
+    return m.addBody(test_util::body(name, mass, mass * Vector3d(0.004, 0.005, 0.006), at));
+  };
+  auto join = [&](const char* type, const char* name, int parent, int child, const Vector3d& P, const Vector3d& axis) {
+    const Matrix3d R = axisTo(axis);
+    return m.addJoint(makeJoint(type, name, parent, frame(P - r[parent], R), child, frame(P - r[child], R)));
+  };
+  const int base = add("base", 2.0, Vector3d(0, 0, 0.1));
+  const int palm = add("palm", 1.0, Vector3d(0.2, 0, 0.1));
+  const int plate = add("plate", 0.3, Vector3d(0.3, 0, 0.1));
+  const int finger = add("finger", 0.2, Vector3d(0.4, 0.05, 0.1));
+  const int tip = add("tip", 0.1, Vector3d(0.5, 0.05, 0.1));
+  const int slider = add("slider", 0.05, Vector3d(0.55, 0.05, 0.1));
+  const int flap = add("flap", 0.1, Vector3d(0.4, 0.12, 0.1));
+  const int thumb = add("thumb", 0.2, Vector3d(0.1, 0.1, 0.1));
+  join("revolute", "wrist", Mechanism::kGround, base, Vector3d(0, 0, 0), Vector3d(0, 0, 1));
+  join("revolute", "palm", base, palm, Vector3d(0.1, 0, 0.1), Vector3d(1, 0, 0));
+  join("fixed", "plate", palm, plate, Vector3d(0.25, 0, 0.1), Vector3d(0, 0, 1));
+  join("revolute", "finger", plate, finger, Vector3d(0.35, 0.05, 0.1), Vector3d(0, 1, 0.2));
+  join("revolute", "tip", finger, tip, Vector3d(0.45, 0.05, 0.1), Vector3d(0.1, 1, 0));
+  join("prismatic", "slider", tip, slider, Vector3d(0.55, 0.05, 0.1), Vector3d(1, 0.3, 0));
+  join("revolute", "flap", finger, flap, Vector3d(0.4, 0.1, 0.1), Vector3d(1, 0, 0));
+  join("revolute", "thumb", base, thumb, Vector3d(0.05, 0.1, 0.1), Vector3d(1, 0, 0.3));
+  m.addCoupler("finger_mimic", 3, 0, 1, 0, 0.9, 0.0);
+  m.addCoupler("tip_mimic", 4, 0, 1, 0, -0.6, 0.05);
+  m.addCoupler("slider_mimic", 5, 0, 1, 0, 0.02, 0.0);
+  m.addCoupler("thumb_mimic", 7, 0, 1, 0, 0.5, 0.0);
+  m.setJointLimits(4, 0, -0.3, 0.3);
+  m.setJointDamping(3, 0, 0.02);
+  m.setJointDamping(6, 0, 0.01);
+  m.setJointFriction(4, 0, 0.002);
+  IntegratorOptions io;
+  io.formulation = formulation;
+  m.setIntegrator(io);
+  m.build();
+  m.assemble();
+  m.setJointEffort(1, 0, 0.4);
+  m.setJointEffort(3, 0, 0.05);
+  m.setJointEffort(0, 0, 0.1);
+}
+
+Inputs handInputs(const System& sys) {
+  Inputs in = zeroInputs(sys);
+  in.effort[1][0] = 0.4, in.effort[3][0] = 0.05, in.effort[0][0] = 0.1;
+  return in;
+}
+
+double largest(const Eigen::VectorXd& v) { return v.size() ? v.cwiseAbs().maxCoeff() : 0.0; }
+
+// Accelerations and multipliers (every row: the tree joints' from the reactions pass) of
+// the two steppers settled at s; returns the larger relative difference.
+double atState(const System& sys, const State& s, const Inputs& in, const char* where) {
+  JointStepper held(sys, true), rows(sys, false);
+  State a = s, b = s;
+  held.settle(sys, a, in);
+  rows.settle(sys, b, in);
+  Eigen::VectorXd la = a.lambda, lb = b.lambda;
+  TreeReactionWorkspace wa(sys), wb(sys);
+  treeJointMultipliers(sys, held.model(), a, in, wa, la);
+  treeJointMultipliers(sys, rows.model(), b, in, wb, lb);
+  const double dq = largest(a.qddot - b.qddot) / largest(b.qddot);
+  const double dl = largest(la - lb) / largest(lb);
+  std::printf("[coupler embedding] %s: accelerations %.2e, multipliers %.2e (relative); efforts left over %.1e, %.1e\n",
+              where, dq, dl, wa.worst_effort, wb.worst_effort);
+  EXPECT_LT(wa.worst_effort, 1e-12) << where;
+  return std::max(dq, dl);
+}
+
+TEST(CouplerEmbedding, HeldCouplersAreTheClosureRowsSolvedInTheRecursion) {
+  Mechanism m;
+  hand(m, "joint");
+  ASSERT_STREQ(m.formulation(), "joint") << m.formulationReason();
+  const System& sys = m.system();
+  const Inputs in = handInputs(sys);
+  {
+    const JointStepper held(sys, true), rows(sys, false);
+    const TreeModel& t = held.model();
+    // finger, tip and slider are held, in that order; the thumb (a sibling of the palm) is not
+    ASSERT_EQ(t.ties.size(), 3u);
+    const int palm = t.joint_link[1];
+    for (int j : {3, 4, 5}) EXPECT_EQ(t.links[t.joint_link[j]].tie, palm) << "joint " << j;
+    EXPECT_EQ(t.links[t.joint_link[7]].tie, -1);
+    EXPECT_TRUE(t.links[palm].tie_master);
+    EXPECT_TRUE(rows.model().ties.empty());
+  }
+  EXPECT_LT(atState(sys, m.state(), in, "at the start"), 1e-10);
+  // on to the tip's limit, then at that state (the limit's row on a held coordinate)
+  bool limited = false;
+  for (int k = 0; k < 3000 && !limited; ++k) {
+    m.step(1e-3);
+    limited = m.state().limit_side[0] != 0;
+  }
+  ASSERT_TRUE(limited) << "the tip never reached its limit: the test did not test a limit on a held coordinate";
+  EXPECT_LT(atState(sys, m.state(), in, "at the tip's limit"), 1e-10);
+}
+
+TEST(CouplerEmbeddingRun, HeldCouplersMoveAsClosureRowsAndInAbsoluteCoordinates) {
+  Mechanism j, a;
+  hand(j, "joint");
+  hand(a, "absolute");
+  const System& sys = j.system();
+  const Inputs in = handInputs(sys);
+  JointStepper held(sys, true), rows(sys, false);
+  State sh = j.state(), sr = j.state();
+  held.settle(sys, sh, in);
+  rows.settle(sys, sr, in);
+  double exact = 0.0, abs_diff = -1.0, t_stop = 0.0;
+  const TreeModel& t = held.model();
+  for (int k = 0; k < 2000; ++k) {
+    held.step(sys, sh, in, 1e-3);
+    rows.step(sys, sr, in, 1e-3);
+    j.step(1e-3), a.step(1e-3);
+    for (int l : t.ties) {
+      const TreeLink& L = t.links[l];
+      exact = std::max(exact, std::fabs(sh.q(L.iq) - (L.tie_mult * sh.q(t.links[L.tie].iq) + L.tie_offset)));
+    }
+    // against the absolute formulation until the tip's stop: an inelastic impact each
+    // formulation takes by its own projection (their difference after it is the impact's,
+    // with or without held couplers: test_joint_formulation.cpp's limits)
+    if (t_stop == 0.0 && (j.state().limit_side[0] != 0 || a.state().limit_side[0] != 0)) t_stop = j.time();
+    if (t_stop == 0.0) {
+      abs_diff = 0.0;
+      for (int q = 0; q < j.numJoints(); ++q)
+        if (j.joint(q).dof() > 0) abs_diff = std::max(abs_diff, std::fabs(j.jointPosition(q, 0) - a.jointPosition(q, 0)));
+    }
+  }
+  const double rows_diff = largest(sh.q - sr.q);
+  std::printf("[coupler embedding] after 2 s: held against rows %.2e; joint (held) against absolute %.2e the step "
+              "before the tip's stop (t = %.3f s); held couplers off by %.1e\n",
+              rows_diff, abs_diff, t_stop, exact);
+  EXPECT_LT(rows_diff, 1e-8);
+  ASSERT_GT(t_stop, 0.05) << "the tip stopped too soon (or never) for a comparison of the free motion";
+  EXPECT_LT(abs_diff, 1e-8);
+  EXPECT_LT(exact, 1e-15);  // q_s = r q_m + o to its rounding (holdTies after every step)
+  EXPECT_EQ(sh.limit_side[0], sr.limit_side[0]);
+  EXPECT_GT(largest(sh.q), 0.1);  // (it moved)
+}
+
+}  // namespace
+}  // namespace mechanism_sim
