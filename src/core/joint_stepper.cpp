@@ -62,8 +62,9 @@ Formulation chooseFormulation(const System& sys, Formulation asked, std::string*
   // The cost model (bench/RESULTS.md, "2026-11-26 (2)"). On a tree with no equations
   // besides its joints' the joint formulation costs 2 to 5 times less a step (pendulum
   // 0.84 against 3.41 us, the 50-link chain 68 against 203). Limits and couplers on tree
-  // coordinates are rows on q itself, solved sparsely (closure_solver.h: O(depth) a row):
-  // the humanoid's 13 mimic couplers 154 against 358 us a step, the panda-like arm's
+  // coordinates are rows on q itself, solved sparsely (closure_solver.h: O(depth) a row),
+  // or held by the recursions when the master is an ancestor (TreeLink::tie): the
+  // humanoid's 13 mimic couplers 154 against 358 us a step as rows, the panda-like arm's
   // gripper 28 against 58. Drives (and couplers on spherical joints or cut joints) go
   // through their absolute equations: with one on every coordinate (arm7 driven at all 7
   // joints) the joint formulation cost 1.2 times the absolute one; auto takes it while they
