@@ -41,14 +41,18 @@ inline void inverseMassInwardTwo(const TreeModel& model, const TreeWorkspace& ws
   const TreeLink& L = model.links[k];
   Vector6d pa = p0[k], pb = p1[k];
   if (L.tie >= 0) {  // (inverseMassInward's tied link)
-    const double r = L.tie_mult;
+    const double r = L.tie_mult, t0 = z0[L.iv], t1 = z1[L.iv];
     const int m = model.links[L.tie].iv;
-    z0[m] += r * z0[L.iv] - r * ws.S[k].col(0).dot(pa);
-    z1[m] += r * z1[L.iv] - r * ws.S[k].col(0).dot(pb);
     z0[L.iv] = z1[L.iv] = 0.0;
+    z0[m] += r * t0 - r * ws.S[k].col(0).dot(pa);
+    z1[m] += r * t1 - r * ws.S[k].col(0).dot(pb);
     p0[L.parent - 1] += transformForceBack(ws.E[k], ws.rho[k], pa);
     p1[L.parent - 1] += transformForceBack(ws.E[k], ws.rho[k], pb);
     return;
+  }
+  if (L.pivot >= 0) {
+    pa += ws.W[k] * (ws.tie_Dinv[k] * z0[L.pivot]);
+    pb += ws.W[k] * (ws.tie_Dinv[k] * z1[L.pivot]);
   }
   for (int i = 0; i < L.nv; ++i) {
     z0[L.iv + i] = z0[L.iv + i] - ws.S[k].col(i).dot(pa);
@@ -138,8 +142,12 @@ ClosureSolver::ClosureSolver(const TreeModel& model, const std::vector<int>& blo
       if (!mark[k]) continue;
       links_[b].push_back(k);
       for (int i = 0; i < model.links[k].nv; ++i) cols_[b].push_back(model.links[k].iv + i);
+      // (a tied coordinate eliminated here: its entry starts at the row's value too)
+      if (model.links[k].pivot >= 0) cols_[b].push_back(model.links[k].pivot);
       if (model.links[k].nv > 0) at[k].push_back(b);
     }
+    std::sort(cols_[b].begin(), cols_[b].end());
+    cols_[b].erase(std::unique(cols_[b].begin(), cols_[b].end()), cols_[b].end());
     std::sort(links_[b].begin(), links_[b].end(), [&](int x, int y) { return opos[x] > opos[y]; });
     std::sort(cols_[b].begin(), cols_[b].end(), [&](int x, int y) { return pos[x] < pos[y]; });
   }
@@ -198,8 +206,10 @@ ClosureSolver::ClosureSolver(const TreeModel& model, const std::vector<int>& blo
   auto coords = [&](const std::vector<int>& links, std::vector<int>& out) {
     out.clear();
     for (int k : links) {
-      if (model.links[k].nv > 1) return false;
-      if (model.links[k].nv == 1) out.push_back(model.links[k].iv);
+      const TreeLink& L = model.links[k];
+      if (L.nv > 1) return false;
+      if (L.pivot >= 0) out.push_back(L.pivot);          // (its D^-1: dinv_, factor())
+      if (L.nv == 1 && L.tie < 0) out.push_back(L.iv);  // (a tied link has no pivot of its own)
     }
     return true;
   };
@@ -240,6 +250,8 @@ double ClosureSolver::product(const TreeModel& model, const TreeWorkspace& ws, c
   double s = 0.0;
   for (int k : links) {
     const TreeLink& L = model.links[k];
+    if (L.pivot >= 0) s += ze[L.pivot] * ws.tie_Dinv[k] * zf[L.pivot];
+    if (L.tie >= 0) continue;  // (no pivot of its own: D^-1 0)
     if (L.nv == 1) {
       s += ze[L.iv] * ws.Dinv[k](0, 0) * zf[L.iv];
     } else {
@@ -259,6 +271,8 @@ int ClosureSolver::factor(const TreeModel& model, const TreeWorkspace& ws, const
   kept_ = 0;
   for (int k = 0; k < model.nb; ++k)  // (D^-1 of the one-coordinate links, by coordinate)
     if (model.links[k].nv == 1) dinv_(model.links[k].iv) = ws.Dinv[k](0, 0);
+  for (int k = 0; k < model.nb; ++k)  // (then the tied coordinates' at their pivots)
+    if (model.links[k].pivot >= 0) dinv_(model.links[k].pivot) = ws.tie_Dinv[k];
   auto scale = [&](int e) {  // the Jacobi scale of a kept row from its diagonal entry z_e^T D^-1 z_e
     const int b = block_[e];
     const double a = block_simple_[b] ? product(block_coords_[b], e, e) : product(model, ws, links_[b], e, e);

@@ -213,19 +213,41 @@ void embedCouplers(const System& sys, TreeModel& model) {
     if (!one(model.links[a]) || !one(model.links[b])) continue;
     as_slave[a].push_back(c);
   }
+  // the first moving link above k that is neither welded nor tied to master m
+  auto above = [&](int k, int m) {
+    k = model.links[k].parent - 1;
+    while (k >= 0 && (model.links[k].kind == TreeJointKind::kFixed || model.links[k].tie == m))
+      k = model.links[k].parent - 1;
+    return k;
+  };
+  // a link that carries no group's terms and eliminates none: free to be a group's top
+  auto unclaimed = [&](int k) {
+    const TreeLink& T = model.links[k];
+    return T.tie < 0 && !T.tie_master && T.pivot < 0;
+  };
   for (int body : model.order) {
     const int a = body - 1;
     TreeLink& L = model.links[a];
     for (int c : as_slave[a]) {
+      if (L.tie >= 0 || L.tie_master || L.pivot >= 0) break;  // (already a master's, or a top)
       const auto& cc = static_cast<const CoordinateCoupler&>(*sys.constraints[c]);
       const int m = linkOf(cc.jointB());
-      if (model.links[m].tie >= 0) continue;  // (a master that is itself tied: a closure row)
-      int k = L.parent - 1;
-      while (k >= 0 && k != m && (model.links[k].kind == TreeJointKind::kFixed || model.links[k].tie == m))
-        k = model.links[k].parent - 1;
-      if (k != m) continue;
+      TreeLink& M = model.links[m];
+      if (M.tie >= 0 && M.tie != m) continue;  // (a master that is itself tied: a closure row)
+      const int k = above(a, m);
+      if (k == m && M.tie < 0 && M.pivot < 0) {  // the master's link is the slave's ancestor
+        M.tie_master = true;
+      } else {
+        // siblings: both reach their common ancestor through welded or tied links only,
+        // and it carries no other group (a master's own group eliminated at its link, or
+        // another top's: those stay rows)
+        if (k < 0 || M.tie_master || above(m, m) != k) continue;
+        TreeLink& T = model.links[k];
+        if (M.tie == m ? T.pivot_link != m : !unclaimed(k)) continue;
+        if (M.tie < 0) M.tie = m, M.tie_mult = 1.0, M.tie_offset = 0.0;
+        T.pivot = M.iv, T.pivot_link = m;
+      }
       L.tie = m, L.tie_coupler = c, L.tie_mult = cc.multiplier(), L.tie_offset = cc.offset();
-      model.links[m].tie_master = true;
       model.ties.push_back(a);
       break;
     }
@@ -405,6 +427,7 @@ TreeWorkspace::TreeWorkspace(const TreeModel& model) {
   IA.assign(n, Matrix6d::Zero());
   W.assign(n, Vector6d::Zero());
   dd.assign(n, 0.0), beta.assign(n, 0.0);
+  tie_Dinv.assign(n, 0.0), tie_u.assign(n, 0.0);
   S.resize(n), U.resize(n), Dinv.resize(n), u.resize(n);
   for (int k = 0; k < n; ++k) {
     const int nv = model.links[k].nv;
@@ -672,6 +695,44 @@ inline void articulatedTransform(const TreeModel& model, const TreeWorkspace& ws
                         "' has no inertia along its joint");
 }
 
+// Pass 2 of forwardDynamicsAtKinematics at a tied link (TreeLink::tie): its motion is
+// X v_parent + s q_dot_m with s = r S, so nothing is eliminated here; with
+// [a; q_ddot_m] -> [f; (m's equation)] through [I^A W; W^T dd] and the bias (p^A; beta),
+// the parent receives (T = [X s; 0 1])
+//   I^A_p += X^T I^A X,  W_p += X^T (I^A s + W),  dd_p += s^T (I^A s + W) + s^T W + dd,
+//   p^A_p += X^T (p^A + I^A c),  beta_p += (I^A s + W)^T c + s^T p^A + beta - r tau_s.
+// (Jain, "Robot and Multibody Dynamics" ch. 11: constraint embedding.)
+[[gnu::noinline]] void tiedLinkInward(const TreeModel& model, TreeWorkspace& ws, int k, double tau_s, Vector6d pa) {
+  const TreeLink& L = model.links[k];
+  const Matrix6d& IA = ws.IA[k];
+  const Vector6d s = L.tie_mult * ws.S[k].col(0);
+  const Vector6d Us = IA * s + ws.W[k];
+  ws.Dinv[k](0, 0) = 0.0;
+  ws.U[k].col(0) = Us;
+  const int p = L.aparent - 1;
+  Matrix3d E;
+  Vector3d rho;
+  articulatedTransform(model, ws, k, E, rho);
+  ws.W[p] += transformForceBack(E, rho, Us);
+  ws.dd[p] += s.dot(Us) + s.dot(ws.W[k]) + ws.dd[k];
+  ws.beta[p] += Us.dot(ws.c[k]) + s.dot(pa) + ws.beta[k] - L.tie_mult * tau_s;
+  pa += IA * ws.c[k];
+  addTransformedInertia(E, rho, IA, ws.IA[p]);
+  ws.pA[p] += transformForceBack(E, rho, pa);
+}
+
+// Pass 2 at the common ancestor of a master's link and its sibling slaves (TreeLink::pivot),
+// before its own joint: the tied coordinate is eliminated first, as a child's joint with
+// U = W, D = dd, u = -beta would be: I^A -= W D^-1 W^T, p^A += W D^-1 u (no c_J of its own).
+[[gnu::noinline]] void pivotInward(const System& sys, const TreeLink& L, int k, TreeWorkspace& ws, Vector6d& pa) {
+  const double D = ws.dd[k];
+  if (!(D > 0.0)) notPositive(sys, L, D);
+  ws.tie_Dinv[k] = 1.0 / D, ws.tie_u[k] = -ws.beta[k];
+  const Vector6d WD = ws.W[k] * ws.tie_Dinv[k];
+  ws.IA[k].noalias() -= WD * ws.W[k].transpose();
+  pa += WD * ws.tie_u[k];
+}
+
 }  // namespace
 
 // Articulated-body algorithm, RBDA 7.3, table 7.1, in body coordinates: gravity enters as
@@ -695,12 +756,12 @@ void forwardDynamicsAtKinematics(const TreeModel& model, const System& sys, cons
     const TreeLink& L = model.links[k];
     if (L.kind == TreeJointKind::kFixed) continue;
     if (L.composite) {
-      if (L.tie >= 0 || L.tie_master) ws.W[k].setZero(), ws.dd[k] = 0.0, ws.beta[k] = 0.0;
+      if (L.tie >= 0 || L.tie_master || L.pivot >= 0) ws.W[k].setZero(), ws.dd[k] = 0.0, ws.beta[k] = 0.0;
       ws.IA[k] = L.Ic0;
       ws.pA[k] = crossForce(ws.v[k], L.Ic0 * ws.v[k]) - groupExternalForce(sys, L, ws, model, loads);
       continue;
     }
-    if (L.tie >= 0 || L.tie_master) ws.W[k].setZero(), ws.dd[k] = 0.0, ws.beta[k] = 0.0;
+    if (L.tie >= 0 || L.tie_master || L.pivot >= 0) ws.W[k].setZero(), ws.dd[k] = 0.0, ws.beta[k] = 0.0;
     const Body& B = sys.bodies[b];
     ws.IA[k].setZero();
     ws.IA[k].topLeftCorner<3, 3>() = B.Jp;
@@ -716,29 +777,11 @@ void forwardDynamicsAtKinematics(const TreeModel& model, const System& sys, cons
     if (L.kind == TreeJointKind::kFixed) continue;
     Matrix6d& IA = ws.IA[k];
     Vector6d pa = ws.pA[k];
-    if (L.tie >= 0) {
-      // A tied link (TreeLink::tie): its motion is X v_parent + s q_dot_m with s = r S, so
-      // nothing is eliminated here; with [a; q_ddot_m] -> [f; (m's equation)] through
-      // [I^A W; W^T dd] and the bias (p^A; beta), the parent receives (T = [X s; 0 1])
-      //   I^A_p += X^T I^A X,  W_p += X^T (I^A s + W),  dd_p += s^T (I^A s + W) + s^T W + dd,
-      //   p^A_p += X^T (p^A + I^A c),  beta_p += (I^A s + W)^T c + s^T p^A + beta - r tau_s.
-      // (Jain, "Robot and Multibody Dynamics" ch. 11: constraint embedding.)
-      const Vector6d s = L.tie_mult * ws.S[k].col(0);
-      const Vector6d Us = IA * s + ws.W[k];
-      ws.Dinv[k](0, 0) = 0.0;
-      ws.U[k].col(0) = Us;
-      const int p = L.aparent - 1;
-      Matrix3d E;
-      Vector3d rho;
-      articulatedTransform(model, ws, k, E, rho);
-      ws.W[p] += transformForceBack(E, rho, Us);
-      ws.dd[p] += s.dot(Us) + s.dot(ws.W[k]) + ws.dd[k];
-      ws.beta[p] += Us.dot(ws.c[k]) + s.dot(pa) + ws.beta[k] - L.tie_mult * tau(L.iv);
-      pa += IA * ws.c[k];
-      addTransformedInertia(E, rho, IA, ws.IA[p]);
-      ws.pA[p] += transformForceBack(E, rho, pa);
+    if (L.tie >= 0) {  // (out of line: the common loop stays as it was)
+      tiedLinkInward(model, ws, k, tau(L.iv), pa);
       continue;
     }
+    if (L.pivot >= 0) pivotInward(sys, L, k, ws, pa);
     if (L.nv == 1) {  // the common case without the small-matrix machinery
       Vector6d U = IA * ws.S[k].col(0);
       double D = ws.S[k].col(0).dot(U), u = tau(L.iv) - ws.S[k].col(0).dot(pa);
@@ -809,6 +852,8 @@ void forwardDynamicsAtKinematics(const TreeModel& model, const System& sys, cons
     } else {
       ws.a[k] = ap;
     }
+    if (L.pivot >= 0)  // the tied coordinate (inward above): q_ddot_m = D^-1 (u - W^T a)
+      qddot(L.pivot) = ws.tie_Dinv[k] * (ws.tie_u[k] - ws.W[k].dot(ws.a[k]));
   }
 }
 

@@ -155,10 +155,16 @@ void JointStepper::setDamping(const System& sys) {
   damp_path_v_.assign(nd, {});
   for (int i = 0; i < nd; ++i) {
     damp_index_of_v_[damped_[i].iv] = i;
+    // (a master's coordinate eliminated at a common ancestor, TreeLink::pivot, is listed
+    // there, not at the master's own link: every path through that ancestor has it in the
+    // same place, so the shared coordinates below stay each path's tail)
     for (int k = link_of_v_[damped_[i].iv];; k = model_.links[k].parent - 1) {
+      const TreeLink& L = model_.links[k];
       damp_path_[i].push_back(k);
-      for (int v = 0; v < model_.links[k].nv; ++v) damp_path_v_[i].push_back(model_.links[k].iv + v);
-      if (model_.links[k].parent == 0) break;
+      if (L.pivot >= 0) damp_path_v_[i].push_back(L.pivot);
+      if (!(L.tie >= 0 && L.iv == model_.links[L.tie].iv))
+        for (int v = 0; v < L.nv; ++v) damp_path_v_[i].push_back(L.iv + v);
+      if (L.parent == 0) break;
     }
   }
   // the coordinates two paths share are their common ancestors', the tail of each path
@@ -340,7 +346,7 @@ void JointStepper::finish(const System& sys, State& s, const Inputs& in) {
     closures_.setContext(s.context());
     if (!sys.limits.empty()) closures_.activateReachedLimits(sys, model_, s.q, s.qdot, ws_, s.limit_side.data());
     // (closures that are all free limits are zero rows: nothing to project onto)
-    bool active = closures_.constraints.size() > sys.limits.size();
+    bool active = !closures_.onlyLimits();
     for (size_t l = 0; l < sys.limits.size() && !active; ++l) active = s.limit_side[l] != 0;
     // (the projections' last evaluation is at (q, q_dot) when they moved nothing: the
     // accelerations start from it)
@@ -799,6 +805,8 @@ bool JointStepper::classifyDamping(const System& sys, State& s, double h) {
 void JointStepper::dampedInverseMass() {
   auto scaleByDinv = [&](int k, const double* z, double* x) {  // x = D_k^-1 z on link k
     const TreeLink& L = model_.links[k];
+    if (L.pivot >= 0) x[L.pivot] = ws_.tie_Dinv[k] * z[L.pivot];  // (TreeLink::pivot)
+    if (L.tie >= 0) return;  // (no pivot of its own; its entry is 0, or its master's pivot's)
     if (L.nv == 1) {
       x[L.iv] = ws_.Dinv[k](0, 0) * z[L.iv];
     } else if (L.nv > 0) {

@@ -80,6 +80,26 @@ LoopClosures::LoopClosures(const TreeModel& model, const System& sys) : model_(&
   for (int j = 0; j < sys.numJoints(); ++j)
     if (model.joint_link[j] >= 0) tree_joint[sys.joint_constraint[j]] = 1;
   for (int k : model.ties) tree_joint[model.links[k].tie_coupler] = 1;  // (couplers the tree holds)
+  // A held slave's limit that its master's limit implies (q_s = r q_m + o within the
+  // slave's bounds wherever q_m is within the master's: a parallel gripper's fingers with
+  // the same limits) is left out: it could only ever bind together with the master's, as
+  // a row dependent on it (the master's multiplier then carries the stop).
+  implied_.assign(sys.limits.size(), 0);
+  for (int k : model.ties) {
+    const TreeLink& S = model.links[k];
+    const TreeLink& M = model.links[S.tie];
+    for (size_t ls = 0; ls < sys.limits.size(); ++ls) {
+      if (sys.limits[ls].joint != S.joint || sys.limits[ls].k != 0) continue;
+      double lo = (sys.limits[ls].lower - S.tie_offset) / S.tie_mult, hi = (sys.limits[ls].upper - S.tie_offset) / S.tie_mult;
+      if (lo > hi) std::swap(lo, hi);
+      const double slack = 1e-12 * std::max({std::fabs(lo), std::fabs(hi), 1e-300});
+      for (const LimitSpec& lm : sys.limits)
+        if (lm.joint == M.joint && lm.k == 0 && lm.lower >= lo - slack && lm.upper <= hi + slack) {
+          implied_[ls] = 1;
+          tree_joint[sys.limits[ls].constraint] = 1;
+        }
+    }
+  }
   for (int c = 0; c < sys.numConstraints(); ++c)
     if (!tree_joint[c]) constraints.push_back(c);
   // per velocity coordinate: the length that makes its rate a speed (the length scale for
@@ -390,7 +410,7 @@ int LoopClosures::activateReachedLimits(const System& sys, const TreeModel& mode
   bool kinematics = false;
   Row rows[kMaxJointDofs];
   for (size_t l = 0; l < sys.limits.size(); ++l) {
-    if (limit_side[l]) continue;
+    if (limit_side[l] || implied_[l]) continue;
     const LimitSpec& L = sys.limits[l];
     double q;
     if (limit_col_[l] >= 0) {  // a tree coordinate: the limit's row is q's own
@@ -732,6 +752,7 @@ void LoopClosures::outwardInverseMass(const TreeModel& model, const TreeWorkspac
     } else {
       a_[k] = ap;
     }
+    if (L.pivot >= 0) out[L.pivot] = ws.tie_Dinv[k] * (out[L.pivot] - ws.W[k].dot(a_[k]));  // (TreeLink::pivot)
   }
 }
 

@@ -38,7 +38,7 @@ void treeJointMultipliers(const System& sys, const TreeModel& model, const State
     if (model.joint_link[j] >= 0) w.tree[sys.joint_constraint[j]] = 1;
   // couplers the tree holds (TreeLink::tie): solved below, at their slaves' links
   for (int k : model.ties) w.tree[model.links[k].tie_coupler] = 1;
-  w.tie_effort.assign(model.nb, 0.0);
+  w.tie_effort.assign(model.nb, 0.0), w.tie_x.assign(model.nb, 0.0), w.tie_col.assign(model.nb, 0.0);
   for (int c = 0; c < sys.numConstraints(); ++c) {
     if (w.tree[c]) continue;  // a tree joint: solved below
     const ConstraintLayout& L = sys.layout[c];
@@ -102,17 +102,21 @@ void treeJointMultipliers(const System& sys, const TreeModel& model, const State
     // -lambda along its coordinate beyond the applied efforts, which gives lambda, and the
     // master's r lambda (the transmitted wrenches are what the loads would have made them).
     Vector6d x_rest = x;
-    if (link.tie >= 0) {
+    if (link.tie_coupler >= 0) {  // (a slave; its master's link comes later, an ancestor or a sibling's)
       const double lc = -x(L.size);
       lambda[sys.layout[link.tie_coupler].row] = lc;
       w.tie_effort[link.tie] += link.tie_mult * lc;
       x_rest(L.size) = 0.0;
-    } else if (link.tie_master) {
-      x_rest(L.size) -= w.tie_effort[k];
+    } else if (link.tie_master || link.tie == k) {  // a master: judged below, its slaves all done
+      w.tie_x[k] = x(L.size), w.tie_col[k] = A.col(L.size).norm();
+      x_rest(L.size) = 0.0;
     }
     if (dof > 0) worst_tau = std::max(worst_tau, (A.rightCols(dof) * x_rest.tail(dof)).norm());
     largest = std::max(largest, rhs.norm());
   }
+  for (int k = 0; k < model.nb; ++k)
+    if (model.links[k].tie_master || model.links[k].tie == k)
+      worst_tau = std::max(worst_tau, std::fabs(w.tie_x[k] - w.tie_effort[k]) * w.tie_col[k]);
   w.worst_effort = largest > 0.0 ? worst_tau / largest : 0.0;
 }
 

@@ -1,10 +1,12 @@
 // Couplers the joint-space tree holds itself (TreeModel's embed_couplers, TreeLink::tie:
-// constraint embedding of a URDF mimic whose master is an ancestor of its slave) against
-// the same couplers solved as closure rows, the way the joint formulation ran every coupler
-// before: one mechanism, a hand whose fingers follow its palm's joint through a welded
-// plate (two revolute slaves in a chain, a prismatic one below them, a free joint below a
-// slave), a limit, damping, Coulomb friction and an effort on slaves, and a coupler the tree
-// cannot hold (a sibling of its master's link: a closure row either way). At one state the
+// constraint embedding of a URDF mimic) against the same couplers solved as closure rows,
+// the way the joint formulation ran every coupler before: one mechanism, a hand whose
+// fingers follow its palm's joint through a welded plate (two revolute slaves in a chain, a
+// prismatic one below them, a free joint below a slave: the master an ancestor), a parallel
+// gripper whose second jaw and a pad on it follow the first (siblings: the master's
+// coordinate eliminated at their common ancestor), limits, damping, Coulomb friction and
+// efforts on slaves and masters, and a coupler the tree does not hold (its master is itself
+// held: a closure row either way). At one state the
 // accelerations and every multiplier agree to round-off; over 2 s the motions agree, the
 // held couplers hold exactly, and the absolute formulation moves the same way.
 #include <gtest/gtest.h>
@@ -31,7 +33,8 @@ Matrix3d axisTo(const Vector3d& z) {  // a rotation whose z column is z
 // The hand (bodies at their centres, identity orientations, every joint at 0 to start).
 // Joints: 0 wrist (ground-base), 1 palm (master), 2 plate (fixed), 3 finger (r 0.9),
 // 4 finger tip (r -0.6, offset 0.05; limits), 5 slider (prismatic, r 0.02 m/rad), 6 flap
-// (free, below the finger), 7 thumb (r 0.5: a sibling, a closure row).
+// (free, below the finger), 7 thumb (r 0.5 of the finger: a closure row), 8 mount (fixed),
+// 9 jaw_a (master), 10 jaw_b (r -1), 11 pad (r 3 rad/m, on jaw_b).
 void hand(Mechanism& m, const char* formulation) {
   std::vector<Vector3d> r{Vector3d::Zero()};
   auto add = [&](const char* name, double mass, const Vector3d& at) {
@@ -58,14 +61,30 @@ void hand(Mechanism& m, const char* formulation) {
   join("prismatic", "slider", tip, slider, Vector3d(0.55, 0.05, 0.1), Vector3d(1, 0.3, 0));
   join("revolute", "flap", finger, flap, Vector3d(0.4, 0.1, 0.1), Vector3d(1, 0, 0));
   join("revolute", "thumb", base, thumb, Vector3d(0.05, 0.1, 0.1), Vector3d(1, 0, 0.3));
+  // a parallel gripper on the base: two jaws on a welded mount, the second jaw and a pad on
+  // it following the first (siblings: the master's coordinate is eliminated at the base)
+  const int mount = add("mount", 0.3, Vector3d(0, -0.1, 0.1));
+  const int jaw_a = add("jaw_a", 0.1, Vector3d(0.05, -0.15, 0.1));
+  const int jaw_b = add("jaw_b", 0.1, Vector3d(-0.05, -0.15, 0.1));
+  const int pad = add("pad", 0.05, Vector3d(-0.05, -0.2, 0.1));
+  join("fixed", "mount", base, mount, Vector3d(0, -0.08, 0.1), Vector3d(0, 0, 1));
+  join("prismatic", "jaw_a", mount, jaw_a, Vector3d(0.05, -0.15, 0.1), Vector3d(1, 0.2, 0));
+  join("prismatic", "jaw_b", mount, jaw_b, Vector3d(-0.05, -0.15, 0.1), Vector3d(1, -0.2, 0));
+  join("revolute", "pad", jaw_b, pad, Vector3d(-0.05, -0.18, 0.1), Vector3d(0, 0.3, 1));
   m.addCoupler("finger_mimic", 3, 0, 1, 0, 0.9, 0.0);
   m.addCoupler("tip_mimic", 4, 0, 1, 0, -0.6, 0.05);
   m.addCoupler("slider_mimic", 5, 0, 1, 0, 0.02, 0.0);
-  m.addCoupler("thumb_mimic", 7, 0, 1, 0, 0.5, 0.0);
+  m.addCoupler("thumb_mimic", 7, 0, 3, 0, 0.5, 0.0);
+  m.addCoupler("jaw_mimic", 10, 0, 9, 0, -1.0, 0.0);
+  m.addCoupler("pad_mimic", 11, 0, 9, 0, 3.0, 0.0);
   m.setJointLimits(4, 0, -0.3, 0.3);
+  m.setJointLimits(10, 0, -0.04, 0.04);
   m.setJointDamping(3, 0, 0.02);
   m.setJointDamping(6, 0, 0.01);
+  m.setJointDamping(9, 0, 0.5);
+  m.setJointDamping(11, 0, 0.001);
   m.setJointFriction(4, 0, 0.002);
+  m.setJointFriction(10, 0, 0.01);
   IntegratorOptions io;
   io.formulation = formulation;
   m.setIntegrator(io);
@@ -74,11 +93,12 @@ void hand(Mechanism& m, const char* formulation) {
   m.setJointEffort(1, 0, 0.4);
   m.setJointEffort(3, 0, 0.05);
   m.setJointEffort(0, 0, 0.1);
+  m.setJointEffort(9, 0, 0.05);
 }
 
 Inputs handInputs(const System& sys) {
   Inputs in = zeroInputs(sys);
-  in.effort[1][0] = 0.4, in.effort[3][0] = 0.05, in.effort[0][0] = 0.1;
+  in.effort[1][0] = 0.4, in.effort[3][0] = 0.05, in.effort[0][0] = 0.1, in.effort[9][0] = 0.05;
   return in;
 }
 
@@ -112,12 +132,17 @@ TEST(CouplerEmbedding, HeldCouplersAreTheClosureRowsSolvedInTheRecursion) {
   {
     const JointStepper held(sys, true), rows(sys, false);
     const TreeModel& t = held.model();
-    // finger, tip and slider are held, in that order; the thumb (a sibling of the palm) is not
-    ASSERT_EQ(t.ties.size(), 3u);
-    const int palm = t.joint_link[1];
+    // finger, tip and slider are held by the palm's link; the thumb (whose master, the
+    // finger, is held itself) is not; jaw_b and the pad are held by the base, the jaws'
+    // common ancestor, jaw_a's link tied to itself
+    ASSERT_EQ(t.ties.size(), 5u);
+    const int palm = t.joint_link[1], jaw_a = t.joint_link[9], base = t.joint_link[0];
     for (int j : {3, 4, 5}) EXPECT_EQ(t.links[t.joint_link[j]].tie, palm) << "joint " << j;
     EXPECT_EQ(t.links[t.joint_link[7]].tie, -1);
     EXPECT_TRUE(t.links[palm].tie_master);
+    for (int j : {10, 11}) EXPECT_EQ(t.links[t.joint_link[j]].tie, jaw_a) << "joint " << j;
+    EXPECT_EQ(t.links[jaw_a].tie, jaw_a);
+    EXPECT_EQ(t.links[base].pivot, t.links[jaw_a].iv);
     EXPECT_TRUE(rows.model().ties.empty());
   }
   EXPECT_LT(atState(sys, m.state(), in, "at the start"), 1e-10);
@@ -171,6 +196,68 @@ TEST(CouplerEmbeddingRun, HeldCouplersMoveAsClosureRowsAndInAbsoluteCoordinates)
   EXPECT_LT(exact, 1e-15);  // q_s = r q_m + o to its rounding (holdTies after every step)
   EXPECT_EQ(sh.limit_side[0], sr.limit_side[0]);
   EXPECT_GT(largest(sh.q), 0.1);  // (it moved)
+}
+
+// A parallel gripper whose jaws have the same limits (q_b = -q_a, a in [0, 0.04], b in
+// [-0.04, 0]): held, the second jaw's limit is implied by the first's and left out; driven
+// into the stop, the jaws move as with every row (coupler and both limits, dependent at
+// the stop, solved least-norm), and the first jaw's limit carries what both carried there:
+// lambda_a' = lambda_a + r lambda_b.
+TEST(CouplerEmbedding, AnImpliedSlaveLimitIsCarriedByItsMaster) {
+  Mechanism m;
+  std::vector<Vector3d> r{Vector3d::Zero()};
+  auto add = [&](const char* name, double mass, const Vector3d& at) {
+    r.push_back(at);
+    return m.addBody(test_util::body(name, mass, mass * Vector3d(0.004, 0.005, 0.006), at));
+  };
+  auto join = [&](const char* type, const char* name, int parent, int child, const Vector3d& P, const Vector3d& axis) {
+    const Matrix3d R = axisTo(axis);
+    return m.addJoint(makeJoint(type, name, parent, frame(P - r[parent], R), child, frame(P - r[child], R)));
+  };
+  const int wrist = add("wrist", 1.0, Vector3d(0, 0, 0.05));
+  const int a = add("jaw_a", 0.1, Vector3d(0.03, 0, 0.1));
+  const int b = add("jaw_b", 0.1, Vector3d(-0.03, 0, 0.1));
+  join("revolute", "wrist", Mechanism::kGround, wrist, Vector3d(0, 0, 0), Vector3d(0, 0, 1));
+  join("prismatic", "jaw_a", wrist, a, Vector3d(0.03, 0, 0.1), Vector3d(1, 0, 0));
+  join("prismatic", "jaw_b", wrist, b, Vector3d(-0.03, 0, 0.1), Vector3d(1, 0, 0));
+  m.addCoupler("jaw_mimic", 2, 0, 1, 0, -1.0, 0.0);
+  m.setJointLimits(1, 0, 0.0, 0.04);
+  m.setJointLimits(2, 0, -0.04, 0.0);
+  IntegratorOptions io;
+  io.formulation = "joint";
+  m.setIntegrator(io);
+  m.build();
+  m.assemble({{1, 0, 0.01}});
+  const System& sys = m.system();
+  Inputs in = zeroInputs(sys);
+  in.effort[0][0] = 0.3, in.effort[1][0] = 0.5;  // the wrist turns, the jaws close on their stops
+  JointStepper held(sys, true), rows(sys, false);
+  ASSERT_EQ(held.model().ties.size(), 1u);
+  State sh = m.state(), sr = m.state();
+  held.settle(sys, sh, in);
+  rows.settle(sys, sr, in);
+  const int la = sys.layout[sys.limits[0].constraint].row, lb = sys.layout[sys.limits[1].constraint].row;
+  int stopped = 0;
+  double worst_lambda = 0.0, scale = 0.0;
+  for (int k = 0; k < 1000; ++k) {
+    held.step(sys, sh, in, 1e-3);
+    rows.step(sys, sr, in, 1e-3);
+    EXPECT_EQ(sh.limit_side[1], 0) << "the implied limit never activates";
+    if (sh.limit_side[0] != 0 && sr.limit_side[0] != 0 && sr.limit_side[1] != 0) {
+      ++stopped;
+      worst_lambda = std::max(worst_lambda, std::fabs(sh.lambda[la] - (sr.lambda[la] - sr.lambda[lb])));
+      scale = std::max(scale, std::fabs(sh.lambda[la]));
+    }
+  }
+  const double diff = largest(sh.q - sr.q);
+  std::printf("[coupler embedding] gripper on its stops: %d steps at both stops, positions held against rows %.2e, "
+              "the stop's multiplier against the rows' sum %.2e (relative)\n",
+              stopped, diff, worst_lambda / scale);
+  EXPECT_GT(stopped, 500);
+  EXPECT_LT(diff, 1e-9);
+  EXPECT_NEAR(sh.q(held.model().links[held.model().joint_link[1]].iq), 0.04, 1e-12);
+  EXPECT_GT(scale, 0.1);
+  EXPECT_LT(worst_lambda, 1e-9 * scale);
 }
 
 }  // namespace

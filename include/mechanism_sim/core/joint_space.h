@@ -136,13 +136,19 @@ struct TreeLink {
   Vector3d mc = Vector3d::Zero();
   // An embedded coupler (TreeModel's embed_couplers; Jain, "Robot and Multibody Dynamics"
   // ch. 11, constraint embedding, for a linear coupling): this link's one coordinate is
-  // tie_mult q_master + tie_offset, its master the link `tie` (an ancestor, the links
-  // between them welded or tied to the same master), tie_coupler the coupler's constraint.
-  // The articulated passes carry the coordinate up to the master's link and eliminate it
-  // there (tie_master: a link that some link below it is tied to).
+  // tie_mult q_master + tie_offset, its master the link `tie`, tie_coupler the coupler's
+  // constraint. The articulated passes carry the master's coordinate up from every link
+  // tied to it and eliminate it at one link:
+  // - the master's own link when it is an ancestor of its slaves (the links between them
+  //   welded or tied to the same master): tie_master;
+  // - else (siblings: a parallel gripper's fingers) the links' nearest common moving
+  //   ancestor T, whose `pivot` is the master's coordinate (its index in q_dot; pivot_link
+  //   the master's link); the master's link is then tied to itself (tie its own index,
+  //   tie_mult 1, tie_coupler -1) and eliminates nothing.
   int tie = -1, tie_coupler = -1;
   double tie_mult = 0.0, tie_offset = 0.0;
   bool tie_master = false;
+  int pivot = -1, pivot_link = -1;
 };
 
 // Empty when the joint-space formulation can run the System; otherwise a sentence naming
@@ -204,6 +210,7 @@ struct TreeWorkspace {
   // coordinate it carries up, W (6) and its own inertia dd, and the bias beta (pass 2)
   AlignedVector<Vector6d> W;
   std::vector<double> dd, beta;
+  std::vector<double> tie_Dinv, tie_u;  // at a link with a pivot: 1 / dd and -beta there
   // A number no other write has had (across workspaces), taken each time forwardKinematics
   // or the articulated passes rewrite the poses, subspaces or factors (E, rho, S, U, Dinv):
   // what a cache of results computed from them keys on (LoopClosures' factorization).
@@ -218,19 +225,21 @@ long nextWorkspaceGeneration();
 // p += X^T (p_k + U_k D_k^-1 u_k). The caller visits children before parents with p zeroed
 // first: LoopClosures::applyInverseMass over every link, ClosureSolver over one row's paths.
 // With ties (TreeLink::tie) tau and out must be the same array: a tied link adds
-// r (tau_s - S_s^T p_s) to its master's entry, which the master's own step then reads as
-// its tau, and leaves 0 at its own (its coordinate is not eliminated there).
+// r (tau_s - S_s^T p_s) to its master's entry, which the master's own step (or the pivot's,
+// at the common ancestor) then reads as its u, and leaves 0 at its own (its coordinate is
+// not eliminated there; the master's own link, tied to itself, leaves the sum).
 inline void inverseMassInward(const TreeModel& model, const TreeWorkspace& ws, int k, const double* tau, double* out,
                               AlignedVector<Vector6d>& p) {
   const TreeLink& L = model.links[k];
   Vector6d pa = p[k];
   if (L.tie >= 0) {  // a tied link (TreeLink::tie): its effort and S^T p go to the master's u
     const double r = L.tie_mult, ts = tau[L.iv];
+    out[L.iv] = 0.0;  // (before: the master's own link adds to its own entry)
     out[model.links[L.tie].iv] += r * ts - r * ws.S[k].col(0).dot(pa);
-    out[L.iv] = 0.0;
     p[L.parent - 1] += transformForceBack(ws.E[k], ws.rho[k], pa);
     return;
   }
+  if (L.pivot >= 0) pa += ws.W[k] * (ws.tie_Dinv[k] * out[L.pivot]);  // (the tied coordinate eliminated here first)
   for (int i = 0; i < L.nv; ++i) out[L.iv + i] = tau[L.iv + i] - ws.S[k].col(i).dot(pa);
   if (L.parent == 0) return;
   if (L.nv == 1) {

@@ -241,6 +241,8 @@ class LoopClosures {
   // row is zero wherever the tree is, and clearRows() gives what evaluate() and factor()
   // would (zero rows, lambda = 0), without the kinematics (a tree arm between its stops).
   bool allFreeLimits() const;
+  // Whether every closure is a limit (none: true).
+  bool onlyLimits() const { return only_limits_; }
   void clearRows();
   // x = (G M^-1 G^T)^+ b as above (after factor()); x and b of size m (x may be b).
   // No allocation.
@@ -325,6 +327,7 @@ class LoopClosures {
   const Eigen::VectorXd* q_ = nullptr;  // evaluate()'s q, for the direct rows' Phi
   std::vector<DirectRow> direct_;  // per closure
   std::vector<int> limit_col_;     // per sys limit: its velocity coordinate (a direct row), or -1
+  std::vector<char> implied_;      // per sys limit: a held slave's, implied by its master's (never active)
   std::vector<int> nrows_;         // per closure: its rows (the constraint's, less its idle ones)
   // Idle rows (idleRows()): rows of a closure's equations whose G row is zero wherever the
   // tree is (a planar loop's out-of-plane rows), so that no motion of the tree changes them.

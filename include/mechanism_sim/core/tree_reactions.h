@@ -34,6 +34,7 @@ struct TreeReactionWorkspace {
                                  // mass, everything on it but its tree joint
   std::vector<char> tree;        // per constraint: a joint of the tree, or a coupler it holds
   std::vector<double> tie_effort;  // per link: the held couplers' efforts on its coordinate
+  std::vector<double> tie_x, tie_col;  // per master's link: its effort left over, its column's size
   double worst_effort = 0.0;     // of the last call: largest |tau| (relative), see below
 };
 
