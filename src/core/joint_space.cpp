@@ -241,7 +241,7 @@ void embedCouplers(const System& sys, TreeModel& model) {
         // siblings: both reach their common ancestor through welded or tied links only,
         // and it carries no other group (a master's own group eliminated at its link, or
         // another top's: those stay rows)
-        if (k < 0 || M.tie_master || above(m, m) != k) continue;
+        if (k < 0 || M.tie_master || M.pivot >= 0 || above(m, m) != k) continue;  // (M a top already: a row)
         TreeLink& T = model.links[k];
         if (M.tie == m ? T.pivot_link != m : !unclaimed(k)) continue;
         if (M.tie < 0) M.tie = m, M.tie_mult = 1.0, M.tie_offset = 0.0;

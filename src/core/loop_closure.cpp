@@ -88,7 +88,9 @@ LoopClosures::LoopClosures(const TreeModel& model, const System& sys) : model_(&
   for (int k : model.ties) {
     const TreeLink& S = model.links[k];
     const TreeLink& M = model.links[S.tie];
-    for (size_t ls = 0; ls < sys.limits.size(); ++ls) {
+    bool driven = false;  // (a driven slave's limit stays: refuseDrivenPastLimit names it)
+    for (const DriveSpec& d : sys.drives) driven = driven || (d.joint == S.joint && d.k == 0);
+    for (size_t ls = 0; ls < sys.limits.size() && !driven; ++ls) {
       if (sys.limits[ls].joint != S.joint || sys.limits[ls].k != 0) continue;
       double lo = (sys.limits[ls].lower - S.tie_offset) / S.tie_mult, hi = (sys.limits[ls].upper - S.tie_offset) / S.tie_mult;
       if (lo > hi) std::swap(lo, hi);
@@ -410,7 +412,12 @@ int LoopClosures::activateReachedLimits(const System& sys, const TreeModel& mode
   bool kinematics = false;
   Row rows[kMaxJointDofs];
   for (size_t l = 0; l < sys.limits.size(); ++l) {
-    if (limit_side[l] || implied_[l]) continue;
+    if (implied_[l]) {  // never active here (a State of the absolute formulation may have it so)
+      changed += limit_side[l] != 0;
+      limit_side[l] = 0;
+      continue;
+    }
+    if (limit_side[l]) continue;
     const LimitSpec& L = sys.limits[l];
     double q;
     if (limit_col_[l] >= 0) {  // a tree coordinate: the limit's row is q's own

@@ -260,5 +260,99 @@ TEST(CouplerEmbedding, AnImpliedSlaveLimitIsCarriedByItsMaster) {
   EXPECT_LT(worst_lambda, 1e-9 * scale);
 }
 
+// Two groups that would share a link: the jaws' common ancestor (the wrist) is also the
+// master of a flap on the base. The group found first (breadth-first: the jaws) is held at
+// the wrist; the flap's coupler stays a row, and the accelerations are those of all rows.
+TEST(CouplerEmbedding, GroupsThatWouldShareALinkLeaveOneARow) {
+  Mechanism m;
+  std::vector<Vector3d> r{Vector3d::Zero()};
+  auto add = [&](const char* name, double mass, const Vector3d& at) {
+    r.push_back(at);
+    return m.addBody(test_util::body(name, mass, mass * Vector3d(0.004, 0.005, 0.006), at));
+  };
+  auto join = [&](const char* type, const char* name, int parent, int child, const Vector3d& P, const Vector3d& axis) {
+    const Matrix3d R = axisTo(axis);
+    return m.addJoint(makeJoint(type, name, parent, frame(P - r[parent], R), child, frame(P - r[child], R)));
+  };
+  const int base = add("base", 2.0, Vector3d(0, 0, 0.1));
+  const int wrist = add("wrist", 1.0, Vector3d(0.2, 0, 0.1));
+  const int mount = add("mount", 0.3, Vector3d(0, -0.1, 0.1));
+  const int jaw_a = add("jaw_a", 0.1, Vector3d(0.25, 0.05, 0.1));
+  const int jaw_b = add("jaw_b", 0.1, Vector3d(0.25, -0.05, 0.1));
+  const int flap = add("flap", 0.2, Vector3d(0, -0.2, 0.1));
+  join("revolute", "base", Mechanism::kGround, base, Vector3d(0, 0, 0), Vector3d(0, 0, 1));
+  join("revolute", "wrist", base, wrist, Vector3d(0.1, 0, 0.1), Vector3d(1, 0, 0));
+  join("fixed", "mount", base, mount, Vector3d(0, -0.08, 0.1), Vector3d(0, 0, 1));
+  join("prismatic", "jaw_a", wrist, jaw_a, Vector3d(0.25, 0.05, 0.1), Vector3d(0, 1, 0.2));
+  join("prismatic", "jaw_b", wrist, jaw_b, Vector3d(0.25, -0.05, 0.1), Vector3d(0, 1, -0.2));
+  join("revolute", "flap", mount, flap, Vector3d(0, -0.15, 0.1), Vector3d(1, 0, 0.3));
+  m.addCoupler("jaw_mimic", 4, 0, 3, 0, -1.0, 0.0);
+  m.addCoupler("flap_mimic", 5, 0, 1, 0, 0.5, 0.0);
+  IntegratorOptions io;
+  io.formulation = "joint";
+  m.setIntegrator(io);
+  m.build();
+  m.assemble();
+  const System& sys = m.system();
+  Inputs in = zeroInputs(sys);
+  in.effort[1][0] = 0.3, in.effort[3][0] = 0.2, in.effort[0][0] = 0.1;
+  const JointStepper held(sys, true);
+  const TreeModel& t = held.model();
+  ASSERT_EQ(t.ties.size(), 1u);
+  EXPECT_EQ(t.links[t.joint_link[4]].tie, t.joint_link[3]);
+  EXPECT_EQ(t.links[t.joint_link[1]].pivot, t.links[t.joint_link[3]].iv);
+  EXPECT_EQ(t.links[t.joint_link[5]].tie, -1);
+  EXPECT_LT(atState(sys, m.state(), in, "groups sharing the wrist"), 1e-10);
+}
+
+// A State that comes from the absolute formulation with a held slave's implied limit active
+// (a switch of formulation at the stops): the joint formulation lets that side go (the
+// master's limit holds the stop), and the jaws open again when pulled.
+TEST(CouplerEmbedding, AnImpliedLimitActiveInAnAbsoluteStateIsLetGo) {
+  Mechanism m;
+  std::vector<Vector3d> r{Vector3d::Zero()};
+  auto add = [&](const char* name, double mass, const Vector3d& at) {
+    r.push_back(at);
+    return m.addBody(test_util::body(name, mass, mass * Vector3d(0.004, 0.005, 0.006), at));
+  };
+  auto join = [&](const char* type, const char* name, int parent, int child, const Vector3d& P, const Vector3d& axis) {
+    const Matrix3d R = axisTo(axis);
+    return m.addJoint(makeJoint(type, name, parent, frame(P - r[parent], R), child, frame(P - r[child], R)));
+  };
+  const int wrist = add("wrist", 1.0, Vector3d(0, 0, 0.05));
+  const int a = add("jaw_a", 0.1, Vector3d(0.03, 0, 0.1));
+  const int b = add("jaw_b", 0.1, Vector3d(-0.03, 0, 0.1));
+  join("revolute", "wrist", Mechanism::kGround, wrist, Vector3d(0, 0, 0), Vector3d(0, 0, 1));
+  join("prismatic", "jaw_a", wrist, a, Vector3d(0.03, 0, 0.1), Vector3d(1, 0, 0));
+  join("prismatic", "jaw_b", wrist, b, Vector3d(-0.03, 0, 0.1), Vector3d(1, 0, 0));
+  m.addCoupler("jaw_mimic", 2, 0, 1, 0, -1.0, 0.0);
+  m.setJointLimits(1, 0, 0.0, 0.04);
+  m.setJointLimits(2, 0, -0.04, 0.0);
+  IntegratorOptions io;
+  io.formulation = "absolute";
+  m.setIntegrator(io);
+  m.build();
+  m.assemble({{1, 0, 0.01}});
+  m.setJointEffort(1, 0, 0.5);
+  for (int k = 0; k < 600; ++k) m.step(1e-3);
+  ASSERT_NE(m.state().limit_side[1], 0) << "the absolute run did not reach the slave's stop: nothing to let go";
+  io.formulation = "joint";
+  m.setIntegrator(io);
+  ASSERT_STREQ(m.formulation(), "joint");
+  EXPECT_EQ(m.state().limit_side[1], 0);
+  EXPECT_NE(m.state().limit_side[0], 0);  // (the master's holds the stop)
+  m.setJointEffort(1, 0, -0.5);  // open (about 1 cm in 0.1 s)
+  for (int k = 0; k < 100; ++k) m.step(1e-3);
+  std::printf("[coupler embedding] opened after the switch: sides %d %d, jaws %.4f %.4f m, violation %.1e\n",
+              m.state().limit_side[0], m.state().limit_side[1], m.jointPosition(1, 0), m.jointPosition(2, 0),
+              m.positionViolation());
+  EXPECT_EQ(m.state().limit_side[0], 0);
+  EXPECT_EQ(m.state().limit_side[1], 0);
+  EXPECT_LT(m.jointPosition(1, 0), 0.035);
+  EXPECT_GT(m.jointPosition(1, 0), 0.0);
+  EXPECT_EQ(m.jointPosition(2, 0), -m.jointPosition(1, 0));
+  EXPECT_LT(m.positionViolation(), 1e-12);
+}
+
 }  // namespace
 }  // namespace mechanism_sim

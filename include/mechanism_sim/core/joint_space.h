@@ -165,9 +165,11 @@ struct TreeModel {
   // Throws UsageError for a System that is not finalized, ModelError for a tree joint of a
   // type the recursion has no model of, or a joint from a body to itself.
   // embed_couplers: a coupler (URDF mimic) q_s = r q_m + o between one-coordinate tree
-  // joints whose master m is an ancestor of s, with only welded links or links tied to the
-  // same master between them, is held by the recursions themselves (TreeLink::tie) instead
-  // of as a closure row; `ties` lists those slave links, parents first.
+  // joints is held by the recursions themselves (TreeLink::tie) instead of as a closure row
+  // when m's coordinate can be eliminated at one link: m's own, an ancestor of s with only
+  // welded links or links tied to the same master between them, or the nearest common
+  // moving ancestor of both reached the same way (TreeLink::pivot), a link no other group
+  // uses; `ties` lists those slave links, parents first.
   explicit TreeModel(const System& sys, bool embed_couplers = false);
 
   int nb = 0;                   // moving bodies

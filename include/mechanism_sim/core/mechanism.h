@@ -137,7 +137,9 @@ class Mechanism {
   // (commanded effort minus damping plus friction, plus a limit's reaction and a drive's
   // effort). Joint::coordinates at the state's poses; in the joint formulation a tree
   // joint's (but a spherical one's) are the State's own q, q_dot, q_ddot (treeCoordinate),
-  // which those poses were written from (the same numbers to round-off).
+  // which those poses were written from (the same numbers to round-off). A mimic joint
+  // held by the joint formulation's tree whose limit its master's implies has no limit
+  // reaction of its own: the master's limit carries the stop (doc/limitations.md).
   double jointPosition(int joint, int k) const;
   double jointVelocity(int joint, int k) const;
   double jointEffort(int joint, int k) const;
