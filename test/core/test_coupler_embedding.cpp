@@ -30,47 +30,60 @@ Matrix3d axisTo(const Vector3d& z) {  // a rotation whose z column is z
   return Eigen::Quaterniond::FromTwoVectors(Vector3d::UnitZ(), z.normalized()).toRotationMatrix();
 }
 
+// Bodies at their centres with identity orientations; a joint at point P about (or along)
+// `axis` on both bodies, so every joint starts at 0.
+struct Parts {
+  Mechanism& m;
+  std::vector<Vector3d> r{Vector3d::Zero()};
+  int add(const char* name, double mass, const Vector3d& at) {
+    r.push_back(at);
+    return m.addBody(test_util::body(name, mass, mass * Vector3d(0.004, 0.005, 0.006), at));
+  }
+  int join(const char* type, const char* name, int parent, int child, const Vector3d& P, const Vector3d& axis) {
+    const Matrix3d R = axisTo(axis);
+    return m.addJoint(makeJoint(type, name, parent, frame(P - r[parent], R), child, frame(P - r[child], R)));
+  }
+};
+
+IntegratorOptions withFormulation(const char* f) {
+  IntegratorOptions io;
+  io.formulation = f;
+  return io;
+}
+
 // The hand (bodies at their centres, identity orientations, every joint at 0 to start).
 // Joints: 0 wrist (ground-base), 1 palm (master), 2 plate (fixed), 3 finger (r 0.9),
 // 4 finger tip (r -0.6, offset 0.05; limits), 5 slider (prismatic, r 0.02 m/rad), 6 flap
 // (free, below the finger), 7 thumb (r 0.5 of the finger: a closure row), 8 mount (fixed),
 // 9 jaw_a (master), 10 jaw_b (r -1), 11 pad (r 3 rad/m, on jaw_b).
 void hand(Mechanism& m, const char* formulation) {
-  std::vector<Vector3d> r{Vector3d::Zero()};
-  auto add = [&](const char* name, double mass, const Vector3d& at) {
-    r.push_back(at);
-    return m.addBody(test_util::body(name, mass, mass * Vector3d(0.004, 0.005, 0.006), at));
-  };
-  auto join = [&](const char* type, const char* name, int parent, int child, const Vector3d& P, const Vector3d& axis) {
-    const Matrix3d R = axisTo(axis);
-    return m.addJoint(makeJoint(type, name, parent, frame(P - r[parent], R), child, frame(P - r[child], R)));
-  };
-  const int base = add("base", 2.0, Vector3d(0, 0, 0.1));
-  const int palm = add("palm", 1.0, Vector3d(0.2, 0, 0.1));
-  const int plate = add("plate", 0.3, Vector3d(0.3, 0, 0.1));
-  const int finger = add("finger", 0.2, Vector3d(0.4, 0.05, 0.1));
-  const int tip = add("tip", 0.1, Vector3d(0.5, 0.05, 0.1));
-  const int slider = add("slider", 0.05, Vector3d(0.55, 0.05, 0.1));
-  const int flap = add("flap", 0.1, Vector3d(0.4, 0.12, 0.1));
-  const int thumb = add("thumb", 0.2, Vector3d(0.1, 0.1, 0.1));
-  join("revolute", "wrist", Mechanism::kGround, base, Vector3d(0, 0, 0), Vector3d(0, 0, 1));
-  join("revolute", "palm", base, palm, Vector3d(0.1, 0, 0.1), Vector3d(1, 0, 0));
-  join("fixed", "plate", palm, plate, Vector3d(0.25, 0, 0.1), Vector3d(0, 0, 1));
-  join("revolute", "finger", plate, finger, Vector3d(0.35, 0.05, 0.1), Vector3d(0, 1, 0.2));
-  join("revolute", "tip", finger, tip, Vector3d(0.45, 0.05, 0.1), Vector3d(0.1, 1, 0));
-  join("prismatic", "slider", tip, slider, Vector3d(0.55, 0.05, 0.1), Vector3d(1, 0.3, 0));
-  join("revolute", "flap", finger, flap, Vector3d(0.4, 0.1, 0.1), Vector3d(1, 0, 0));
-  join("revolute", "thumb", base, thumb, Vector3d(0.05, 0.1, 0.1), Vector3d(1, 0, 0.3));
+  Parts parts{m};
+  const int base = parts.add("base", 2.0, Vector3d(0, 0, 0.1));
+  const int palm = parts.add("palm", 1.0, Vector3d(0.2, 0, 0.1));
+  const int plate = parts.add("plate", 0.3, Vector3d(0.3, 0, 0.1));
+  const int finger = parts.add("finger", 0.2, Vector3d(0.4, 0.05, 0.1));
+  const int tip = parts.add("tip", 0.1, Vector3d(0.5, 0.05, 0.1));
+  const int slider = parts.add("slider", 0.05, Vector3d(0.55, 0.05, 0.1));
+  const int flap = parts.add("flap", 0.1, Vector3d(0.4, 0.12, 0.1));
+  const int thumb = parts.add("thumb", 0.2, Vector3d(0.1, 0.1, 0.1));
+  parts.join("revolute", "wrist", Mechanism::kGround, base, Vector3d(0, 0, 0), Vector3d(0, 0, 1));
+  parts.join("revolute", "palm", base, palm, Vector3d(0.1, 0, 0.1), Vector3d(1, 0, 0));
+  parts.join("fixed", "plate", palm, plate, Vector3d(0.25, 0, 0.1), Vector3d(0, 0, 1));
+  parts.join("revolute", "finger", plate, finger, Vector3d(0.35, 0.05, 0.1), Vector3d(0, 1, 0.2));
+  parts.join("revolute", "tip", finger, tip, Vector3d(0.45, 0.05, 0.1), Vector3d(0.1, 1, 0));
+  parts.join("prismatic", "slider", tip, slider, Vector3d(0.55, 0.05, 0.1), Vector3d(1, 0.3, 0));
+  parts.join("revolute", "flap", finger, flap, Vector3d(0.4, 0.1, 0.1), Vector3d(1, 0, 0));
+  parts.join("revolute", "thumb", base, thumb, Vector3d(0.05, 0.1, 0.1), Vector3d(1, 0, 0.3));
   // a parallel gripper on the base: two jaws on a welded mount, the second jaw and a pad on
   // it following the first (siblings: the master's coordinate is eliminated at the base)
-  const int mount = add("mount", 0.3, Vector3d(0, -0.1, 0.1));
-  const int jaw_a = add("jaw_a", 0.1, Vector3d(0.05, -0.15, 0.1));
-  const int jaw_b = add("jaw_b", 0.1, Vector3d(-0.05, -0.15, 0.1));
-  const int pad = add("pad", 0.05, Vector3d(-0.05, -0.2, 0.1));
-  join("fixed", "mount", base, mount, Vector3d(0, -0.08, 0.1), Vector3d(0, 0, 1));
-  join("prismatic", "jaw_a", mount, jaw_a, Vector3d(0.05, -0.15, 0.1), Vector3d(1, 0.2, 0));
-  join("prismatic", "jaw_b", mount, jaw_b, Vector3d(-0.05, -0.15, 0.1), Vector3d(1, -0.2, 0));
-  join("revolute", "pad", jaw_b, pad, Vector3d(-0.05, -0.18, 0.1), Vector3d(0, 0.3, 1));
+  const int mount = parts.add("mount", 0.3, Vector3d(0, -0.1, 0.1));
+  const int jaw_a = parts.add("jaw_a", 0.1, Vector3d(0.05, -0.15, 0.1));
+  const int jaw_b = parts.add("jaw_b", 0.1, Vector3d(-0.05, -0.15, 0.1));
+  const int pad = parts.add("pad", 0.05, Vector3d(-0.05, -0.2, 0.1));
+  parts.join("fixed", "mount", base, mount, Vector3d(0, -0.08, 0.1), Vector3d(0, 0, 1));
+  parts.join("prismatic", "jaw_a", mount, jaw_a, Vector3d(0.05, -0.15, 0.1), Vector3d(1, 0.2, 0));
+  parts.join("prismatic", "jaw_b", mount, jaw_b, Vector3d(-0.05, -0.15, 0.1), Vector3d(1, -0.2, 0));
+  parts.join("revolute", "pad", jaw_b, pad, Vector3d(-0.05, -0.18, 0.1), Vector3d(0, 0.3, 1));
   m.addCoupler("finger_mimic", 3, 0, 1, 0, 0.9, 0.0);
   m.addCoupler("tip_mimic", 4, 0, 1, 0, -0.6, 0.05);
   m.addCoupler("slider_mimic", 5, 0, 1, 0, 0.02, 0.0);
@@ -85,9 +98,7 @@ void hand(Mechanism& m, const char* formulation) {
   m.setJointDamping(11, 0, 0.001);
   m.setJointFriction(4, 0, 0.002);
   m.setJointFriction(10, 0, 0.01);
-  IntegratorOptions io;
-  io.formulation = formulation;
-  m.setIntegrator(io);
+  m.setIntegrator(withFormulation(formulation));
   m.build();
   m.assemble();
   m.setJointEffort(1, 0, 0.4);
@@ -198,6 +209,24 @@ TEST(CouplerEmbeddingRun, HeldCouplersMoveAsClosureRowsAndInAbsoluteCoordinates)
   EXPECT_GT(largest(sh.q), 0.1);  // (it moved)
 }
 
+// A parallel gripper on a wrist turning about z: jaw_b = -jaw_a, each with its stop
+// (a in [0, 0.04], b in [-0.04, 0]: the same stop), jaw_a 1 cm open to start.
+void gripper(Mechanism& m, const char* formulation) {
+  Parts parts{m};
+  const int wrist = parts.add("wrist", 1.0, Vector3d(0, 0, 0.05));
+  const int a = parts.add("jaw_a", 0.1, Vector3d(0.03, 0, 0.1));
+  const int b = parts.add("jaw_b", 0.1, Vector3d(-0.03, 0, 0.1));
+  parts.join("revolute", "wrist", Mechanism::kGround, wrist, Vector3d(0, 0, 0), Vector3d(0, 0, 1));
+  parts.join("prismatic", "jaw_a", wrist, a, Vector3d(0.03, 0, 0.1), Vector3d(1, 0, 0));
+  parts.join("prismatic", "jaw_b", wrist, b, Vector3d(-0.03, 0, 0.1), Vector3d(1, 0, 0));
+  m.addCoupler("jaw_mimic", 2, 0, 1, 0, -1.0, 0.0);
+  m.setJointLimits(1, 0, 0.0, 0.04);
+  m.setJointLimits(2, 0, -0.04, 0.0);
+  m.setIntegrator(withFormulation(formulation));
+  m.build();
+  m.assemble({{1, 0, 0.01}});
+}
+
 // A parallel gripper whose jaws have the same limits (q_b = -q_a, a in [0, 0.04], b in
 // [-0.04, 0]): held, the second jaw's limit is implied by the first's and left out; driven
 // into the stop, the jaws move as with every row (coupler and both limits, dependent at
@@ -205,29 +234,7 @@ TEST(CouplerEmbeddingRun, HeldCouplersMoveAsClosureRowsAndInAbsoluteCoordinates)
 // lambda_a' = lambda_a + r lambda_b.
 TEST(CouplerEmbedding, AnImpliedSlaveLimitIsCarriedByItsMaster) {
   Mechanism m;
-  std::vector<Vector3d> r{Vector3d::Zero()};
-  auto add = [&](const char* name, double mass, const Vector3d& at) {
-    r.push_back(at);
-    return m.addBody(test_util::body(name, mass, mass * Vector3d(0.004, 0.005, 0.006), at));
-  };
-  auto join = [&](const char* type, const char* name, int parent, int child, const Vector3d& P, const Vector3d& axis) {
-    const Matrix3d R = axisTo(axis);
-    return m.addJoint(makeJoint(type, name, parent, frame(P - r[parent], R), child, frame(P - r[child], R)));
-  };
-  const int wrist = add("wrist", 1.0, Vector3d(0, 0, 0.05));
-  const int a = add("jaw_a", 0.1, Vector3d(0.03, 0, 0.1));
-  const int b = add("jaw_b", 0.1, Vector3d(-0.03, 0, 0.1));
-  join("revolute", "wrist", Mechanism::kGround, wrist, Vector3d(0, 0, 0), Vector3d(0, 0, 1));
-  join("prismatic", "jaw_a", wrist, a, Vector3d(0.03, 0, 0.1), Vector3d(1, 0, 0));
-  join("prismatic", "jaw_b", wrist, b, Vector3d(-0.03, 0, 0.1), Vector3d(1, 0, 0));
-  m.addCoupler("jaw_mimic", 2, 0, 1, 0, -1.0, 0.0);
-  m.setJointLimits(1, 0, 0.0, 0.04);
-  m.setJointLimits(2, 0, -0.04, 0.0);
-  IntegratorOptions io;
-  io.formulation = "joint";
-  m.setIntegrator(io);
-  m.build();
-  m.assemble({{1, 0, 0.01}});
+  gripper(m, "joint");
   const System& sys = m.system();
   Inputs in = zeroInputs(sys);
   in.effort[0][0] = 0.3, in.effort[1][0] = 0.5;  // the wrist turns, the jaws close on their stops
@@ -265,32 +272,22 @@ TEST(CouplerEmbedding, AnImpliedSlaveLimitIsCarriedByItsMaster) {
 // the wrist; the flap's coupler stays a row, and the accelerations are those of all rows.
 TEST(CouplerEmbedding, GroupsThatWouldShareALinkLeaveOneARow) {
   Mechanism m;
-  std::vector<Vector3d> r{Vector3d::Zero()};
-  auto add = [&](const char* name, double mass, const Vector3d& at) {
-    r.push_back(at);
-    return m.addBody(test_util::body(name, mass, mass * Vector3d(0.004, 0.005, 0.006), at));
-  };
-  auto join = [&](const char* type, const char* name, int parent, int child, const Vector3d& P, const Vector3d& axis) {
-    const Matrix3d R = axisTo(axis);
-    return m.addJoint(makeJoint(type, name, parent, frame(P - r[parent], R), child, frame(P - r[child], R)));
-  };
-  const int base = add("base", 2.0, Vector3d(0, 0, 0.1));
-  const int wrist = add("wrist", 1.0, Vector3d(0.2, 0, 0.1));
-  const int mount = add("mount", 0.3, Vector3d(0, -0.1, 0.1));
-  const int jaw_a = add("jaw_a", 0.1, Vector3d(0.25, 0.05, 0.1));
-  const int jaw_b = add("jaw_b", 0.1, Vector3d(0.25, -0.05, 0.1));
-  const int flap = add("flap", 0.2, Vector3d(0, -0.2, 0.1));
-  join("revolute", "base", Mechanism::kGround, base, Vector3d(0, 0, 0), Vector3d(0, 0, 1));
-  join("revolute", "wrist", base, wrist, Vector3d(0.1, 0, 0.1), Vector3d(1, 0, 0));
-  join("fixed", "mount", base, mount, Vector3d(0, -0.08, 0.1), Vector3d(0, 0, 1));
-  join("prismatic", "jaw_a", wrist, jaw_a, Vector3d(0.25, 0.05, 0.1), Vector3d(0, 1, 0.2));
-  join("prismatic", "jaw_b", wrist, jaw_b, Vector3d(0.25, -0.05, 0.1), Vector3d(0, 1, -0.2));
-  join("revolute", "flap", mount, flap, Vector3d(0, -0.15, 0.1), Vector3d(1, 0, 0.3));
+  Parts parts{m};
+  const int base = parts.add("base", 2.0, Vector3d(0, 0, 0.1));
+  const int wrist = parts.add("wrist", 1.0, Vector3d(0.2, 0, 0.1));
+  const int mount = parts.add("mount", 0.3, Vector3d(0, -0.1, 0.1));
+  const int jaw_a = parts.add("jaw_a", 0.1, Vector3d(0.25, 0.05, 0.1));
+  const int jaw_b = parts.add("jaw_b", 0.1, Vector3d(0.25, -0.05, 0.1));
+  const int flap = parts.add("flap", 0.2, Vector3d(0, -0.2, 0.1));
+  parts.join("revolute", "base", Mechanism::kGround, base, Vector3d(0, 0, 0), Vector3d(0, 0, 1));
+  parts.join("revolute", "wrist", base, wrist, Vector3d(0.1, 0, 0.1), Vector3d(1, 0, 0));
+  parts.join("fixed", "mount", base, mount, Vector3d(0, -0.08, 0.1), Vector3d(0, 0, 1));
+  parts.join("prismatic", "jaw_a", wrist, jaw_a, Vector3d(0.25, 0.05, 0.1), Vector3d(0, 1, 0.2));
+  parts.join("prismatic", "jaw_b", wrist, jaw_b, Vector3d(0.25, -0.05, 0.1), Vector3d(0, 1, -0.2));
+  parts.join("revolute", "flap", mount, flap, Vector3d(0, -0.15, 0.1), Vector3d(1, 0, 0.3));
   m.addCoupler("jaw_mimic", 4, 0, 3, 0, -1.0, 0.0);
   m.addCoupler("flap_mimic", 5, 0, 1, 0, 0.5, 0.0);
-  IntegratorOptions io;
-  io.formulation = "joint";
-  m.setIntegrator(io);
+  m.setIntegrator(withFormulation("joint"));
   m.build();
   m.assemble();
   const System& sys = m.system();
@@ -310,34 +307,11 @@ TEST(CouplerEmbedding, GroupsThatWouldShareALinkLeaveOneARow) {
 // master's limit holds the stop), and the jaws open again when pulled.
 TEST(CouplerEmbedding, AnImpliedLimitActiveInAnAbsoluteStateIsLetGo) {
   Mechanism m;
-  std::vector<Vector3d> r{Vector3d::Zero()};
-  auto add = [&](const char* name, double mass, const Vector3d& at) {
-    r.push_back(at);
-    return m.addBody(test_util::body(name, mass, mass * Vector3d(0.004, 0.005, 0.006), at));
-  };
-  auto join = [&](const char* type, const char* name, int parent, int child, const Vector3d& P, const Vector3d& axis) {
-    const Matrix3d R = axisTo(axis);
-    return m.addJoint(makeJoint(type, name, parent, frame(P - r[parent], R), child, frame(P - r[child], R)));
-  };
-  const int wrist = add("wrist", 1.0, Vector3d(0, 0, 0.05));
-  const int a = add("jaw_a", 0.1, Vector3d(0.03, 0, 0.1));
-  const int b = add("jaw_b", 0.1, Vector3d(-0.03, 0, 0.1));
-  join("revolute", "wrist", Mechanism::kGround, wrist, Vector3d(0, 0, 0), Vector3d(0, 0, 1));
-  join("prismatic", "jaw_a", wrist, a, Vector3d(0.03, 0, 0.1), Vector3d(1, 0, 0));
-  join("prismatic", "jaw_b", wrist, b, Vector3d(-0.03, 0, 0.1), Vector3d(1, 0, 0));
-  m.addCoupler("jaw_mimic", 2, 0, 1, 0, -1.0, 0.0);
-  m.setJointLimits(1, 0, 0.0, 0.04);
-  m.setJointLimits(2, 0, -0.04, 0.0);
-  IntegratorOptions io;
-  io.formulation = "absolute";
-  m.setIntegrator(io);
-  m.build();
-  m.assemble({{1, 0, 0.01}});
+  gripper(m, "absolute");
   m.setJointEffort(1, 0, 0.5);
   for (int k = 0; k < 600; ++k) m.step(1e-3);
   ASSERT_NE(m.state().limit_side[1], 0) << "the absolute run did not reach the slave's stop: nothing to let go";
-  io.formulation = "joint";
-  m.setIntegrator(io);
+  m.setIntegrator(withFormulation("joint"));
   ASSERT_STREQ(m.formulation(), "joint");
   EXPECT_EQ(m.state().limit_side[1], 0);
   EXPECT_NE(m.state().limit_side[0], 0);  // (the master's holds the stop)
