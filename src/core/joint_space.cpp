@@ -755,13 +755,12 @@ void forwardDynamicsAtKinematics(const TreeModel& model, const System& sys, cons
     const int k = b - 1;
     const TreeLink& L = model.links[k];
     if (L.kind == TreeJointKind::kFixed) continue;
+    if (L.tie >= 0 || L.tie_master || L.pivot >= 0) ws.W[k].setZero(), ws.dd[k] = 0.0, ws.beta[k] = 0.0;
     if (L.composite) {
-      if (L.tie >= 0 || L.tie_master || L.pivot >= 0) ws.W[k].setZero(), ws.dd[k] = 0.0, ws.beta[k] = 0.0;
       ws.IA[k] = L.Ic0;
       ws.pA[k] = crossForce(ws.v[k], L.Ic0 * ws.v[k]) - groupExternalForce(sys, L, ws, model, loads);
       continue;
     }
-    if (L.tie >= 0 || L.tie_master || L.pivot >= 0) ws.W[k].setZero(), ws.dd[k] = 0.0, ws.beta[k] = 0.0;
     const Body& B = sys.bodies[b];
     ws.IA[k].setZero();
     ws.IA[k].topLeftCorner<3, 3>() = B.Jp;

@@ -63,9 +63,9 @@ Formulation chooseFormulation(const System& sys, Formulation asked, std::string*
   // besides its joints' the joint formulation costs 2 to 5 times less a step (pendulum
   // 0.84 against 3.41 us, the 50-link chain 68 against 203). Limits and couplers on tree
   // coordinates are rows on q itself, solved sparsely (closure_solver.h: O(depth) a row),
-  // or held by the recursions when the master is an ancestor (TreeLink::tie): the
-  // humanoid's 13 mimic couplers 154 against 358 us a step as rows, the panda-like arm's
-  // gripper 28 against 58. Drives (and couplers on spherical joints or cut joints) go
+  // or held by the recursions (TreeLink::tie: a master that is an ancestor, or siblings
+  // eliminated at their common ancestor): the humanoid's 13 mimic couplers cost 154
+  // against 358 us a step as rows, the panda-like arm's gripper 28 against 58. Drives (and couplers on spherical joints or cut joints) go
   // through their absolute equations: with one on every coordinate (arm7 driven at all 7
   // joints) the joint formulation cost 1.2 times the absolute one; auto takes it while they
   // are at most one per 2 coordinates. Loops run in joint coordinates too: their closures
