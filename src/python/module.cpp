@@ -184,6 +184,10 @@ PYBIND11_MODULE(_mechanism_sim, m) {
       .def("steps", &Simulation::steps, "Steps taken since loading or reset() (a restore() brings back its count).")
       .def("positions", [](const Simulation& s) { return perDof(s, [&](int d) { return s.model().position(d); }); })
       .def("velocities", [](const Simulation& s) { return perDof(s, [&](int d) { return s.model().velocity(d); }); })
+      .def("accelerations", [](const Simulation& s) {
+        return perDof(s, [&](int d) { return s.model().acceleration(d); });
+      }, "The accelerations solved with the state when it was reached (a step, load, set_state), "
+         "under the efforts commanded then.")
       .def("efforts", [](const Simulation& s) { return perDof(s, [&](int d) { return s.model().effort(d); }); },
            "The effort each joint applies along each dof (command, damping, friction, limit, drive).")
       .def("commanded_efforts", [](const Simulation& s) {

@@ -79,6 +79,9 @@ double MechanismModel::velocity(int dof) const {
 double MechanismModel::effort(int dof) const {
   return mechanism_->jointEffort(dofs_.at(dof).joint_index, dofs_[dof].k);
 }
+double MechanismModel::acceleration(int dof) const {
+  return mechanism_->jointAcceleration(dofs_.at(dof).joint_index, dofs_[dof].k);
+}
 
 void MechanismModel::commandDriveVelocity(int dof, double v, double acc) {
   if (dof < 0 || dof >= static_cast<int>(dofs_.size())) throw UsageError("no such degree of freedom");

@@ -22,7 +22,9 @@ Conventions aligned with mechanism_sim (doc/robots.md, doc/model_format.md):
   * a link of mass 0 has no rotational inertia (mechanism_sim drops it with a note): the copy
     has its <inertia> zeroed;
   * Coulomb friction depends on the step being taken, not on the state alone: the copy has no
-    friction; viscous damping stays and enters as tau = -c v.
+    friction; viscous damping stays and enters as tau = -c v;
+  * states are drawn inside every joint's limits (no limit acts); a mimic follower whose limits
+    admit no position of its leader takes the image of its leader's limits in the copy.
 """
 import glob
 import hashlib
@@ -48,8 +50,8 @@ def robots_dir():
 
 
 def dynamics_copy(src, dst):
-    """The file as both sides load it for dynamics: no friction, no inertia on mass-0 links.
-    Returns what was changed, as counts."""
+    """The file as both sides load it for dynamics: no friction, no inertia on mass-0 links,
+    mimic followers' limits consistent with their leaders'. Returns what was changed, as counts."""
     tree = ET.parse(src)
     root = tree.getroot()
     changed = {"friction": 0, "massless_inertia": 0}
@@ -67,6 +69,23 @@ def dynamics_copy(src, dst):
                 for k in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz"):
                     inertia.set(k, "0")
                 changed["massless_inertia"] += 1
+    # A <mimic> follower whose limits exclude every position of its leader's range (PR2's
+    # parallel_root joints: multiplier -1, both in [0, 0.548]) gets its leader's image.
+    joints = {j.get("name"): j for j in root.findall("joint")}
+    changed["follower_limits"] = 0
+    for j in joints.values():
+        mimic, lim = j.find("mimic"), j.find("limit")
+        leader = joints.get(mimic.get("joint")) if mimic is not None else None
+        if lim is None or leader is None or leader.find("limit") is None or j.get("type") == "continuous":
+            continue
+        a, b = float(mimic.get("multiplier", "1")), float(mimic.get("offset", "0"))
+        llim = leader.find("limit")
+        lo, hi = sorted((a * float(llim.get("lower", "0")) + b, a * float(llim.get("upper", "0")) + b))
+        flo, fhi = float(lim.get("lower", "0")), float(lim.get("upper", "0"))
+        if flo < fhi and lo < hi and max(lo, flo) >= min(hi, fhi):
+            lim.set("lower", repr(lo))
+            lim.set("upper", repr(hi))
+            changed["follower_limits"] += 1
     os.makedirs(os.path.dirname(dst), exist_ok=True)
     tree.write(dst)
     return changed
@@ -236,7 +255,7 @@ def loop(request_path, out_path):
     cms.append(cm)
     cds = pin.StdVec_RigidConstraintData()
     cds.append(cm.createData())
-    pin.initConstraintDynamics(model, data, cms)
+    pin.initConstraintDynamics(model, data, cms, cds)
     prox = pin.ProximalSettings(1e-14, 0.0, 1)  # mu = 0: the exact KKT solution
     ddq = pin.constraintDynamics(model, data, q, v, tau, cms, cds, prox)
     lam = data.lambda_c.copy()

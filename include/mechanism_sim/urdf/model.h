@@ -121,6 +121,9 @@ class MechanismModel {
   double position(int dof) const;
   double velocity(int dof) const;
   double effort(int dof) const;
+  // Its acceleration, solved with the state when it was reached (a step, an assembly) under
+  // the inputs in force then (Mechanism::jointAcceleration).
+  double acceleration(int dof) const;
   double kineticEnergy() const;
   double potentialEnergy() const;   // gravity and springs
   // Every joint with equations (tree joints that are not fixed or floating, and loop
