@@ -239,17 +239,21 @@ def loop(request_path, out_path):
     between `child_link` at `child_point` and `parent_link` at `parent_point` (link frames)."""
     req = json.load(open(request_path))
     tree = Tree(req["urdf"])
-    model, data = tree.model, tree.data
+    model = tree.model
+    # the closure's point on each side, as an operational frame of that link's joint
+    sides = []
+    for side, sign in (("child", 1.0), ("parent", -1.0)):
+        fid = model.getFrameId(req[side + "_link"])
+        link = model.frames[fid]
+        placement = link.placement * pin.SE3(np.eye(3), np.array(req[side + "_point"]))
+        point = model.addFrame(pin.Frame(f"closure_{side}", link.parentJoint, fid, placement, pin.FrameType.OP_FRAME))
+        sides.append((link.parentJoint, placement, point, sign))
+    data = model.createData()
     q = tree.q_of(req["positions"])
     v = tree.v_of(req["velocities"])
     tau = -model.damping * v
 
-    def frame_of(link, point):
-        f = model.frames[model.getFrameId(link)]
-        return f.parentJoint, f.placement * pin.SE3(np.eye(3), np.array(point))
-
-    j1, p1 = frame_of(req["child_link"], req["child_point"])
-    j2, p2 = frame_of(req["parent_link"], req["parent_point"])
+    (j1, p1, _, _), (j2, p2, _, _) = sides
     cm = pin.RigidConstraintModel(pin.ContactType.CONTACT_3D, model, j1, p1, j2, p2, pin.ReferenceFrame.LOCAL)
     cms = pin.StdVec_RigidConstraintModel()
     cms.append(cm)
@@ -258,30 +262,20 @@ def loop(request_path, out_path):
     pin.initConstraintDynamics(model, data, cms, cds)
     prox = pin.ProximalSettings(1e-14, 0.0, 1)  # mu = 0: the exact KKT solution
     ddq = pin.constraintDynamics(model, data, q, v, tau, cms, cds, prox)
-    lam = data.lambda_c.copy()
-    J = pin.getConstraintJacobian(model, data, cm, cds[0])
-    # The constraint forces in joint space, M ddq + b - tau, and the same as J^T lambda.
+    jt_lambda = pin.getConstraintJacobian(model, data, cm, cds[0]).T @ data.lambda_c
+    # The constraint forces in joint space: M ddq + b - tau (which is J^T lambda).
     tau_c = pin.rnea(model, data, q, v, ddq) - tau
     # The request's reaction: force and torque (world axes, torque about the closure point)
-    # that the closure exerts on its child link, and their opposite on its parent link.
+    # that the closure exerts on its child link, and their opposite on its parent link,
+    # mapped into joint space by the point's Jacobian.
     pin.computeJointJacobians(model, data, q)
     pin.framesForwardKinematics(model, data, q)
     wrench = np.concatenate([req["reaction_force"], req["reaction_torque"]])
     ours = np.zeros(model.nv)
-    for link, point, sign in ((req["child_link"], req["child_point"], 1.0), (req["parent_link"], req["parent_point"], -1.0)):
-        fid = model.getFrameId(link)
-        if model.frames[fid].parentJoint == 0:
-            continue
-        frame = model.frames[fid]
-        fid_p = model.addFrame(pin.Frame(f"{link}_closure_{sign}", frame.parentJoint, fid,
-                                         frame.placement * pin.SE3(np.eye(3), np.array(point)), pin.FrameType.OP_FRAME))
-        data = model.createData()
-        pin.computeJointJacobians(model, data, q)
-        pin.framesForwardKinematics(model, data, q)
-        Jp = pin.getFrameJacobian(model, data, fid_p, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
-        ours += sign * Jp.T @ wrench
+    for _, _, point, sign in sides:
+        ours += sign * pin.getFrameJacobian(model, data, point, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED).T @ wrench
     out = {"pinocchio": pin.__version__, "accelerations": tree.per_dof(ddq), "constraint_forces": tree.per_dof(tau_c),
-           "jt_lambda": tree.per_dof(J.T @ lam), "ours_constraint_forces": tree.per_dof(ours)}
+           "jt_lambda": tree.per_dof(jt_lambda), "ours_constraint_forces": tree.per_dof(ours)}
     json.dump(out, open(out_path, "w"))
 
 
