@@ -8,6 +8,9 @@ two sides exchange JSON files only.
       For every URDF that example-robot-data installs: N_STATES states drawn inside the joint
       limits (seeded by the file's path), Pinocchio's forward dynamics at each, written to
       OUT_DIR/trees.json with the copy of the file both sides load for dynamics (OUT_DIR/models/).
+  pinocchio_oracle.py floating REQUEST.json OUT.json
+      The same robots on a free base (a `floating` joint to their root link), at the states the
+      request gives (mechanism_sim's base pose and velocity).
   pinocchio_oracle.py loop REQUEST.json OUT.json
       Pinocchio's constrained dynamics (constraintDynamics, one point-contact constraint between
       two links) at the state the request gives, and the request's own closure reaction mapped
@@ -15,6 +18,7 @@ two sides exchange JSON files only.
 
 Conventions aligned with mechanism_sim (doc/robots.md, doc/model_format.md):
   * the root link is ground (no free-flyer): Pinocchio's default for a URDF, as mechanism_sim's;
+    on a free base, Pinocchio's q = (x, y, z, qx, qy, qz, qw) and v in the root's own axes;
   * a continuous joint's angle t is Pinocchio's (cos t, sin t);
   * a <mimic> joint is an exact coupling q_f = multiplier q_l + offset: the tree's dynamics
     reduced onto the leaders, M_r = G^T M G, with G the constant coupling matrix (Pinocchio's own
@@ -91,6 +95,22 @@ def dynamics_copy(src, dst):
     return changed
 
 
+def floating_copy(src, dst):
+    """The file with its root link on a `floating` joint from a new link `oracle_world` (a
+    free-flyer in Pinocchio; a free base in mechanism_sim). Returns the root link's name."""
+    tree = ET.parse(src)
+    root = tree.getroot()
+    children = {j.find("child").get("link") for j in root.findall("joint")}
+    base = next(link.get("name") for link in root.findall("link") if link.get("name") not in children)
+    ET.SubElement(root, "link", name="oracle_world")
+    joint = ET.SubElement(root, "joint", name="oracle_base", type="floating")
+    ET.SubElement(joint, "parent", link="oracle_world")
+    ET.SubElement(joint, "child", link=base)
+    os.makedirs(os.path.dirname(dst), exist_ok=True)
+    tree.write(dst)
+    return base
+
+
 def urdf_joints(path):
     """name -> (type, lower, upper, mimic (leader, multiplier, offset) or None)."""
     joints = {}
@@ -107,14 +127,17 @@ def urdf_joints(path):
 
 
 class Tree:
-    """A fixed-base Pinocchio model of a URDF with its mimic couplings as a reduction."""
+    """A Pinocchio model of a URDF with its mimic couplings as a reduction; fixed-base, or with
+    the free-flyer a `floating` joint makes (floating_copy)."""
 
     def __init__(self, path):
         self.model = pin.buildModelFromUrdf(path)
         self.model.gravity.linear = np.array(GRAVITY)
         self.data = self.model.createData()
         self.urdf = urdf_joints(path)
-        self.names = [n for n in self.model.names[1:]]  # one dof each (revolute, prismatic, continuous)
+        # the free-flyer, if any, apart; every other joint one dof (revolute, prismatic, continuous)
+        self.base = [n for n in self.model.names[1:] if self.model.joints[self.model.getJointId(n)].shortname() == "JointModelFreeFlyer"]
+        self.names = [n for n in self.model.names[1:] if n not in self.base]
         for n in self.names:
             jm = self.model.joints[self.model.getJointId(n)]
             if jm.nv != 1:
@@ -135,10 +158,13 @@ class Tree:
                 raise ValueError(f"joint '{n}': mimics '{leader}', which has no dof")
             self.coupling[n] = (leader, a, b)
         self.leaders = [n for n in self.names if self.coupling[n][0] == n]
-        self.G = np.zeros((self.model.nv, len(self.leaders)))
+        self.G = np.zeros((self.model.nv, len(self.leaders) + 6 * len(self.base)))
         for n in self.names:
             leader, a, _ = self.coupling[n]
             self.G[self.model.joints[self.model.getJointId(n)].idx_v, self.leaders.index(leader)] = a
+        for k, n in enumerate(self.base):
+            i = self.model.joints[self.model.getJointId(n)].idx_v
+            self.G[i:i + 6, len(self.leaders) + 6 * k:len(self.leaders) + 6 * k + 6] = np.eye(6)
 
     def q_of(self, angles):
         """Pinocchio's q from one value per dof name."""
@@ -168,7 +194,7 @@ class Tree:
     def forward_dynamics(self, q, v):
         """Accelerations of every dof: M_r a_r = G^T (tau - b) with tau = -damping v, a = G a_r."""
         tau = -self.model.damping * v
-        if len(self.leaders) == self.model.nv:
+        if self.G.shape[1] == self.model.nv:
             return pin.aba(self.model, self.data, q, v, tau)
         M = pin.crba(self.model, self.data, q)
         M = np.triu(M) + np.triu(M, 1).T
@@ -229,6 +255,8 @@ def trees(out_dir, n_states):
             robots.append(entry)
             continue
         entry.update(dofs=tree.names, leaders=tree.leaders, states=states)
+        entry["floating_file"] = os.path.join(out_dir, "models_floating", rel)
+        entry["root_link"] = floating_copy(copy, entry["floating_file"])
         robots.append(entry)
     with open(os.path.join(out_dir, "trees.json"), "w") as f:
         json.dump({"robots_dir": base, "gravity": GRAVITY, "pinocchio": pin.__version__, "robots": robots}, f)
@@ -279,10 +307,33 @@ def loop(request_path, out_path):
     json.dump(out, open(out_path, "w"))
 
 
+def floating(request_path, out_path):
+    """Forward dynamics of free-based robots (floating_copy) at the states requested: the root
+    link's pose (4x4) and the velocity of its origin and its angular velocity (world axes), the
+    leaders' positions and rates. Pinocchio's free-flyer takes q = (x, y, z, qx, qy, qz, qw) and
+    v = (R^T v_O, R^T w), in the root's own axes."""
+    answers = {}
+    for req in json.load(open(request_path)):
+        tree = Tree(req["urdf"])
+        (base,) = tree.base
+        jm = tree.model.joints[tree.model.getJointId(base)]
+        q = tree.q_of(tree.expand(req["positions"]))
+        v = tree.v_of(tree.expand(req["velocities"], rates=True))
+        pose = np.array(req["root_pose"])
+        R = pose[:3, :3]
+        q[jm.idx_q:jm.idx_q + 7] = pin.SE3ToXYZQUAT(pin.SE3(R, pose[:3, 3]))
+        v[jm.idx_v:jm.idx_v + 6] = np.concatenate([R.T @ np.array(req["root_velocity"][:3]),
+                                                   R.T @ np.array(req["root_velocity"][3:])])
+        answers[req["urdf"]] = tree.per_dof(tree.forward_dynamics(q, v))
+    json.dump(answers, open(out_path, "w"))
+
+
 if __name__ == "__main__":
     if len(sys.argv) >= 3 and sys.argv[1] == "trees":
         trees(sys.argv[2], int(sys.argv[3]) if len(sys.argv) > 3 else 3)
     elif len(sys.argv) == 4 and sys.argv[1] == "loop":
         loop(sys.argv[2], sys.argv[3])
+    elif len(sys.argv) == 4 and sys.argv[1] == "floating":
+        floating(sys.argv[2], sys.argv[3])
     else:
         sys.exit(__doc__)

@@ -110,6 +110,46 @@ def test_robot(robot):
     print(f"{robot['file']}: {len(robot['dofs'])} dofs, worst relative difference {worst:.2g}")
 
 
+FLOATING = [r for r in ROBOTS if "floating_file" in r and r["file"] not in EXPECTED]
+
+
+@pytest.fixture(scope="module")
+def floating_answers():
+    """mechanism_sim's state of every tree on a free base (state 0's joints, the base at rest at
+    the origin before the rates are projected: its velocity is whatever the projection gives),
+    and Pinocchio's accelerations at it, in one oracle run."""
+    ours, requests = {}, []
+    for robot in FLOATING:
+        state = robot["states"][0]
+        try:
+            m = mechanism_sim.load(robot["floating_file"], positions=state["positions"], velocities=state["velocities"])
+        except mechanism_sim.Error as e:
+            ours[robot["file"]] = e
+            continue
+        names = m.dof_names()
+        ours[robot["file"]] = (np.array([m.accelerations()[names.index(n)] for n in robot["dofs"]]), m.link_velocity(robot["root_link"]))
+        requests.append({"urdf": robot["floating_file"], "positions": state["positions"], "velocities": state["velocities"],
+                         "root_pose": m.link_pose(robot["root_link"]).tolist(),
+                         "root_velocity": m.link_velocity(robot["root_link"]).tolist()})
+    json.dump(requests, open(os.path.join(WORK.name, "floating_request.json"), "w"))
+    run_oracle("floating", os.path.join(WORK.name, "floating_request.json"), os.path.join(WORK.name, "floating.json"))
+    return ours, json.load(open(os.path.join(WORK.name, "floating.json")))
+
+
+@pytest.mark.parametrize("robot", FLOATING, ids=[r["file"] for r in FLOATING])
+def test_robot_on_a_free_base(robot, floating_answers):
+    """The same tree on a `floating` joint: Pinocchio's free-flyer (its q's quaternion, its v in
+    the root's axes) at mechanism_sim's base pose and velocity."""
+    ours, theirs = floating_answers
+    assert not isinstance(ours[robot["file"]], Exception), f"fails on a free base: {ours[robot['file']]}"
+    a, root_velocity = ours[robot["file"]]
+    assert np.linalg.norm(root_velocity) > 0.0  # the base moves: the projection gave it the joints' reaction
+    expected = np.array([theirs[robot["floating_file"]][n] for n in robot["dofs"]])
+    err = relative_error(a, expected)
+    assert err <= TOLERANCE, f"accelerations differ by {err:.3g} of their size"
+    print(f"{robot['file']} on a free base: worst relative difference {err:.2g}")
+
+
 def test_closed_loop_against_constraint_dynamics(tmp_path):
     """A spatial loop of four revolute joints closed by a ball joint: the accelerations, and the
     joint-space constraint forces (what the closure's reaction on its child link does to the

@@ -8,6 +8,7 @@
 #include <memory>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Geometry>
@@ -116,6 +117,8 @@ class MechanismModel {
   double time() const;
   // World pose of a link.
   Eigen::Isometry3d linkPose(int link) const;
+  // Velocity of a link's frame origin and its angular velocity, both in world axes.
+  std::pair<Eigen::Vector3d, Eigen::Vector3d> linkVelocity(int link) const;
   // Degree of freedom: position, rate, and the effort the joint applies along it
   // (commanded effort minus damping plus friction, plus a limit's reaction).
   double position(int dof) const;
