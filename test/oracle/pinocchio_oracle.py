@@ -288,7 +288,11 @@ def loop(request_path, out_path):
     cds = pin.StdVec_RigidConstraintData()
     cds.append(cm.createData())
     pin.initConstraintDynamics(model, data, cms, cds)
-    prox = pin.ProximalSettings(1e-14, 0.0, 1)  # mu = 0: the exact KKT solution
+    # mu = 0: the exact KKT solution; a loop whose equations are dependent (a planar loop's
+    # out-of-plane row) needs the proximal iterations (mu > 0), which converge to its
+    # accelerations (unique, as J^T lambda is, though lambda is not)
+    mu = req.get("mu", 0.0)
+    prox = pin.ProximalSettings(1e-15, mu, 1 if mu == 0.0 else 1000)
     ddq = pin.constraintDynamics(model, data, q, v, tau, cms, cds, prox)
     jt_lambda = pin.getConstraintJacobian(model, data, cm, cds[0]).T @ data.lambda_c
     # The constraint forces in joint space: M ddq + b - tau (which is J^T lambda).
@@ -302,7 +306,7 @@ def loop(request_path, out_path):
     ours = np.zeros(model.nv)
     for _, _, point, sign in sides:
         ours += sign * pin.getFrameJacobian(model, data, point, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED).T @ wrench
-    out = {"pinocchio": pin.__version__, "accelerations": tree.per_dof(ddq), "constraint_forces": tree.per_dof(tau_c),
+    out = {"pinocchio": pin.__version__, "iterations": prox.iter, "accelerations": tree.per_dof(ddq), "constraint_forces": tree.per_dof(tau_c),
            "jt_lambda": tree.per_dof(jt_lambda), "ours_constraint_forces": tree.per_dof(ours)}
     json.dump(out, open(out_path, "w"))
 

@@ -150,28 +150,44 @@ def test_robot_on_a_free_base(robot, floating_answers):
     print(f"{robot['file']} on a free base: worst relative difference {err:.2g}")
 
 
-def test_closed_loop_against_constraint_dynamics(tmp_path):
-    """A spatial loop of four revolute joints closed by a ball joint: the accelerations, and the
-    joint-space constraint forces (what the closure's reaction on its child link does to the
-    tree's dofs, J^T f), against Pinocchio's constraintDynamics with one CONTACT_3D constraint."""
-    fixture = REPO / "test" / "oracle" / "spatial_loop.urdf"
-    m = mechanism_sim.load(str(fixture), positions={"j1": 0.4}, velocities={"j1": 1.5})
+LOOPS = {
+    # four revolute joints on skew axes closed by a ball joint: 3 independent equations
+    "spatial_loop": dict(file=REPO / "test" / "oracle" / "spatial_loop.urdf", tree=["j1", "j2", "j3", "j4"],
+                         held=("j1", 0.4, 1.5), child=("l4", [0.2, -0.1, 0.0]), parent=("base", [0.6, 0.15, -0.05]),
+                         mu=0.0),
+    # the bundled planar four-bar, closed by a revolute joint (3 of its equations dependent);
+    # Pinocchio closes it by the point (its out-of-plane row dependent too)
+    "four_bar": dict(file=REPO / "urdf" / "four_bar.urdf", tree=["crank_joint", "coupler_joint", "rocker_joint"],
+                     held=("crank_joint", 0.7, 4.0), child=("rocker", [0.066925664, 0.0, -0.292439661]),
+                     parent=("base", [0.4, 0.0, 0.0]), mu=1e-6),
+}
+
+
+@pytest.mark.parametrize("name", sorted(LOOPS))
+def test_closed_loop_against_constraint_dynamics(name, tmp_path):
+    """A closed loop at one state: the accelerations, and the joint-space constraint forces
+    (what the closure's reaction on its child link does to the tree's dofs, J^T [f; t]),
+    against Pinocchio's constraintDynamics with one CONTACT_3D constraint between the same
+    two points."""
+    c = LOOPS[name]
+    dof, q0, v0 = c["held"]
+    m = mechanism_sim.load(str(c["file"]), positions={dof: q0}, velocities={dof: v0})
     m.advance(2.0, 1e-3)  # it runs
     assert m.violation()["relative_position"] < 1e-8
-    m.set_state(positions={"j1": 0.4}, velocities={"j1": 1.5})
+    m.set_state(positions={dof: q0}, velocities={dof: v0})
     names = m.dof_names()
-    tree = ["j1", "j2", "j3", "j4"]
+    tree = c["tree"]
     q = {n: float(m.positions()[names.index(n)]) for n in tree}
     v = {n: float(m.velocities()[names.index(n)]) for n in tree}
-    assert q["j1"] == pytest.approx(0.4, abs=1e-12) and q["j2"] != 0.0  # the loop moved the others
+    assert q[dof] == pytest.approx(q0, abs=1e-12) and q[tree[1]] != 0.0  # the loop moved the others
     a = {n: float(m.accelerations()[names.index(n)]) for n in tree}
     r = m.reactions()
     k = r["joints"].index("loop")
-    # in the closure's frame on its child (child_origin, no rotation: l4's axes), about its origin
-    R = m.link_pose("l4")[:3, :3]
-    request = {"urdf": str(fixture), "positions": q, "velocities": v,
-               "child_link": "l4", "child_point": [0.2, -0.1, 0.0],
-               "parent_link": "base", "parent_point": [0.6, 0.15, -0.05],
+    # in the closure's frame on its child (child_origin, no rotation: the link's axes), about its origin
+    R = m.link_pose(c["child"][0])[:3, :3]
+    request = {"urdf": str(c["file"]), "positions": q, "velocities": v, "mu": c["mu"],
+               "child_link": c["child"][0], "child_point": c["child"][1],
+               "parent_link": c["parent"][0], "parent_point": c["parent"][1],
                "reaction_force": list(R @ r["force"][k]), "reaction_torque": list(R @ r["torque"][k])}
     json.dump(request, open(tmp_path / "request.json", "w"))
     run_oracle("loop", tmp_path / "request.json", tmp_path / "answer.json")
@@ -185,6 +201,7 @@ def test_closed_loop_against_constraint_dynamics(tmp_path):
     assert relative_error(jt_lambda, tau_c) <= TOLERANCE, (jt_lambda, tau_c)
     ours_c = np.array([answer["ours_constraint_forces"][n] for n in tree])
     assert np.linalg.norm(tau_c) > 0.1  # the loop carries load at this state
-    print(f"accelerations {ours} (relative difference {relative_error(ours, theirs):.2g}), "
-          f"joint-space constraint forces {ours_c} (relative difference {relative_error(ours_c, tau_c):.2g})")
+    print(f"{name}: accelerations {ours} (relative difference {relative_error(ours, theirs):.2g}), "
+          f"joint-space constraint forces {ours_c} (relative difference {relative_error(ours_c, tau_c):.2g}), "
+          f"{answer['iterations']} proximal iterations")
     assert relative_error(ours_c, tau_c) <= TOLERANCE, (ours_c, tau_c)
