@@ -46,6 +46,16 @@ Eigen::Isometry3d MechanismModel::linkPose(int link) const {
   return W_B * l.body_T_link;
 }
 
+std::pair<Eigen::Vector3d, Eigen::Vector3d> MechanismModel::linkVelocity(int link) const {
+  const Link& l = links_.at(link);
+  if (l.body == Mechanism::kGround) return {Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero()};
+  // the body's state: v_i of its origin r_i (world), w_i in body axes
+  const Eigen::Matrix3d A_Oi = mechanism_->rotation(l.body);
+  const auto u_i = mechanism_->state().u.segment<6>(6 * (l.body - 1));
+  const Eigen::Vector3d w = A_Oi * u_i.tail<3>();
+  return {u_i.head<3>() + w.cross(A_Oi * l.body_T_link.translation()), w};
+}
+
 std::vector<JointReaction> MechanismModel::jointReactions() const {
   const std::vector<Reaction> r = mechanism_->jointReactions();
   std::vector<JointReaction> out(r.size());
@@ -78,6 +88,9 @@ double MechanismModel::velocity(int dof) const {
 }
 double MechanismModel::effort(int dof) const {
   return mechanism_->jointEffort(dofs_.at(dof).joint_index, dofs_[dof].k);
+}
+double MechanismModel::acceleration(int dof) const {
+  return mechanism_->jointAcceleration(dofs_.at(dof).joint_index, dofs_[dof].k);
 }
 
 void MechanismModel::commandDriveVelocity(int dof, double v, double acc) {

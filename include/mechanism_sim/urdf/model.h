@@ -8,6 +8,7 @@
 #include <memory>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Geometry>
@@ -116,11 +117,16 @@ class MechanismModel {
   double time() const;
   // World pose of a link.
   Eigen::Isometry3d linkPose(int link) const;
+  // Velocity of a link's frame origin and its angular velocity, both in world axes.
+  std::pair<Eigen::Vector3d, Eigen::Vector3d> linkVelocity(int link) const;
   // Degree of freedom: position, rate, and the effort the joint applies along it
   // (commanded effort minus damping plus friction, plus a limit's reaction).
   double position(int dof) const;
   double velocity(int dof) const;
   double effort(int dof) const;
+  // Its acceleration, solved with the state when it was reached (a step, an assembly) under
+  // the inputs in force then (Mechanism::jointAcceleration).
+  double acceleration(int dof) const;
   double kineticEnergy() const;
   double potentialEnergy() const;   // gravity and springs
   // Every joint with equations (tree joints that are not fixed or floating, and loop
