@@ -76,7 +76,7 @@ JointSpec treeJoint(const urdf::Joint& j, const tinyxml2::XMLElement* element, c
   if (override) {
     s.type = coreType(override->type);
     s.params.alpha = override->alpha;
-    if (override->element && override->element->FirstChildElement("axis")) axis = override->axis;
+    if (override->axes_given || (override->element && override->element->FirstChildElement("axis"))) axis = override->axis;
     axis2 = override->axis2;
     if (override->damping > 0) s.damping = override->damping;
     if (override->friction > 0) s.friction = override->friction;
@@ -100,12 +100,14 @@ JointSpec loopJoint(const ExtJoint& e, const urdf::ModelInterface& urdf,
   s.element = e.element;
   s.parent = e.parent;
   s.child = e.child;
+  // SDF's <parent>world</parent>: the world, where the URDF's root link is fixed
+  if (e.sdf && e.parent == "world" && !urdf.getLink("world")) s.parent = urdf.getRoot()->name;
   s.params.alpha = e.alpha;
   s.damping = e.damping;
   s.friction = e.friction;
-  if (!urdf.getLink(e.parent)) reader.fail(e.element, "parent link '" + e.parent + "' does not exist");
+  if (!urdf.getLink(s.parent)) reader.fail(e.element, "parent link '" + e.parent + "' does not exist");
   if (!urdf.getLink(e.child)) reader.fail(e.element, "child link '" + e.child + "' does not exist");
-  if (e.parent == e.child) reader.fail(e.element, "joint's parent is its child ('" + e.parent + "')");
+  if (s.parent == e.child) reader.fail(e.element, "joint's parent is its child ('" + e.parent + "')");
   if (!e.sdf) {
     Isometry3d child_origin = e.child_origin;
     if (e.child_rotation_from_zero_pose)  // the frames' rotations coincide at the zero pose
@@ -121,7 +123,7 @@ JointSpec loopJoint(const ExtJoint& e, const urdf::ModelInterface& urdf,
   const Matrix3d R = frameAxes(s.type, inJoint(e.axis), inJoint(e.axis2), e.element, reader);
   s.C_J = e.child_origin * rotation(R);
   s.C_U = e.child_origin;
-  s.P_J = nominal.at(e.parent).inverse() * nominal.at(e.child) * s.C_J;
+  s.P_J = nominal.at(s.parent).inverse() * nominal.at(e.child) * s.C_J;
   return s;
 }
 

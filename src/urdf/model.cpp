@@ -96,6 +96,8 @@ double MechanismModel::driveVelocity(int dof) const {
 void MechanismModel::setEffort(int dof, double tau) {
   if (dof < 0 || dof >= static_cast<int>(dofs_.size())) throw UsageError("no such degree of freedom");
   if (!std::isfinite(tau)) throw UsageError("effort for '" + dofs_[dof].name + "' is not finite");
+  if (!dofs_[dof].actuated)
+    throw UsageError("dof '" + dofs_[dof].name + "' is passive (the file names its actuated joints): command an actuated one");
   const double limit = dofs_[dof].effort_limit;
   command_[dof] = limit > 0 ? std::max(-limit, std::min(limit, tau)) : tau;
 }

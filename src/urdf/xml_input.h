@@ -54,6 +54,9 @@ struct ExtJoint {
   Isometry3d child_origin = Isometry3d::Identity();  // joint frame in the child link
   Vector3d axis = Vector3d::UnitZ(), axis2 = Vector3d::UnitY();
   bool has_axis2 = false;
+  // Overriding a URDF joint's type: axis and axis2 replace the URDF axis (an Extended-URDF
+  // CARDAN joint's x and y); else the URDF axis stays unless the element gives <axis>.
+  bool axes_given = false;
   double alpha = 0.0;  // screw lead per radian
   double damping = 0.0, friction = 0.0;
   // The child side's rotation is the one that makes the two frames coincide with every
@@ -103,6 +106,10 @@ struct Extension {
   std::optional<Vector3d> gravity;
   std::vector<ExtCoupling> couplings;  // URDF+ <coupling>
   std::vector<std::string> notes;      // what was read but is not simulated (MechanismModel::notes)
+  // The actuated joints when a file names them (Extended-URDF name_mot): every other dof is
+  // passive (no effort command, no drive). Empty: every dof is actuated.
+  std::vector<std::string> actuated;
+  std::string actuated_source;  // where they are named, for messages
 };
 
 // What makes an inertia matrix (about a centre of mass) unphysical, or "" if it is physical:
