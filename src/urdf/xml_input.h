@@ -49,6 +49,9 @@ struct ExtJoint {
   bool loop = false;          // a loop closure between two links (else: overrides a URDF joint)
   bool sdf = false;           // from <gazebo><joint>: SDF pose and axis conventions
   bool axis_in_model = false; // SDF use_parent_model_frame / expressed_in="__model__"
+  // SDF frames named by the joint's <pose relative_to> and its axes' expressed_in (a link
+  // of the model; "" for the default: the child link, the joint frame)
+  std::string pose_relative_to, axis_expressed_in;
   std::string parent, child;
   Isometry3d origin = Isometry3d::Identity();        // joint frame in the parent link (extension)
   Isometry3d child_origin = Isometry3d::Identity();  // joint frame in the child link

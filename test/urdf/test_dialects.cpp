@@ -302,8 +302,9 @@ TEST(Dialects, GazeboSdfLinksAndJointsCloseAPr2LikeGripper) {
 }
 
 // Every SDF joint type a <gazebo> block may close a loop with, by its equations: the
-// four-bar's closure as revolute 5, prismatic 5, screw 5, universal 4, ball 3, fixed 6;
-// "world" as the parent is the root link.
+// four-bar's closure as revolute 5, prismatic 5, screw 5, universal 4, ball 3, fixed 6,
+// continuous 5; SDF's pose relative_to and axis expressed_in; "world" as the parent is the
+// root link; revolute2 is refused with its fix.
 TEST(Dialects, GazeboSdfJointTypes) {
   const std::string xml = readText(kDir + "/four_bar_gazebo.urdf");
   const std::string hinge = R"(<joint name="closure" type="revolute">)";
@@ -316,6 +317,30 @@ TEST(Dialects, GazeboSdfJointTypes) {
   EXPECT_EQ(equations("universal", "<axis2><xyz>1 0 0</xyz></axis2>"), 4);
   EXPECT_EQ(equations("ball", ""), 3);
   EXPECT_EQ(equations("fixed", ""), 6);
+  EXPECT_EQ(equations("continuous", ""), 5);
+  // SDF 1.7+ frames: the joint pose relative_to the parent link, the axis expressed_in a
+  // link while the joint frame is turned 90 degrees about x: the same hinge, the same motion
+  const std::string pose = "<pose>0.12 0 0.46 0 0 0</pose>";
+  auto reference = loadModelString(xml, "reference");
+  auto relative = loadModelString(replaced(xml, pose, R"(<pose relative_to="coupler">0.4 0 0.3 0 0 0</pose>)"), "relative_to");
+  auto expressed = loadModelString(
+      replaced(replaced(xml, pose, "<pose>0.12 0 0.46 1.5707963267948966 0 0</pose>"), "<xyz>0 1 0</xyz>",
+               R"(<xyz expressed_in="rocker">0 1 0</xyz>)"),
+      "expressed_in");
+  const std::vector<double> q_ref = positionsAfter(*reference, 1.0), q_rel = positionsAfter(*relative, 1.0),
+                            q_exp = positionsAfter(*expressed, 1.0);
+  for (size_t k = 0; k < q_ref.size(); ++k) {
+    EXPECT_NEAR(q_rel[k], q_ref[k], 1e-12) << k;
+    EXPECT_NEAR(q_exp[k], q_ref[k], 1e-12) << k;
+  }
+  try {
+    loadModelString(replaced(xml, hinge, R"(<joint name="closure" type="revolute2">)"), "revolute2");
+    ADD_FAILURE() << "revolute2 loaded";
+  } catch (const LoadError& e) {
+    EXPECT_NE(std::string(e.what()).find("unsupported SDF joint type 'revolute2': write it as a universal joint"),
+              std::string::npos)
+        << e.what();
+  }
   // <parent>world</parent>: the rocker pinned to the world at its pin: the loop is then
   // closed on the ground instead of the coupler (a locked four-bar stays locked)
   std::string world = replaced(xml, "<parent>coupler</parent>", "<parent>world</parent>");
