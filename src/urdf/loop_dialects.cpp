@@ -5,6 +5,7 @@
 #include <cstring>
 #include <fstream>
 #include <map>
+#include <optional>
 #include <set>
 #include <sstream>
 
@@ -468,10 +469,12 @@ void readOnshapeClosures(const XMLElement* robot, const XmlReader& r, Extension*
 
 // ---- "Extended URDF" (Gepetto/example-parallel-robots, loader_tools.py
 // completeRobotLoader, which builds a Pinocchio model from the URDF and then):
-//  - joint_name/joint_type: rebuilds each named joint at its placement as SPHERICAL
-//    (JointModelSpherical), CARDAN (JointModelRX then JointModelRY, both at the joint's
-//    origin frame: a universal joint with axes x then y of that frame) or FIXED (locked at
-//    the neutral configuration, q = 0, by buildReducedModel);
+//  - joint_name/joint_type: rebuilds each named joint of the model at its placement as
+//    SPHERICAL (JointModelSpherical), CARDAN (JointModelRX then JointModelRY, both at the
+//    joint's origin frame: a universal joint with axes x then y of that frame), UJOINT_AB
+//    (the later versions' JointModelRA then JointModelRB, A and B among X, Y, Z) or FIXED
+//    (locked at the neutral configuration, q = 0, by buildReducedModel); a name that is no
+//    joint of the model is passed over;
 //  - closed_loop/type: for each pair, model.getFrameId(name) on the rebuilt model and a
 //    RigidConstraintModel between the two frames, CONTACT_3D for 3d/3D (the origins
 //    coincide: a ball), CONTACT_6D otherwise (the frames coincide: fixed);
@@ -572,7 +575,11 @@ void readClosuresFile(const std::string& path, const XMLElement* robot, Extensio
   std::set<std::string> seen;
   for (size_t i = 0; i < replaced.size(); ++i) {
     const std::string& name = replaced[i].first;
-    if (!joint_type.count(name)) fail(replaced[i].second, "joint_name: no joint '" + name + "' in the URDF");
+    if (!joint_type.count(name)) {  // the reference rebuilds the model's joints only: ignored there
+      ext->notes.push_back(where(path, replaced[i].second) + "joint_name '" + name +
+                           "' names no joint of the URDF: ignored, as completeRobotLoader does");
+      continue;
+    }
     const std::string t = joint_type[name];
     if (t == "fixed" || t == "floating")
       fail(replaced[i].second, "joint_name: '" + name + "' is a " + t + " joint, whose type cannot change");
@@ -584,13 +591,24 @@ void readClosuresFile(const std::string& path, const XMLElement* robot, Extensio
       j.type = "spherical";
     } else if (to == "FIXED") {
       j.type = "fixed";
-    } else if (to == "CARDAN") {  // RX then RY in the joint's origin frame
+    } else if (to == "CARDAN" || (to.size() == 9 && to.rfind("UJOINT_", 0) == 0)) {
+      // CARDAN: RX then RY; UJOINT_AB: RA then RB (A, B among X, Y, Z), at the joint's origin
+      const std::string axes = to == "CARDAN" ? "XY" : to.substr(7, 2);
+      auto unit = [](char c) -> std::optional<Vector3d> {
+        if (c == 'X') return Vector3d::UnitX();
+        if (c == 'Y') return Vector3d::UnitY();
+        if (c == 'Z') return Vector3d::UnitZ();
+        return std::nullopt;
+      };
+      const auto a = unit(axes[0]), b = unit(axes[1]);
+      if (!a || !b || axes[0] == axes[1])
+        fail(replacement[i].second, "joint_type: '" + to + "': a UJOINT_AB needs two different axes A, B among X, Y, Z");
       j.type = "universal";
-      j.axis = Vector3d::UnitX();
-      j.axis2 = Vector3d::UnitY();
+      j.axis = *a;
+      j.axis2 = *b;
       j.has_axis2 = j.axes_given = true;
     } else {
-      fail(replacement[i].second, "joint_type: unknown type '" + to + "' (SPHERICAL, CARDAN, FIXED)");
+      fail(replacement[i].second, "joint_type: unknown type '" + to + "' (SPHERICAL, CARDAN, UJOINT_XY and the like, FIXED)");
     }
     ext->joints.push_back(j);
   }

@@ -210,7 +210,19 @@ TEST(Dialects, ExtendedUrdfJointTypes) {
     EXPECT_NEAR(cardan->position(cardan->dofIndex(dof)), reference->position(reference->dofIndex(dof)), 1e-9) << dof;
   EXPECT_NEAR(cardan->position(y), reference->position(reference->dofIndex("coupler_joint")), 1e-9);
   EXPECT_NEAR(cardan->position(x), 0.0, 1e-9);
+  // UJOINT_AB (later versions): RA then RB; UJOINT_ZY turns about the joint origin's z
+  // first, so its second axis y is the hinge: the same planar motion, the z turn zero
+  auto zy = yaml(loop + "joint_name: [coupler_joint]\njoint_type: [UJOINT_ZY]\n");
+  for (int s = 0; s < 1000; ++s) zy->step(1e-3);
+  EXPECT_NEAR(zy->position(zy->dofIndex("coupler_joint.axis2")), cardan->position(y), 1e-9);
+  EXPECT_NEAR(zy->position(zy->dofIndex("coupler_joint.axis1")), 0.0, 1e-9);
   EXPECT_EQ(yaml(loop + "joint_name: [coupler_joint]\njoint_type: [SPHERICAL]\n")->numEquations(), 10 + 3 + 3);
+  // a name that is no joint is passed over, as the reference does, with a note
+  auto ghost = yaml(loop + "joint_name: [ghost_joint]\njoint_type: [SPHERICAL]\n");
+  EXPECT_EQ(ghost->numEquations(), kTreeEquations + 3);
+  bool noted = false;
+  for (const std::string& n : ghost->notes()) noted = noted || n.find("joint_name 'ghost_joint' names no joint of the URDF: ignored") != std::string::npos;
+  EXPECT_TRUE(noted);
   // FIXED merges crank and coupler into one body: the loop is then a rigid triangle
   EXPECT_EQ(yaml(loop + "joint_name: [coupler_joint]\njoint_type: [FIXED]\n")->numEquations(), 10 + 3);
 }
