@@ -306,7 +306,7 @@ ExtJoint readExtJoint(const XMLElement* e, const XmlReader& r) {
 }
 
 // <gazebo><joint name type><pose>..</pose><parent>..</parent><child>..</child><axis><xyz>..
-ExtJoint readSdfJoint(const XMLElement* e, const XmlReader& r) {
+ExtJoint readSdfJoint(const XMLElement* e, const XmlReader& r, std::vector<std::string>* notes) {
   ExtJoint j;
   j.element = e;
   j.sdf = true;
@@ -384,8 +384,11 @@ ExtJoint readSdfJoint(const XMLElement* e, const XmlReader& r) {
       const double tp = std::atof(p2->GetText() ? p2->GetText() : "0");
       if (tp == 0.0 || !std::isfinite(tp)) r.fail(p2, "thread_pitch must be finite and non-zero");
       j.alpha = -1.0 / tp;
-    } else {
-      r.fail(e, "a screw joint needs <screw_thread_pitch> or <thread_pitch>");
+    } else {  // SDF's default thread_pitch, 1, which Gazebo classic's ScrewJoint::Load takes with a warning
+      j.alpha = -1.0;
+      notes->push_back(r.file + ":" + std::to_string(e->GetLineNum()) + ": SDF screw joint '" + j.name +
+                       "' has no <screw_thread_pitch> or <thread_pitch>: SDF's default thread_pitch 1 (radians per metre, "
+                       "left-handed: 6.28 m per turn) is used, as Gazebo does; give the pitch");
     }
   }
   return j;
@@ -399,7 +402,7 @@ Extension readExtension(const XMLElement* robot, const XmlReader& r) {
     const std::string tag = e->Name();
     if (tag == "gazebo") {
       for (const XMLElement* j = e->FirstChildElement("joint"); j; j = j->NextSiblingElement("joint"))
-        ext.joints.push_back(readSdfJoint(j, r));
+        ext.joints.push_back(readSdfJoint(j, r, &ext.notes));
       continue;
     }
     if (readLoopDialect(robot, e, r, &ext)) continue;

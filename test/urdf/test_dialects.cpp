@@ -326,6 +326,11 @@ TEST(Dialects, GazeboSdfJointTypes) {
   };
   EXPECT_EQ(equations("prismatic", ""), 5);
   EXPECT_EQ(equations("screw", "<thread_pitch>100</thread_pitch>"), 5);
+  // no pitch: SDF's default thread_pitch 1 (Gazebo classic's, with a warning), noted
+  auto no_pitch = loadModelString(replaced(xml, hinge, R"(<joint name="closure" type="screw">)"), "no pitch");
+  bool noted = false;
+  for (const std::string& n : no_pitch->notes()) noted = noted || n.find("SDF's default thread_pitch 1") != std::string::npos;
+  EXPECT_TRUE(noted);
   EXPECT_EQ(equations("universal", "<axis2><xyz>1 0 0</xyz></axis2>"), 4);
   EXPECT_EQ(equations("ball", ""), 3);
   EXPECT_EQ(equations("fixed", ""), 6);
