@@ -524,12 +524,12 @@ void readClosuresFile(const std::string& path, const XMLElement* robot, Extensio
       fail(it->first, "unknown key '" + key + "' (closed_loop, type, name_mot, joint_name, joint_type)");
   }
   // A Pinocchio frame's link (see above); "" if no frame has that name.
-  auto frameLink = [&](const YAML::Node& at, const std::string& frame) -> std::string {
+  auto frameLink = [&](const YAML::Node& node, const std::string& at, const std::string& frame) -> std::string {
     const bool link = linkElement(robot, frame) != nullptr;
     const auto joint = joint_child.find(frame);
     if (link && joint != joint_child.end() && joint->second != frame)
-      fail(at, "frame '" + frame + "' names both a link and joint '" + frame + "' (whose child is link '" +
-                   joint->second + "'): the frames differ; rename one of them");
+      fail(node, at + "frame '" + frame + "' names both a link and joint '" + frame + "' (whose child is link '" +
+                     joint->second + "'): the frames differ; rename one of them");
     if (link) return frame;
     if (joint != joint_child.end()) return joint->second;
     if (frame == "universe") {
@@ -554,7 +554,7 @@ void readClosuresFile(const std::string& path, const XMLElement* robot, Extensio
     const std::string names[2] = {pair[0].as<std::string>(), pair[1].as<std::string>()};
     std::string* links[2] = {&j.parent, &j.child};
     for (int k = 0; k < 2; ++k) {
-      *links[k] = frameLink(pair, names[k]);
+      *links[k] = frameLink(pair, at, names[k]);
       if (links[k]->empty())
         fail(pair, at + "frame '" + names[k] + "' is not a frame of the URDF (a link, a joint or 'universe', as "
                         "Pinocchio names them): name one of those");
