@@ -135,6 +135,8 @@ void MechanismModel::driveDof(int dof) {
   if (dof < 0 || dof >= static_cast<int>(dofs_.size())) throw UsageError("no such degree of freedom");
   Dof& d = dofs_[dof];
   if (d.drive >= 0) throw UsageError("dof '" + d.name + "' is driven already");
+  if (!d.actuated)
+    throw UsageError("dof '" + d.name + "' is passive (the file names its actuated joints): drive an actuated one");
   try {
     d.drive = mechanism_->addDrive(d.joint_index, d.k, DriveProfile::velocity(0.0));
   } catch (const ModelError& e) {

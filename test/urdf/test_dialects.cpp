@@ -235,6 +235,7 @@ TEST(Dialects, ExtendedUrdfNameMotMakesTheOthersPassive) {
   auto m = loadModelFile(urdf);
   for (const Dof& d : m->dofs()) EXPECT_EQ(d.actuated, d.name == "crank_joint") << d.name;
   EXPECT_THROW(m->setEffort(m->dofIndex("rocker_joint"), 1.0), UsageError);
+  EXPECT_THROW(m->driveDof(m->dofIndex("rocker_joint")), UsageError);  // a trajectory's or ~position_command's drive
   m->setEffort(m->dofIndex("crank_joint"), 1.0);
   EXPECT_EQ(m->commandedEffort(m->dofIndex("crank_joint")), 1.0);
   LoadOptions drive;
