@@ -109,6 +109,8 @@ double MechanismModel::driveVelocity(int dof) const {
 void MechanismModel::setEffort(int dof, double tau) {
   if (dof < 0 || dof >= static_cast<int>(dofs_.size())) throw UsageError("no such degree of freedom");
   if (!std::isfinite(tau)) throw UsageError("effort for '" + dofs_[dof].name + "' is not finite");
+  if (!dofs_[dof].actuated)
+    throw UsageError(source_ + ": dof '" + dofs_[dof].name + "' is passive (the file names its actuated joints): command an actuated one");
   const double limit = dofs_[dof].effort_limit;
   command_[dof] = limit > 0 ? std::max(-limit, std::min(limit, tau)) : tau;
 }
@@ -146,6 +148,8 @@ void MechanismModel::driveDof(int dof) {
   if (dof < 0 || dof >= static_cast<int>(dofs_.size())) throw UsageError("no such degree of freedom");
   Dof& d = dofs_[dof];
   if (d.drive >= 0) throw UsageError("dof '" + d.name + "' is driven already");
+  if (!d.actuated)
+    throw UsageError(source_ + ": dof '" + d.name + "' is passive (the file names its actuated joints): drive an actuated one");
   try {
     d.drive = mechanism_->addDrive(d.joint_index, d.k, DriveProfile::velocity(0.0));
   } catch (const ModelError& e) {

@@ -51,6 +51,9 @@ struct Dof {
   int k = 0;              // coordinate of that joint
   double effort_limit = 0.0, velocity_limit = 0.0;  // 0: none
   int drive = -1;         // Mechanism drive index, or -1 (not driven)
+  // Takes an effort command or a drive. False for the passive dofs of a file that names its
+  // actuated joints (an Extended-URDF name_mot: doc/loop_dialects.md).
+  bool actuated = true;
 };
 
 struct Link {
@@ -108,8 +111,8 @@ class MechanismModel {
   const AssemblyReport& assembly() const { return assembly_; }
   const Eigen::Vector3d& gravity() const;
   // What loading changed or left out, one line each: "assembly moved ..." (dofs the
-  // assembly moved onto the loop closures, old -> new), actuated joints read but not
-  // simulated as actuated. Empty when the file ran as written.
+  // assembly moved onto the loop closures, old -> new), the actuated joints a file names.
+  // Empty when the file ran as written.
   const std::vector<std::string>& notes() const { return notes_; }
   void setGravity(const Eigen::Vector3d& g);  // overrides the file's <mechanism_sim:gravity>
 
