@@ -338,13 +338,24 @@ def _run_all(model, todo, values_of, settings, scheduler, workers, write, log, f
             cluster.close()
 
 
-def _probe(model):
-    """What a worker needs to run the sweep: the module, and the model file."""
-    import mechanism_sim
+# What a worker lacks to run the sweep: "" when it imports the module and reads the model.
+# Defined from source, outside any module, so that it travels to the worker by value: a
+# function of this module would need the very import it checks.
+_PROBE = """
+def probe(model):
+    import os
+    try:
+        import mechanism_sim
+    except Exception as e:
+        return type(e).__name__ + ": " + str(e)
+    return "" if os.access(model, os.R_OK) else "cannot read " + model
+"""
 
-    if not os.access(model, os.R_OK):
-        raise OSError(f"cannot read {model}")
-    return mechanism_sim.__file__
+
+def _probe():
+    scope = {"__name__": "__main__"}
+    exec(_PROBE, scope)
+    return scope["probe"]
 
 
 def _check_workers(client, model, timeout=60):
@@ -357,9 +368,11 @@ def _check_workers(client, model, timeout=60):
     bad = []
     for address in sorted(client.scheduler_info()["workers"]):
         try:
-            client.run(_probe, model, workers=[address])
+            lacks = client.run(_probe(), model, workers=[address]).get(address, "no answer")
         except Exception as e:
-            bad.append(f"{address}: {type(e).__name__}: {e}")
+            lacks = f"{type(e).__name__}: {e}"
+        if lacks:
+            bad.append(f"{address}: {lacks}")
     if bad:
         raise SweepError("workers that cannot run the sweep: " + "; ".join(bad) +
                          ". Start each worker from a sourced workspace (source .catkin_ws/devel/setup.bash, "

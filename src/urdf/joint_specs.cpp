@@ -69,7 +69,23 @@ JointSpec treeJoint(const urdf::Joint& j, const tinyxml2::XMLElement* element, c
     case urdf::Joint::FLOATING: s.type = "floating"; break;
     default: s.type = "fixed";
   }
-  if (j.limits && j.type != urdf::Joint::CONTINUOUS) s.lower = j.limits->lower, s.upper = j.limits->upper;
+  if (j.limits && (j.type == urdf::Joint::REVOLUTE || j.type == urdf::Joint::PRISMATIC))
+    s.lower = j.limits->lower, s.upper = j.limits->upper;
+  // SDF writes "no limit" as its default bounds, -1e16 and 1e16, and files converted from
+  // SDF keep them: such a joint has no limit. A single such bound would be a one-sided limit,
+  // which the core does not have.
+  constexpr double kNoLimit = 1e16;
+  if (s.lower <= -kNoLimit && s.upper >= kNoLimit) {
+    s.lower = s.upper = 0.0;
+    s.sdf_no_limit = true;
+  } else if (s.lower <= -kNoLimit || s.upper >= kNoLimit) {
+    reader.fail(element && element->FirstChildElement("limit") ? element->FirstChildElement("limit") : element,
+                "a one-sided limit (one bound at SDF's 'no limit', 1e16) is not supported: give both bounds, or "
+                "+-1e16 for none");
+  } else if (std::fabs(s.lower) > 1e6 || std::fabs(s.upper) > 1e6) {
+    reader.fail(element && element->FirstChildElement("limit") ? element->FirstChildElement("limit") : element,
+                "limits beyond 1e6 are absurdly large (+-1e16 means no limit)");
+  }
   if (j.limits) s.effort = j.limits->effort, s.velocity = j.limits->velocity;
   if (j.dynamics) s.damping = j.dynamics->damping, s.friction = j.dynamics->friction;
   if (j.mimic) s.mimic = j.mimic->joint_name, s.mimic_multiplier = j.mimic->multiplier, s.mimic_offset = j.mimic->offset;

@@ -30,6 +30,7 @@ struct JointSpec {
   JointParams params;                             // the screw's alpha
   double damping = 0.0, friction = 0.0;
   double lower = 0.0, upper = 0.0;    // position limits of a revolute or prismatic joint (none unless lower < upper)
+  bool sdf_no_limit = false;          // the file wrote SDF's "no limit", [-1e16, 1e16]: none
   double effort = 0.0, velocity = 0.0;  // effort and velocity limits (0: none)
   std::string mimic;                    // the joint this one mimics, if any
   double mimic_multiplier = 1.0, mimic_offset = 0.0;

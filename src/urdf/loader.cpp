@@ -151,7 +151,7 @@ class ModelBuilder {
     for (const JointSpec& s : specs.tree) addJoint(s, bodies, true);
     for (const JointSpec& s : specs.loops) addJoint(s, bodies, false);
     markPassive(ext);
-    for (const JointSpec& s : specs.tree) addMimic(s);
+    for (const JointSpec& s : specs.tree) addMimic(s, specs);
     for (const Coupling& c : resolveCouplings(ext, specs, reader_)) addCoupling(c);
     model_->notes_ = ext.notes;
     model_->notes_.insert(model_->notes_.end(), root_notes_.begin(), root_notes_.end());
@@ -460,6 +460,7 @@ class ModelBuilder {
       if (s.friction > 0) mech().setJointFriction(index, k, s.friction);
     }
     if (dofs == 1 && s.upper > s.lower) mech().setJointLimits(index, 0, s.lower, s.upper);
+    if (s.sdf_no_limit) limit_notes_.push_back("joint '" + s.name + "': limits [-1e16, 1e16] (SDF's 'no limit') read as none");
   }
 
   // A file that names its actuated joints (Extended-URDF name_mot) makes every other dof
@@ -471,9 +472,17 @@ class ModelBuilder {
   }
 
   // URDF <mimic>: an exact coupling of two one-dof joints.
-  void addMimic(const JointSpec& s) {
+  void addMimic(const JointSpec& s, const JointSpecs& specs) {
     if (s.mimic.empty()) return;
+    if (s.type == "fixed") {  // no coordinate to couple; joint_state_publisher ignores it too
+      limit_notes_.push_back("joint '" + s.name + "' is fixed: its <mimic> of '" + s.mimic + "' is ignored");
+      return;
+    }
     const auto a = joint_index_.find(s.name), b = joint_index_.find(s.mimic);
+    for (const JointSpec& leader : specs.tree)
+      if (leader.name == s.mimic && leader.type == "fixed")
+        fail(s.element, "mimics '" + s.mimic + "', a fixed joint, which has no coordinate to follow: make '" +
+                            s.name + "' fixed too (turned by its offset), or '" + s.mimic + "' movable");
     if (a == joint_index_.end() || b == joint_index_.end() || mech().joint(a->second).dof() != 1 ||
         mech().joint(b->second).dof() != 1)
       fail(s.element, "mimic needs two one-dof joints ('" + s.name + "', '" + s.mimic + "')");

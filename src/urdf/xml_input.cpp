@@ -1,6 +1,7 @@
 #include "xml_input.h"
 
 #include <cmath>
+#include <limits>
 #include <cstdio>
 #include <cstring>
 #include <map>
@@ -211,7 +212,9 @@ std::vector<std::string> validateStandard(const XMLElement* robot, const XmlRead
     const std::string t = type;
     if (t == "revolute" || t == "continuous" || t == "prismatic" || t == "planar") r.direction(e, "axis", Vector3d::UnitX());
     if (const XMLElement* lim = e->FirstChildElement("limit")) {
-      const double lo = r.number(lim, "lower", 0.0), hi = r.number(lim, "upper", 0.0);
+      // any finite value: SDF's "no limit", +-1e16, is read by the loader (kNoLimit)
+      const double big = std::numeric_limits<double>::max();
+      const double lo = r.number(lim, "lower", 0.0, big), hi = r.number(lim, "upper", 0.0, big);
       if (lo > hi) r.fail(lim, "lower limit exceeds upper limit");
       // URDF requires both (urdfdom refuses the file without them, naming no joint)
       if (t == "revolute" || t == "prismatic")

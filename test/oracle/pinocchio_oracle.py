@@ -204,7 +204,9 @@ class Tree:
 
     def limits(self, n):
         kind, lo, hi, _ = self.urdf[n]
-        return (-math.pi, math.pi) if kind == "continuous" or not lo < hi else (lo, hi)
+        # SDF's "no limit", [-1e16, 1e16], is none (as mechanism_sim reads it)
+        unlimited = kind == "continuous" or not lo < hi or (lo <= -1e16 and hi >= 1e16)
+        return (-math.pi, math.pi) if unlimited else (lo, hi)
 
     def draw_state(self, rng):
         """Leaders' positions in the middle 80 % of the range that keeps them and their

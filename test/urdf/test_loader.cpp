@@ -1,4 +1,4 @@
-// The URDF loader: every example runs; known answers through URDF; 42 invalid models,
+// The URDF loader: every example runs; known answers through URDF; invalid models,
 // each with its exact error.
 #include <gtest/gtest.h>
 
@@ -206,6 +206,23 @@ TEST(Urdf, PositionLimitStopsTheGripperSlider) {
   EXPECT_NEAR(m->position(m->dofIndex("slider_joint")), -0.05, 1e-9);  // <limit lower="-0.05">
   EXPECT_NEAR(m->velocity(m->dofIndex("slider_joint")), 0.0, 1e-9);
   EXPECT_NEAR(m->position(m->dofIndex("jaw_left_joint")), m->position(m->dofIndex("jaw_right_joint")), 1e-9);
+}
+
+// SDF's "no limit", [-1e16, 1e16], as files converted from SDF keep it: no limit, one note.
+// A rotor started at 20 rad/s spins on past any angle a limit could hold.
+TEST(Urdf, SdfNoLimitBoundsAreNoLimit) {
+  const std::string rotor =
+      "<robot name='r'><link name='base'/><link name='rotor'><inertial><mass value='1'/>"
+      "<inertia ixx='0.01' iyy='0.01' izz='0.02' ixy='0' ixz='0' iyz='0'/></inertial></link>"
+      "<joint name='spin' type='revolute'><parent link='base'/><child link='rotor'/><axis xyz='0 0 1'/>"
+      "<limit lower='-1e16' upper='1e16' effort='1' velocity='100'/></joint></robot>";
+  LoadOptions o;
+  o.velocities = {{"spin", 20.0}};
+  auto m = loadModelString(rotor, "rotor.urdf", o);
+  ASSERT_EQ(m->notes().size(), 1u);
+  EXPECT_EQ(m->notes()[0], "joint 'spin': limits [-1e16, 1e16] (SDF's 'no limit') read as none");
+  run(*m, 1.0);
+  EXPECT_NEAR(m->position(m->dofIndex("spin")), 20.0, 1e-9);  // no gravity about z: 20 rad/s for 1 s
 }
 
 TEST(Urdf, TheReadmeExtensionExampleRuns) {

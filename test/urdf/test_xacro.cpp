@@ -317,7 +317,7 @@ TEST_F(Xacro, ScriptCopiesPlainUrdfAndExpandsXacro) {
   EXPECT_EQ(runCommand(kSource + "/scripts/xacro " + plain).out, file.str());
   const auto r = runCommand(kSource + "/scripts/xacro " + kRobot + " length:=0.5");
   ASSERT_EQ(r.code, 0);
-  EXPECT_NE(r.out.find("<origin xyz=\"0 0 -0.5\" rpy=\"0 0 0\"/>"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("<origin rpy=\"0 0 0\" xyz=\"0 0 -0.5\"/>"), std::string::npos) << r.out;
   EXPECT_EQ(r.out.find("xacro:"), std::string::npos) << r.out;
   const auto bad = runCommand(kSource + "/scripts/xacro " + kSource + "/test/xacro/broken/unknown_macro.urdf.xacro 2>&1");
   EXPECT_EQ(bad.code, 1);
