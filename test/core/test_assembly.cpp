@@ -6,7 +6,8 @@
 // axes start 1.44 rad apart closes, and one whose axes start nearly opposed (which closed
 // mirrored) closes unmirrored; a four-bar whose links cannot reach across its ground is
 // refused naming the joint that closes the loop, with its gap as the least-squares
-// minimum gives it (the links stretched in a line).
+// minimum gives it (the links stretched in a line); parallelograms taken past their flat
+// pose by a target stay parallelograms.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -17,6 +18,7 @@
 #include "bodies.h"
 #include "mechanism_sim/core/errors.h"
 #include "mechanism_sim/core/mechanism.h"
+#include "mechanism_sim/core/models.h"
 
 namespace mechanism_sim {
 namespace {
@@ -267,6 +269,22 @@ TEST(Assembly, AHingeWhoseFramesStart170DegreesApartClosesUnmirrored) {
   EXPECT_GT(m.rotation(id).col(2).dot(Vector3d::UnitZ()), 1 - 1e-14);  // the axes aligned
   EXPECT_LT((m.position(id) - Vector3d(0.5, 0, 0)).norm(), 1e-14);
   EXPECT_LT((m.rotation(id) - Matrix3d::Identity()).norm(), 1e-14);
+}
+
+// Parallelograms in series driven from 0 to the crank at pi/2 and pi by a target: the path
+// passes flat, where every loop's anti-parallelogram branch crosses its own; the predictor
+// keeps the parallelograms (every crank turned as the first).
+TEST(Assembly, ParallelogramsTakenAcrossTheirFlatPoseStayParallelograms) {
+  for (double q : {kPi / 2, kPi, -2.0}) {
+    Mechanism m;
+    models::fourBarChain(m, 4, 0.4, 1.0, 0.3);
+    m.assemble({CoordinateTarget{0, 0, q}});
+    EXPECT_LT(m.positionViolation(), 1e-12) << q;
+    for (int k = 1; k <= 4; ++k) {  // joints 0..4: the cranks' pivots
+      const double d = std::remainder(m.jointPosition(k, 0) - q, 2 * kPi);
+      EXPECT_NEAR(d, 0.0, 1e-10) << "crank " << k << " at q " << q;
+    }
+  }
 }
 
 TEST(Assembly, AClosedPoseIsLeftAsItIs) {
