@@ -393,7 +393,13 @@ AssemblyReport assemble(const System& sys, State& s, Stepper& st,
     }
     if (model) {
       for (int j : model->cut_joints) cut[sys.joint_constraint[j]] = 1;
+      const std::vector<Tracked> tracked_start = s.tracked;
       TreeAssembly(sys, s, st, positions, *model).run();
+      // The angles of the pose reached taken nearest the start's (a turn the path wound up
+      // is no motion, and would count against a joint's limits).
+      s.tracked = tracked_start;
+      st.load(sys, s.x.data(), s.u.data());
+      st.trackAngles(sys, s);
       on_tree = s;
       tree_ran = true;
       worst = residual(&cost);
