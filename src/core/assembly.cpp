@@ -83,9 +83,10 @@ double rateScale(const System& sys, const CoordinateTarget& t, const Row& row, d
 // joint that holds axes parallel (or locks the twist), bz_j - bz_i (bx_j - bx_i): zero
 // only at the pose the joint defines, where the dot-product equations also hold at the
 // mirror pose. The gap closes by homotopy, R(q) = (1 - s) R(q0) with s from 0 to 1 in
-// steps that halve when Levenberg-Marquardt (Marquardt's scaling, steps capped at half a
-// radian or half a length) does not follow, so the pose moves continuously from the
-// file's onto the nearest branch; then the least-squares minimum at s = 1.
+// steps that double while the path is followed and halve when it is not: an Euler
+// predictor along the path's tangent, then Levenberg-Marquardt (Marquardt's scaling, steps
+// capped at half a radian or half a length) as corrector; so the pose moves continuously
+// from the file's onto the nearest branch. Then the least-squares minimum at s = 1.
 constexpr int kCorrectorIterations = 12;   // Levenberg-Marquardt iterations per continuation step
 constexpr int kFinalIterations = 200;      // at s = 1
 constexpr double kMinContinuationStep = 1.0 / 1024;
