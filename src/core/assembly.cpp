@@ -73,6 +73,15 @@ double rateScale(const System& sys, const CoordinateTarget& t, const Row& row, d
   return scale;
 }
 
+// Whether a joint's dot-product equations hold it at the mirror pose: axes held parallel
+// opposed (bz_i . bz_j < 0, in cz), or a twist lock turned by pi (bx_i . bx_j < 0, in cx).
+bool mirrored(const Evaluation& ev, const Joint& jt, double* cz, double* cx) {
+  const JointGeometry g = jt.geometry(ev.kin[jt.bodyI()], ev.kin[jt.bodyJ()], kBxI | kBzI | kBxJ | kBzJ);
+  const bool parallel = jt.holdsAxesParallel(), twist = parallel && jt.locksTwist();
+  *cz = g.bz_i.a.dot(g.bz_j.a), *cx = g.bx_i.a.dot(g.bx_j.a);
+  return (parallel && *cz < 0) || (twist && *cx < 0);
+}
+
 // ---- Assembly on the spanning tree (Simbody's Assembler, Chrono's assembly analysis:
 // damped least squares with continuation). The unknowns are the tree's joint coordinates
 // q, so the tree's joints hold exactly at every iterate (the bodies stay jointed and only
@@ -92,6 +101,8 @@ constexpr int kFinalIterations = 200;      // at s = 1
 constexpr double kMinContinuationStep = 1.0 / 1024;
 constexpr double kMaxStep = 0.5;           // radians, or length scales, per coordinate per iteration
 constexpr double kFollowTolerance = 1e-6;  // |R(q) - (1 - s) R(q0)| that counts as on the path
+constexpr double kOpposed = 1e-6;          // 2 - |bz_j - bz_i| below which axes count as opposed
+constexpr double kNudge = 0.1;             // radians (length scales) the start is moved from there
 
 class TreeAssembly {
  public:
@@ -124,6 +135,10 @@ class TreeAssembly {
           if (Jb.row(e).template head<3>().cwiseAbs().maxCoeff() > 0) runit_[Ly.row + e] = L;
       });
     }
+    // The axes' difference weighs twice: with the dot-product equations' sin^2 of the angle
+    // between the axes beside it, 4 |bz_j - bz_i|^2 still falls all the way from pi to 0
+    // (at equal weights the sum is flat to fourth order at pi, the mirror pose).
+    runit_.tail(nr_ - sys.m - static_cast<int>(targets.size())).setConstant(0.5);
     for (size_t k = 0; k < targets.size(); ++k) {
       const Row row = coordinateRow(sys, s, ev, targets[k]);
       if (row.J.segment<3>(0).cwiseAbs().maxCoeff() > 0 || row.J.segment<3>(6).cwiseAbs().maxCoeff() > 0)
@@ -135,6 +150,23 @@ class TreeAssembly {
   // joints exact). Returns max |R| there.
   double run() {
     Eigen::VectorXd R0 = residual(q_);
+    // A cut joint's axes exactly opposed: |bz_j - bz_i| is at its largest, where it has no
+    // slope to descend (nor has the mirror pose its equations hold at). The coordinates that
+    // turn them are moved a tenth of a radian first.
+    const int r_mirror = sys_.m + static_cast<int>(targets_.size());
+    Eigen::VectorXd nudge = Eigen::VectorXd::Zero(model_.nv);
+    Eigen::MatrixXd G;
+    for (size_t k = 0; k < mirror_.size(); ++k) {
+      const int r = r_mirror + 3 * static_cast<int>(k);
+      if (R0.segment<3>(r).norm() * runit_[r] < 2 - kOpposed) continue;  // (|bz_j - bz_i|)
+      if (G.size() == 0) jacobian(G);
+      for (int c = 0; c < model_.nv; ++c)
+        if (G.block(r, c, 3, 1).cwiseAbs().maxCoeff() > 0) nudge[c] = kNudge * vunit_[c];
+    }
+    if (!nudge.isZero()) {
+      q_ = moved(q_, nudge);
+      R0 = residual(q_);
+    }
     double reached = 0, step = 0.25;
     while (reached < 1 && step >= kMinContinuationStep) {
       const double s_try = std::min(1.0, reached + step);
@@ -386,7 +418,12 @@ AssemblyReport assemble(const System& sys, State& s, Stepper& st,
   State on_tree;
   bool tree_ran = false;
   std::vector<char> cut(sys.numConstraints(), 0);  // the constraints of joints that close loops
-  if (worst > tol) {
+  bool any_mirrored = false;  // (a mirror pose meets the equations: worst can be 0 there)
+  for (int j = 0; j < sys.numJoints() && !any_mirrored; ++j) {
+    double cz, cx;
+    any_mirrored = mirrored(ev, *sys.joints[j], &cz, &cx);
+  }
+  if (worst > tol || any_mirrored) {
     std::unique_ptr<TreeModel> model;
     try {
       model = std::make_unique<TreeModel>(sys);
@@ -486,11 +523,9 @@ AssemblyReport assemble(const System& sys, State& s, Stepper& st,
   // defined in is accepted.
   for (int j = 0; j < sys.numJoints(); ++j) {
     const Joint& jt = *sys.joints[j];
-    const JointGeometry g = jt.geometry(ev.kin[jt.bodyI()], ev.kin[jt.bodyJ()], kBxI | kBzI | kBxJ | kBzJ);
+    double cz = 0, cx = 0;
     const bool parallel = jt.holdsAxesParallel();
-    const bool twist = parallel && jt.locksTwist();
-    const double cz = g.bz_i.a.dot(g.bz_j.a), cx = g.bx_i.a.dot(g.bx_j.a);
-    if ((parallel && cz < 0) || (twist && cx < 0)) {
+    if (mirrored(ev, jt, &cz, &cx)) {
       std::ostringstream os;
       os << "joint '" << jt.name() << "': assembly closed it mirrored (" << (parallel && cz < 0 ? "axes opposed, bz_i . bz_j = " + fmt(cz) : "turned by pi, bx_i . bx_j = " + fmt(cx))
          << "); start its bodies nearer the pose the joint defines";

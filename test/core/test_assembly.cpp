@@ -4,7 +4,7 @@
 // other branch when targets name it; a spatial RSSR loop closes from 1 m apart (the
 // crank's and the rocker's ends the coupler's length apart); a spherical four-bar whose cut
 // axes start 1.44 rad apart closes, and one whose axes start nearly opposed (which closed
-// mirrored) closes unmirrored; a four-bar whose links cannot reach across its ground is
+// mirrored) closes unmirrored, as does one whose axes start exactly opposed; a four-bar whose links cannot reach across its ground is
 // refused naming the joint that closes the loop, with its gap as the least-squares
 // minimum gives it (the links stretched in a line); parallelograms taken past their flat
 // pose by a target stay parallelograms.
@@ -288,6 +288,24 @@ TEST(Assembly, CutAxesStartingNearlyOpposedCloseUnmirrored) {
 // A hinge whose frames start 170 degrees apart (about a line square to its axis): under its
 // dot-product equations alone it closed mirrored (axes opposed) and was refused; on the
 // tree its body is placed where the frames coincide, the axes aligned.
+// Exactly opposed at the start (a3 square to a4, the rocker turned by pi): the axes'
+// difference is at its largest there, where it has no slope to descend.
+TEST(Assembly, CutAxesStartingExactlyOpposedCloseUnmirrored) {
+  for (double open : {kPi, -kPi}) {
+    Mechanism m;
+    Parts p{m};
+    SphericalFourBar sb;
+    sb.a3 = Vector3d(0.8, 0.36, 0.6);  // a3 . a4 = 0
+    sb.build(p, open);
+    ASSERT_LT(sb.a3.dot(sb.a3_rocker), -1 + 1e-15) << open;
+    m.assemble();
+    EXPECT_LT(m.positionViolation(), 1e-12) << open;
+    Vector3d c, r;
+    sb.axes(m, c, r);
+    EXPECT_GT(c.dot(r), 1 - 1e-12) << open;
+  }
+}
+
 TEST(Assembly, AHingeWhoseFramesStart170DegreesApartClosesUnmirrored) {
   Mechanism m;
   Body b = body("arm", 1.0, 0.01 * Matrix3d::Identity(), Vector3d(0.5, 0, 0));
