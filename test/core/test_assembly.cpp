@@ -1,13 +1,14 @@
 // Assembly from any pose (assembly.cpp): loops whose two cut frames start far apart, as
 // files from the wild have them. A planar four-bar 0.6 m and 3 rad apart closes on the
 // branch nearest its start, against the closed-form positions of both branches, and on the
-// other branch when targets name it; a spatial RSSR loop closes from 1 m apart (the
-// crank's and the rocker's ends the coupler's length apart); a spherical four-bar whose cut
-// axes start 1.44 rad apart closes, and one whose axes start nearly opposed (which closed
-// mirrored) closes unmirrored, as does one whose axes start exactly opposed; a four-bar whose links cannot reach across its ground is
-// refused naming the joint that closes the loop, with its gap as the least-squares
-// minimum gives it (the links stretched in a line); parallelograms taken past their flat
-// pose by a target stay parallelograms.
+// other branch when targets name it; four-bars from 107 starts half a metre apart all
+// close; a spatial RSSR loop closes from 1.4 m apart (the crank's and the rocker's ends the
+// coupler's length apart); a spherical four-bar whose cut axes start 1.44 rad apart closes,
+// and ones whose axes start nearly or exactly opposed (which closed mirrored) close
+// unmirrored, as does a hinge whose frames start 170 degrees apart; a four-bar whose links
+// cannot reach across its ground is refused naming the joint that closes the loop, with
+// its gap as the least-squares minimum gives it (the links stretched in a line);
+// parallelograms taken past their flat pose by a target stay parallelograms.
 #include <gtest/gtest.h>
 
 #include <cmath>
