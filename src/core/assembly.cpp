@@ -4,8 +4,12 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <memory>
 #include <sstream>
 
+#include <Eigen/Cholesky>
+
+#include "mechanism_sim/core/joint_space.h"
 #include "mechanism_sim/core/mechanism.h"
 #include "mechanism_sim/core/sparse_ldlt.h"
 
@@ -69,6 +73,291 @@ double rateScale(const System& sys, const CoordinateTarget& t, const Row& row, d
   return scale;
 }
 
+// Whether a joint's dot-product equations hold it at the mirror pose: axes held parallel
+// opposed (bz_i . bz_j < 0, in cz), or a twist lock turned by pi (bx_i . bx_j < 0, in cx).
+bool mirrored(const Evaluation& ev, const Joint& jt, double* cz, double* cx) {
+  const JointGeometry g = jt.geometry(ev.kin[jt.bodyI()], ev.kin[jt.bodyJ()], kBxI | kBzI | kBxJ | kBzJ);
+  const bool parallel = jt.holdsAxesParallel(), twist = parallel && jt.locksTwist();
+  *cz = g.bz_i.a.dot(g.bz_j.a), *cx = g.bx_i.a.dot(g.bx_j.a);
+  return (parallel && *cz < 0) || (twist && *cx < 0);
+}
+
+// ---- Assembly on the spanning tree (Simbody's Assembler, Chrono's assembly analysis:
+// damped least squares with continuation). The unknowns are the tree's joint coordinates
+// q, so the tree's joints hold exactly at every iterate (the bodies stay jointed and only
+// the loops' cut joints, couplers, drives and the targets have residuals); the pose is
+// written back to the absolute state through the forward kinematics. The residual R(q) is
+// each equation over its unit (metres over the length scale for a row with translational
+// terms, radians otherwise: scale-free), each target q_k - value likewise, and, per cut
+// joint that holds axes parallel (or locks the twist), bz_j - bz_i (bx_j - bx_i): zero
+// only at the pose the joint defines, where the dot-product equations also hold at the
+// mirror pose. The gap closes by homotopy, R(q) = (1 - s) R(q0) with s from 0 to 1 in
+// steps that double while the path is followed and halve when it is not: an Euler
+// predictor along the path's tangent, then Levenberg-Marquardt (Marquardt's scaling, steps
+// capped at half a radian or half a length) as corrector; so the pose moves continuously
+// from the file's onto the nearest branch. Then the least-squares minimum at s = 1.
+constexpr int kCorrectorIterations = 12;   // Levenberg-Marquardt iterations per continuation step
+constexpr int kFinalIterations = 200;      // at s = 1
+constexpr double kMinContinuationStep = 1.0 / 1024;
+constexpr double kMaxStep = 0.5;           // radians, or length scales, per coordinate per iteration
+constexpr double kFollowTolerance = 1e-6;  // |R(q) - (1 - s) R(q0)| that counts as on the path
+constexpr double kOpposed = 1e-6;          // 2 - |bz_j - bz_i| below which axes count as opposed
+constexpr double kNudge = 0.1;             // radians (length scales) the start is moved from there
+
+class TreeAssembly {
+ public:
+  TreeAssembly(const System& sys, State& s, Stepper& st, const std::vector<CoordinateTarget>& targets,
+               const TreeModel& model)
+      : sys_(sys), s_(s), st_(st), targets_(targets), model_(model), ws_(model) {
+    for (int j : model.cut_joints) {
+      const Joint& jt = *sys.joints[j];
+      if (jt.holdsAxesParallel()) mirror_.push_back({j, false});
+      if (jt.holdsAxesParallel() && jt.locksTwist()) mirror_.push_back({j, true});
+    }
+    nr_ = sys.m + static_cast<int>(targets.size()) + 3 * static_cast<int>(mirror_.size());
+    const double L = sys.length_scale;
+    vunit_.setOnes(model.nv);
+    for (const TreeLink& Lk : model.links) {
+      if (Lk.kind == TreeJointKind::kPrismatic) vunit_[Lk.iv] = L;
+      if (Lk.kind == TreeJointKind::kCylindrical) vunit_[Lk.iv + 1] = L;
+      if (Lk.kind == TreeJointKind::kPlanar) vunit_[Lk.iv] = vunit_[Lk.iv + 1] = L;
+      if (Lk.kind == TreeJointKind::kFree) vunit_.segment<3>(Lk.iv).setConstant(L);
+    }
+    q_ = jointState();
+    place(q_);
+    // The rows' units at the start: L for a row with translational terms, else 1.
+    const Evaluation& ev = st.evaluation();
+    runit_.setOnes(nr_);
+    for (int ci = 0; ci < sys.numConstraints(); ++ci) {
+      const ConstraintLayout& Ly = sys.layout[ci];
+      forEachBlock(sys, ev, ci, [&](int, int, const auto& Jb) {
+        for (int e = 0; e < Ly.size; ++e)
+          if (Jb.row(e).template head<3>().cwiseAbs().maxCoeff() > 0) runit_[Ly.row + e] = L;
+      });
+    }
+    // The axes' difference weighs twice: with the dot-product equations' sin^2 of the angle
+    // between the axes beside it, 4 |bz_j - bz_i|^2 still falls all the way from pi to 0
+    // (at equal weights the sum is flat to fourth order at pi, the mirror pose).
+    runit_.tail(nr_ - sys.m - static_cast<int>(targets.size())).setConstant(0.5);
+    for (size_t k = 0; k < targets.size(); ++k) {
+      const Row row = coordinateRow(sys, s, ev, targets[k]);
+      if (row.J.segment<3>(0).cwiseAbs().maxCoeff() > 0 || row.J.segment<3>(6).cwiseAbs().maxCoeff() > 0)
+        runit_[sys.m + k] = L;
+    }
+  }
+
+  // Closes the loops from the current pose; s is left at the last pose reached (the tree's
+  // joints exact). Returns max |R| there.
+  double run() {
+    Eigen::VectorXd R0 = residual(q_);
+    // A cut joint's axes exactly opposed: |bz_j - bz_i| is at its largest, where it has no
+    // slope to descend (nor has the mirror pose its equations hold at). The coordinates that
+    // turn them are moved a tenth of a radian first.
+    const int r_mirror = sys_.m + static_cast<int>(targets_.size());
+    Eigen::VectorXd nudge = Eigen::VectorXd::Zero(model_.nv);
+    Eigen::MatrixXd G;
+    for (size_t k = 0; k < mirror_.size(); ++k) {
+      const int r = r_mirror + 3 * static_cast<int>(k);
+      if (R0.segment<3>(r).norm() * runit_[r] < 2 - kOpposed) continue;  // (|bz_j - bz_i|)
+      if (G.size() == 0) jacobian(G);
+      for (int c = 0; c < model_.nv; ++c)
+        if (G.block(r, c, 3, 1).cwiseAbs().maxCoeff() > 0) nudge[c] = kNudge * vunit_[c];
+    }
+    if (!nudge.isZero()) {
+      q_ = moved(q_, nudge);
+      R0 = residual(q_);
+    }
+    double reached = 0, step = 0.25;
+    while (reached < 1 && step >= kMinContinuationStep) {
+      const double s_try = std::min(1.0, reached + step);
+      const Eigen::VectorXd target = (1 - s_try) * R0;
+      const Eigen::VectorXd q_saved = q_;
+      const std::vector<Tracked> tracked_saved = s_.tracked;
+      q_ = moved(q_saved, (s_try - reached) * tangent(R0));  // (the predictor)
+      if (correct(target, kCorrectorIterations, kFollowTolerance)) {
+        reached = s_try;
+        step = std::min(1.0, 2 * step);
+      } else {
+        q_ = q_saved;
+        s_.tracked = tracked_saved;
+        step /= 2;
+      }
+    }
+    correct(Eigen::VectorXd::Zero(nr_), kFinalIterations, 0.0);  // (to round-off: until no step lowers |R|)
+    place(q_);
+    return residual(q_).cwiseAbs().maxCoeff();
+  }
+
+ private:
+  // The joint coordinates of the absolute state (as JointStepper::settle reads them).
+  Eigen::VectorXd jointState() {
+    st_.load(sys_, s_.x.data(), s_.u.data());
+    const Evaluation& ev = st_.evaluation();
+    Eigen::VectorXd q = model_.neutralPositions(sys_);
+    Row rows[kMaxJointDofs];
+    for (const TreeLink& L : model_.links) {
+      if (L.joint < 0) {
+        q.segment<7>(L.iq) = s_.x.segment<7>(BodyCoordinates::x(L.body - 1));
+        continue;
+      }
+      const Joint& J = *L.ptr;
+      if (L.kind == TreeJointKind::kSpherical) {
+        const Matrix3d Ri = ev.kin[J.bodyI()].A_Oi * J.frameI().Rp, Rj = ev.kin[J.bodyJ()].A_Oi * J.frameJ().Rp;
+        const Quaterniond p(Ri.transpose() * Rj);
+        q.segment<4>(L.iq) << p.w(), p.x(), p.y(), p.z();
+      } else {
+        J.coordinates(ev.kin[J.bodyI()], ev.kin[J.bodyJ()], s_.tracked[J.id()], rows);
+        for (int k = 0; k < J.dof(); ++k) q[L.iq + k] = rows[k].Phi;
+      }
+    }
+    normalizeQuaternions(model_, q);
+    return q;
+  }
+
+  // The absolute state of q (velocities kept), loaded and evaluated, the angles tracked.
+  void place(const Eigen::VectorXd& q) {
+    forwardKinematics(model_, q, Eigen::VectorXd::Zero(model_.nv), ws_);
+    absoluteState(model_, ws_, x_, u_);
+    s_.x = x_;
+    st_.load(sys_, s_.x.data(), s_.u.data());
+    st_.trackAngles(sys_, s_);
+    st_.evaluate(sys_, s_);
+  }
+
+  Eigen::VectorXd residual(const Eigen::VectorXd& q) {
+    place(q);
+    const Evaluation& ev = st_.evaluation();
+    Eigen::VectorXd R(nr_);
+    R.head(sys_.m) = ev.Phi;
+    for (size_t k = 0; k < targets_.size(); ++k)
+      R[sys_.m + k] = coordinateRow(sys_, s_, ev, targets_[k]).Phi - targets_[k].value;
+    int r = sys_.m + static_cast<int>(targets_.size());
+    for (const auto& mr : mirror_) {
+      const JointGeometry g = axes(mr.joint);
+      R.segment<3>(r) = mr.twist ? Vector3d(g.bx_j.a - g.bx_i.a) : Vector3d(g.bz_j.a - g.bz_i.a);
+      r += 3;
+    }
+    return R.cwiseQuotient(runit_);
+  }
+
+  JointGeometry axes(int j) const {
+    const Joint& jt = *sys_.joints[j];
+    const Evaluation& ev = st_.evaluation();
+    return jt.geometry(ev.kin[jt.bodyI()], ev.kin[jt.bodyJ()], kBxI | kBzI | kBxJ | kBzJ);
+  }
+
+  // dR/dq at the placed pose (columns per q_dot coordinate): the bodies' velocities for
+  // each unit joint rate through the equations' Jacobian.
+  void jacobian(Eigen::MatrixXd& G) {
+    const Evaluation& ev = st_.evaluation();
+    G.setZero(nr_, model_.nv);
+    std::vector<Row> trows;
+    for (const auto& t : targets_) trows.push_back(coordinateRow(sys_, s_, ev, t));
+    std::vector<JointGeometry> geo;
+    for (const auto& mr : mirror_) geo.push_back(axes(mr.joint));
+    Eigen::VectorXd e = Eigen::VectorXd::Zero(model_.nv), out(sys_.m);
+    for (int c = 0; c < model_.nv; ++c) {
+      e.setZero();
+      e[c] = 1;
+      forwardKinematics(model_, q_, e, ws_);
+      absoluteState(model_, ws_, x_, u_);
+      mulJ(sys_, ev, sys_.all_constraints, u_.data(), out.data());
+      G.col(c).head(sys_.m) = out;
+      for (size_t k = 0; k < targets_.size(); ++k) G(sys_.m + k, c) = rowDot(sys_, targets_[k].joint, trows[k], u_.data());
+      int r = sys_.m + static_cast<int>(targets_.size());
+      for (size_t k = 0; k < mirror_.size(); ++k, r += 3) {
+        const Joint& jt = *sys_.joints[mirror_[k].joint];
+        const FixedVector& ai = mirror_[k].twist ? geo[k].bx_i : geo[k].bz_i;
+        const FixedVector& aj = mirror_[k].twist ? geo[k].bx_j : geo[k].bz_j;
+        Vector3d d = Vector3d::Zero();
+        if (jt.bodyJ() != System::kGround) d += aj.a_th * u_.segment<3>(BodyCoordinates::u(jt.bodyJ() - 1) + 3);
+        if (jt.bodyI() != System::kGround) d -= ai.a_th * u_.segment<3>(BodyCoordinates::u(jt.bodyI() - 1) + 3);
+        G.col(c).segment<3>(r) = d;
+      }
+    }
+    for (int r = 0; r < nr_; ++r) G.row(r) /= runit_[r];
+  }
+
+  // The path's tangent dq/ds at q_ (Euler predictor): G dq/ds = -R0, least squares. It
+  // carries the pose along its branch across a point where another branch crosses it (a
+  // parallelogram passing flat: the corrector alone could leave onto the other).
+  Eigen::VectorXd tangent(const Eigen::VectorXd& R0) {
+    place(q_);
+    Eigen::MatrixXd G;
+    jacobian(G);
+    Eigen::MatrixXd A = G.transpose() * G;
+    const double dmax = std::max(A.diagonal().maxCoeff(), 1e-300);
+    for (int c = 0; c < model_.nv; ++c) A(c, c) += 1e-12 * std::max(A(c, c), 1e-3 * dmax) + 1e-300;
+    Eigen::VectorXd t = A.ldlt().solve(-G.transpose() * R0);
+    if (!t.allFinite()) t.setZero();
+    return t;
+  }
+
+  // q moved by dv (a q_dot-sized displacement), quaternions renormalized.
+  Eigen::VectorXd moved(const Eigen::VectorXd& q, const Eigen::VectorXd& dv) const {
+    Eigen::VectorXd rate;
+    positionRates(model_, q, dv, rate);
+    Eigen::VectorXd out = q + rate;
+    normalizeQuaternions(model_, out);
+    return out;
+  }
+
+  // Levenberg-Marquardt on R(q) = target from q_; returns whether |R - target| <= tol was
+  // reached (q_ the best pose found either way; s_.tracked with it).
+  bool correct(const Eigen::VectorXd& target, int iterations, double tol) {
+    Eigen::VectorXd F = residual(q_) - target;
+    double cost = F.squaredNorm(), mu = 1e-3;
+    Eigen::MatrixXd G, A;
+    for (int it = 0; it < iterations; ++it) {
+      if (F.cwiseAbs().maxCoeff() <= tol) return true;
+      place(q_);
+      jacobian(G);
+      A.noalias() = G.transpose() * G;
+      const Eigen::VectorXd g = -G.transpose() * F;
+      const Eigen::VectorXd d = A.diagonal();
+      const double dmax = std::max(d.maxCoeff(), 1e-300);
+      const std::vector<Tracked> tracked = s_.tracked;
+      bool accepted = false;
+      for (int tries = 0; tries < 30 && !accepted; ++tries) {
+        Eigen::MatrixXd Am = A;
+        for (int c = 0; c < model_.nv; ++c) Am(c, c) += mu * std::max(d[c], 1e-12 * dmax) + 1e-300;
+        Eigen::VectorXd dv = Am.ldlt().solve(g);
+        const double big = dv.cwiseQuotient(vunit_).cwiseAbs().maxCoeff();
+        if (!(big < HUGE_VAL)) { mu *= 10; continue; }
+        if (big > kMaxStep) dv *= kMaxStep / big;
+        const Eigen::VectorXd q_try = moved(q_, dv);
+        const Eigen::VectorXd F_try = residual(q_try) - target;
+        const double c_try = F_try.squaredNorm();
+        if (c_try < cost) {
+          q_ = q_try, F = F_try, cost = c_try;
+          mu = std::max(mu / 3, 1e-12);
+          accepted = true;
+        } else {
+          s_.tracked = tracked;
+          mu *= 4;
+        }
+      }
+      if (!accepted) break;  // a minimum of |R - target|
+    }
+    place(q_);
+    return F.cwiseAbs().maxCoeff() <= tol;
+  }
+
+  struct MirrorRow {
+    int joint;
+    bool twist;
+  };
+  const System& sys_;
+  State& s_;
+  Stepper& st_;
+  const std::vector<CoordinateTarget>& targets_;
+  const TreeModel& model_;
+  TreeWorkspace ws_;
+  std::vector<MirrorRow> mirror_;
+  int nr_ = 0;
+  Eigen::VectorXd vunit_, runit_, q_, x_, u_;
+};
+
 }  // namespace
 
 AssemblyReport assemble(const System& sys, State& s, Stepper& st,
@@ -123,6 +412,37 @@ AssemblyReport assemble(const System& sys, State& s, Stepper& st,
   double cost = 0, mu = 1e-6;
   double worst = residual(&cost);
   const double tol = sys.options.position_tol;
+  // On the spanning tree first (TreeAssembly): the loops close from however far apart
+  // their cut frames start; the absolute iteration below then polishes. A System the tree
+  // has no model of is assembled by the absolute iteration alone.
+  State on_tree;
+  bool tree_ran = false;
+  std::vector<char> cut(sys.numConstraints(), 0);  // the constraints of joints that close loops
+  bool any_mirrored = false;  // (a mirror pose meets the equations: worst can be 0 there)
+  for (int j = 0; j < sys.numJoints() && !any_mirrored; ++j) {
+    double cz, cx;
+    any_mirrored = mirrored(ev, *sys.joints[j], &cz, &cx);
+  }
+  if (worst > tol || any_mirrored) {
+    std::unique_ptr<TreeModel> model;
+    try {
+      model = std::make_unique<TreeModel>(sys);
+    } catch (const Error&) {
+    }
+    if (model) {
+      for (int j : model->cut_joints) cut[sys.joint_constraint[j]] = 1;
+      const std::vector<Tracked> tracked_start = s.tracked;
+      TreeAssembly(sys, s, st, positions, *model).run();
+      // The angles of the pose reached taken nearest the start's (a turn the path wound up
+      // is no motion, and would count against a joint's limits).
+      s.tracked = tracked_start;
+      st.load(sys, s.x.data(), s.u.data());
+      st.trackAngles(sys, s);
+      on_tree = s;
+      tree_ran = true;
+      worst = residual(&cost);
+    }
+  }
   Eigen::VectorXd dq(sys.n), saved_x;
   std::vector<Tracked> saved_tracked;
   for (int it = 0; it < kMaxPositionIterations && worst > tol; ++it) {
@@ -170,12 +490,19 @@ AssemblyReport assemble(const System& sys, State& s, Stepper& st,
   }
   report.position_residual = worst;
   if (worst > std::max(tol, kAssemblyFailureResidual)) {
+    // (the tree's closest pose, its joints exact: the residual is the loops' own gap)
+    if (tree_ran) {
+      s = on_tree;
+      st.load(sys, s.x.data(), s.u.data());
+      st.evaluate(sys, s);
+    }
     std::ostringstream os;
     os << "the mechanism does not close (largest residual " << fmt(positionViolation(ev)) << "):";
     for (int ci = 0; ci < sys.numConstraints(); ++ci) {
       const ConstraintLayout& L = sys.layout[ci];
       const double r = L.size ? ev.Phi.segment(L.row, L.size).cwiseAbs().maxCoeff() : 0.0;
-      if (r > 1e-8 * sys.length_scale) os << " '" << sys.constraints[ci]->name() << "' (" << fmt(r) << ")";
+      if (r > 1e-8 * sys.length_scale)
+        os << (cut[ci] ? " the loop closed by '" : " '") << sys.constraints[ci]->name() << "' (" << fmt(r) << ")";
     }
     for (const DriveSpec& D : sys.drives) {
       const ConstraintLayout& L = sys.layout[D.constraint];
@@ -196,11 +523,9 @@ AssemblyReport assemble(const System& sys, State& s, Stepper& st,
   // defined in is accepted.
   for (int j = 0; j < sys.numJoints(); ++j) {
     const Joint& jt = *sys.joints[j];
-    const JointGeometry g = jt.geometry(ev.kin[jt.bodyI()], ev.kin[jt.bodyJ()], kBxI | kBzI | kBxJ | kBzJ);
+    double cz = 0, cx = 0;
     const bool parallel = jt.holdsAxesParallel();
-    const bool twist = parallel && jt.locksTwist();
-    const double cz = g.bz_i.a.dot(g.bz_j.a), cx = g.bx_i.a.dot(g.bx_j.a);
-    if ((parallel && cz < 0) || (twist && cx < 0)) {
+    if (mirrored(ev, jt, &cz, &cx)) {
       std::ostringstream os;
       os << "joint '" << jt.name() << "': assembly closed it mirrored (" << (parallel && cz < 0 ? "axes opposed, bz_i . bz_j = " + fmt(cz) : "turned by pi, bx_i . bx_j = " + fmt(cx))
          << "); start its bodies nearer the pose the joint defines";
