@@ -38,6 +38,7 @@ bool NodeParams::read(const ros::NodeHandle& pnh) {
   pnh.param<std::string>("integrator", load.integrator, "");
   pnh.param<std::string>("formulation", load.formulation, "");
   pnh.param<std::string>("closures_file", load.closures_file, "");  // doc/loop_dialects.md
+  pnh.param<bool>("strict_inertia", load.strict_inertia, false);     // doc/robots.md
   std::map<std::string, double> positions, velocities;
   pnh.getParam("initial_positions", positions);
   pnh.getParam("initial_velocities", velocities);

@@ -19,6 +19,7 @@
 
 #include "joint_specs.h"
 #include "loop_dialects.h"
+#include "mechanism_sim/core/inertia.h"
 #include "mechanism_sim/urdf/model.h"
 #include "rigid_bodies.h"
 #include "xacro.h"
@@ -284,8 +285,10 @@ class ModelBuilder {
   // Inertia is judged where it acts: on the rigid body that links joined by fixed joints
   // make. A link whose own inertia is not physical (a finger pad's six entries of 1e-10)
   // but merges into a body whose inertia is runs, with a note; a body whose merged inertia
-  // is not physical is refused at the <inertia> of the link at fault. Mass-0 links' inertia
-  // is dropped (RigidBodies), with a note.
+  // is not physical runs with the nearest physical one (nearestPhysicalInertia), with one
+  // note giving its principal moments before and after, or with strict_inertia is refused
+  // at the <inertia> of the link at fault. Mass-0 links' inertia is dropped (RigidBodies),
+  // with a note.
   void checkInertias(const tinyxml2::XMLElement* robot, const RigidBodies& bodies, const urdf::ModelInterface& urdf) {
     auto element = [&](const std::string& link) -> const tinyxml2::XMLElement* {
       for (auto* e = robot->FirstChildElement("link"); e; e = e->NextSiblingElement("link"))
@@ -306,13 +309,26 @@ class ModelBuilder {
       if (!fault.empty()) own_faults[g].push_back({l.name, fault});
     }
     const std::vector<RigidGroup>& groups = bodies.groups();
+    inertia_of_group_.resize(groups.size());
     for (size_t g = 1; g < groups.size(); ++g) {
+      inertia_of_group_[g] = groups[g].Jp;
       const std::string fault = inertiaFault(groups[g].Jp);
       const auto own = own_faults.find(static_cast<int>(g));
       if (!fault.empty()) {
         const std::string link = own != own_faults.end() ? own->second.front().first : groups[g].first_link;
-        fail(element(link), "the rigid body of link '" + groups[g].first_link + "' (with the links fixed to it): " +
-                                fault + "; fix the <inertia> of link '" + link + "'");
+        if (options_.strict_inertia)
+          fail(element(link), "the rigid body of link '" + groups[g].first_link + "' (with the links fixed to it): " +
+                                  fault + "; fix the <inertia> of link '" + link + "'");
+        Eigen::Vector3d before, after;
+        inertia_of_group_[g] = nearestPhysicalInertia(groups[g].Jp, &before, &after);
+        std::ostringstream os;
+        os.precision(6);
+        os << "body '" << groups[g].first_link << "': its " << fault << "; principal moments (" << before(0) << ", "
+           << before(1) << ", " << before(2) << ") -> (" << after(0) << ", " << after(1) << ", " << after(2)
+           << ") kg m^2, the nearest physical inertia (fix the <inertia> of link '" << link
+           << "'; strict_inertia refuses)";
+        inertia_notes_.push_back(os.str());
+        continue;
       }
       if (own == own_faults.end()) continue;
       for (const auto& [link, why] : own->second)
@@ -394,7 +410,7 @@ class ModelBuilder {
       Body b;
       b.name = groups[g].first_link;
       b.m = groups[g].mass;
-      b.Jp = groups[g].Jp;
+      b.Jp = inertia_of_group_[g];
       const Isometry3d W_B = placed.at(groups[g].first_link) * groups[g].link_T_body;
       b.r = W_B.translation();
       b.p = Quaterniond(W_B.linear());
@@ -633,6 +649,7 @@ class ModelBuilder {
   XmlReader reader_;
   std::unique_ptr<MechanismModel> model_;
   std::vector<int> body_of_group_;          // core body of each rigid group
+  std::vector<Matrix3d> inertia_of_group_;  // each rigid group's inertia, made physical (checkInertias)
   std::map<std::string, int> joint_index_;  // core joint of each joint with one
   std::vector<std::string> limit_notes_;     // joints started at a limit (startInsideLimits)
   std::vector<std::string> inertia_notes_;   // inertias dropped or judged on their body (checkInertias)

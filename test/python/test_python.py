@@ -297,3 +297,11 @@ def test_the_formulation_is_reported():
     m = mechanism_sim.load(FOUR_BAR, formulation="auto")
     assert m.formulation() == "joint" and "closes a loop" in m.formulation_reason()
     assert mechanism_sim.load(FOUR_BAR, formulation="joint").formulation() == "joint"
+
+
+def test_a_non_physical_inertia_runs_with_a_note_and_strict_inertia_refuses_it():
+    finger = os.path.join(SOURCE, "test/urdf/finger_zero_moments.urdf")
+    m = mechanism_sim.load(finger)
+    assert any("principal moments (0, 0, 3e-05) -> (1e-05, 1e-05, 2e-05)" in n for n in m.notes())
+    with pytest.raises(mechanism_sim.LoadError, match="inertia violates the triangle inequality"):
+        mechanism_sim.load(finger, strict_inertia=True)

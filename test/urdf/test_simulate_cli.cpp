@@ -142,4 +142,16 @@ TEST(SimulateCli, FormulationIsChosenAndReported) {
   EXPECT_EQ(run(kSource + "/urdf/four_bar.urdf --formulation sideways").code, 1);
 }
 
+// --strict-inertia refuses a non-physical inertia that otherwise runs with a note.
+TEST(SimulateCli, StrictInertia) {
+  const std::string finger = kSource + "/test/urdf/finger_zero_moments.urdf --duration 0.01 --csv /dev/null";
+  const Result loose = run(finger);
+  ASSERT_EQ(loose.code, 0) << loose.out;
+  EXPECT_NE(loose.out.find("body 'left_finger': its inertia violates the triangle inequality"), std::string::npos) << loose.out;
+  const Result strict = run(finger + " --strict-inertia");
+  EXPECT_EQ(strict.code, 1) << strict.out;
+  EXPECT_NE(strict.out.find("finger_zero_moments.urdf:8: inertia: the rigid body of link 'left_finger'"), std::string::npos)
+      << strict.out;
+}
+
 }  // namespace

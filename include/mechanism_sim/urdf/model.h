@@ -40,6 +40,10 @@ struct LoadOptions {
   // xacro arguments (name:=value) for a file ending in .xacro, which loadModelFile expands
   // first (doc/xacro.md); given for another file, they are an error.
   std::vector<std::pair<std::string, std::string>> xacro_args;
+  // A rigid body whose inertia is not physical (principal moments that break the triangle
+  // inequality) is refused; by default it runs with the nearest physical inertia and a
+  // note (doc/robots.md, "Inertias that are not physical").
+  bool strict_inertia = false;
 };
 
 // One degree of freedom of a joint, tree or loop closure.
