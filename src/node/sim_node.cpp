@@ -70,7 +70,7 @@ bool SimNode::init() {
   ROS_INFO("mechanism_sim: '%s': %d bodies, %zu joint dofs, %d constraint equations; %s; assembled to %.1e; %s",
            model_->name().c_str(), model_->numMovingBodies(), model_->dofs().size(), model_->numEquations(),
            model_->dependencies().describe().c_str(), model_->assembly().position_residual,
-           model_->mechanism().formulationReason().c_str());
+           model_->formulationReason().c_str());
 
   // A sample per publish period.
   const long per_publish = std::max(1L, std::lround(1.0 / (params_.publish_rate * params_.step)));
@@ -417,7 +417,7 @@ void SimNode::diagnose(diagnostic_updater::DiagnosticStatusWrapper& status) {
   status.add("real-time factor target", pacer_->target());
   status.add("step time [s]", loop_->stepWallTime());
   status.add("solver", solver.describe());
-  status.add("formulation", model_->mechanism().formulationReason());
+  status.add("formulation", model_->formulationReason());
   status.add("iterations short of tolerance", solver.shortfalls());
 }
 

@@ -170,7 +170,7 @@ PYBIND11_MODULE(_mechanism_sim, m) {
       .def("dependencies", [](const Simulation& s) { return s.model().dependencies().describe(); })
       .def("formulation", [](const Simulation& s) { return std::string(s.model().mechanism().formulation()); },
            "The formulation that runs: 'joint' or 'absolute' (formulation_reason() says why).")
-      .def("formulation_reason", [](const Simulation& s) { return s.model().mechanism().formulationReason(); })
+      .def("formulation_reason", [](const Simulation& s) { return s.model().formulationReason(); })
       .def("notes", [](const Simulation& s) { return s.model().notes(); },
            "What loading changed or left out, one line each (simulate prints them after its summary).")
       .def("gravity", [](const Simulation& s) {

@@ -20,6 +20,7 @@
 #include "joint_specs.h"
 #include "loop_dialects.h"
 #include "mechanism_sim/core/inertia.h"
+#include "mechanism_sim/core/kinematic.h"
 #include "mechanism_sim/urdf/model.h"
 #include "rigid_bodies.h"
 #include "xacro.h"
@@ -137,6 +138,8 @@ class ModelBuilder {
     const LinkTree tree(specs.tree, model_->root_link_);
     const RigidBodies bodies(tree, *urdf);
     checkInertias(robot, bodies, *urdf);
+    kinematic_ = bodies.groups().size() > 1;
+    for (size_t g = 1; g < bodies.groups().size(); ++g) kinematic_ = kinematic_ && bodies.groups()[g].mass == 0.0;
     InitialValues initial = initialValues(specs, ext);
     startInsideLimits(specs, ext, initial);
     const std::map<std::string, Isometry3d> placed = tree.poses(initial.coordinates());
@@ -145,6 +148,7 @@ class ModelBuilder {
     for (const JointSpec& s : specs.tree) addJoint(s, bodies, true);
     for (const JointSpec& s : specs.loops) addJoint(s, bodies, false);
     for (const JointSpec& s : specs.tree) addMimic(s);
+    for (const JointSpec& s : specs.tree) tree_joints_.push_back(s.name);
     for (const Coupling& c : resolveCouplings(ext, specs, reader_)) addCoupling(c);
     model_->notes_ = ext.notes;
     model_->notes_.insert(model_->notes_.end(), root_notes_.begin(), root_notes_.end());
@@ -464,8 +468,9 @@ class ModelBuilder {
       d.effort_limit = s.effort;
       d.velocity_limit = s.velocity;
       model_->dofs_.push_back(d);
-      if (s.damping > 0) mech().setJointDamping(index, k, s.damping);
-      if (s.friction > 0) mech().setJointFriction(index, k, s.friction);
+      // a kinematic model has no forces: its joints' damping and friction do nothing
+      if (s.damping > 0 && !kinematic_) mech().setJointDamping(index, k, s.damping);
+      if (s.friction > 0 && !kinematic_) mech().setJointFriction(index, k, s.friction);
     }
     if (dofs == 1 && s.upper > s.lower) mech().setJointLimits(index, 0, s.lower, s.upper);
   }
@@ -478,6 +483,7 @@ class ModelBuilder {
         mech().joint(b->second).dof() != 1)
       fail(s.element, "mimic needs two one-dof joints ('" + s.name + "', '" + s.mimic + "')");
     mech().addCoupler(s.name + " mimic", a->second, 0, b->second, 0, s.mimic_multiplier, s.mimic_offset);
+    followers_.insert(s.name);
   }
 
   // URDF+ <coupling>: q_follower = ratio * q_leader, an exact coupler like <mimic>; the
@@ -488,6 +494,7 @@ class ModelBuilder {
         mech().joint(b->second).dof() != 1)
       fail(c.element, "a coupling needs two one-dof joints ('" + c.leader + "', '" + c.follower + "')");
     mech().addCoupler(c.name, a->second, 0, b->second, 0, c.ratio, 0.0);
+    followers_.insert(c.follower);
   }
 
   // <mechanism_sim:drive> and the options' velocity drives (which replace the file's
@@ -599,6 +606,12 @@ class ModelBuilder {
     // a URDF's mechanism runs in the formulation auto picks unless asked (doc/method.md,
     // "Formulations"); the core's own default stays the seed's absolute coordinates
     io.formulation = options_.formulation.empty() ? "auto" : options_.formulation;
+    // a kinematic model runs in absolute coordinates: the joint formulation's tree has no
+    // inertia to factor (holdFreeDofs)
+    if (kinematic_ && io.formulation == "joint")
+      fail("no moving body has mass, so the model runs kinematically, in the absolute formulation; drop "
+           "formulation 'joint'");
+    if (kinematic_) io.formulation = "absolute";
     try {
       mech().setIntegrator(io);
     } catch (const ModelError& e) {
@@ -607,6 +620,7 @@ class ModelBuilder {
   }
 
   void assemble(const InitialValues& initial) {
+    if (kinematic_) holdFreeDofs(initial);
     std::vector<CoordinateTarget> positions, velocities;
     for (const auto* m : {&initial.positions, &initial.limit_starts})
       for (const auto& p : *m) positions.push_back({joint_index_.at(p.first.first), p.first.second, p.second});
@@ -625,6 +639,65 @@ class ModelBuilder {
     noteAssemblyMoves(placed);
     model_->command_.assign(model_->dofs_.size(), 0.0);
     model_->initial_ = mech().snapshot();
+  }
+
+  // A kinematic model (no moving body has mass: a file without <inertial>s, as industrial
+  // arms' support packages and grippers' visualisation packages are) has no dynamics: each
+  // degree of freedom of its tree that the loops and couplers leave free is driven (a
+  // drive of the file or the options), else held where it starts by a velocity drive of
+  // velocity 0 (which drive commands and trajectories move like any velocity drive); the
+  // rest are solved from the loops and couplers at every step (doc/method.md, "Kinematic
+  // models"). A dof is held when its drive's equation is independent of the others and of
+  // the dofs held before it, tried in this order: the dofs given a
+  // position, the tree's other dofs, then mimic and coupling followers
+  // (independentCoordinates, before build: the held dofs' drives enter the System with
+  // the others, so assembly finds every motion prescribed).
+  void holdFreeDofs(const InitialValues& initial) {
+    std::vector<int> order;
+    std::set<std::string> tree(tree_joints_.begin(), tree_joints_.end());
+    for (int pass = 0; pass < 3; ++pass)
+      for (size_t d = 0; d < model_->dofs_.size(); ++d) {
+        const Dof& dof = model_->dofs_[d];
+        if (!tree.count(dof.joint)) continue;
+        const bool given = initial.positions.count({dof.joint, dof.k}) > 0, follower = followers_.count(dof.joint) > 0;
+        if ((pass == 0 && given) || (pass == 1 && !given && !follower) || (pass == 2 && !given && follower))
+          order.push_back(static_cast<int>(d));
+      }
+    int held = 0, driven = 0, solved = 0;
+    std::vector<std::pair<int, int>> candidates;
+    std::vector<int> candidate_dof;
+    for (const int d : order) {
+      const Dof& dof = model_->dofs_[d];
+      if (dof.drive >= 0) {
+        ++driven;
+        continue;
+      }
+      candidates.push_back({dof.joint_index, dof.k});
+      candidate_dof.push_back(d);
+    }
+    std::vector<char> free;
+    try {
+      free = independentCoordinates(mech().system(), candidates);
+    } catch (const ModelError&) {
+      return;  // the model is invalid: build() names why
+    }
+    for (size_t i = 0; i < free.size(); ++i) {
+      Dof& dof = model_->dofs_[candidate_dof[i]];
+      if (!free[i]) {  // its motion follows from the loops, couplers and drives
+        ++solved;
+        continue;
+      }
+      dof.drive = mech().addDrive(dof.joint_index, dof.k, DriveProfile::velocity(0.0),
+                                  placedCoordinate(dof.joint_index, dof.k));
+      ++held;
+      if (initial.velocities.count({dof.joint, dof.k}))
+        fail("dof '" + dof.name + "' is held (no moving body has mass, so the model runs kinematically): its initial "
+             "velocity would be lost; drive it instead (--drive " + dof.name + "=VELOCITY)");
+    }
+    model_->kinematic_ = true;
+    model_->notes_.push_back("kinematic: no moving body has mass; " + std::to_string(held) + " dofs held, " +
+                             std::to_string(driven) + " driven, " + std::to_string(solved) +
+                             " solved from the loops and couplers");
   }
 
   // "assembly moved N of M dofs ...: dof old -> new, ...": the dofs whose positions the
@@ -650,6 +723,9 @@ class ModelBuilder {
   std::unique_ptr<MechanismModel> model_;
   std::vector<int> body_of_group_;          // core body of each rigid group
   std::vector<Matrix3d> inertia_of_group_;  // each rigid group's inertia, made physical (checkInertias)
+  bool kinematic_ = false;                  // no moving body has mass (holdFreeDofs)
+  std::vector<std::string> tree_joints_;    // the tree's joints, in file order
+  std::set<std::string> followers_;         // mimic and coupling followers  // each rigid group's inertia, made physical (checkInertias)
   std::map<std::string, int> joint_index_;  // core joint of each joint with one
   std::vector<std::string> limit_notes_;     // joints started at a limit (startInsideLimits)
   std::vector<std::string> inertia_notes_;   // inertias dropped or judged on their body (checkInertias)

@@ -106,5 +106,12 @@ TEST(Inertias, StrictInertiaRefusesAsBefore) {
   }
 }
 
+// A body of mass 0 and inertia 0 is a massless body (no note about its inertia); a massless
+// link among massive ones still meets the mass-rank check (test/invalid/massless_body_unmoved.urdf).
+TEST(Inertias, ZeroMassAndZeroInertiaIsNoWarning) {
+  auto m = loadModelFile(kSource + "/test/urdf/kinematic_arm.urdf");
+  EXPECT_TRUE(notesWith(*m, "inertia").empty());
+}
+
 }  // namespace
 }  // namespace mechanism_sim

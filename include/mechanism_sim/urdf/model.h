@@ -115,6 +115,13 @@ class MechanismModel {
   // simulated as actuated. Empty when the file ran as written.
   const std::vector<std::string>& notes() const { return notes_; }
   void setGravity(const Eigen::Vector3d& g);  // overrides the file's <mechanism_sim:gravity>
+  // No moving body has mass: the model runs kinematically, each free dof driven or held
+  // (a velocity drive of velocity 0), the rest solved from the loops and couplers
+  // (doc/method.md, "Kinematic models"); a note says how many of each.
+  bool kinematic() const { return kinematic_; }
+  // The formulation that runs and why (Mechanism::formulationReason), or that the model runs
+  // kinematically (simulate's summary, the node's log and diagnostics, Python).
+  std::string formulationReason() const;
 
   // ---- where it is now
   double time() const;
@@ -184,6 +191,7 @@ class MechanismModel {
   std::vector<std::string> notes_;
   Mechanism::Snapshot initial_;
   std::vector<int> driven_after_load_;  // dofs driveDof() drove, in order
+  bool kinematic_ = false;
 };
 
 // Loads, builds and assembles. Throws LoadError naming the file, element and problem. A
