@@ -33,7 +33,7 @@ const char* kUsage =
     "                [--set JOINT=POSITION]... [--velocity JOINT=VALUE]...\n"
     "                [--effort JOINT=VALUE]... [--drive JOINT=VELOCITY]...\n"
     "                [--reactions] [--bag FILE.bag] [--plot FILE.png] [--plot-columns LIST]\n"
-    "                [--closures FILE.yaml] [--quiet]\n"
+    "                [--closures FILE.yaml] [--strict-inertia] [--quiet]\n"
     "                [--trajectory FILE.csv] [--trajectory-start-tolerance X]\n";
 
 // A command line that cannot be run throws mechanism_sim::UsageError (exit 2 with the usage).
@@ -98,6 +98,7 @@ Args parse(int argc, char** argv) {
     else if (arg == "--plot") a.plot = value();
     else if (arg == "--plot-columns") a.plot_columns = value();
     else if (arg == "--closures") a.load.closures_file = value();  // doc/loop_dialects.md
+    else if (arg == "--strict-inertia") a.load.strict_inertia = true;  // doc/robots.md
     else if (arg == "--quiet") a.quiet = true;
     else if (arg == "--trajectory") a.trajectory = value();  // doc/trajectories.md
     else if (arg == "--trajectory-start-tolerance") a.trajectory_tolerance = parseNumber(value(), arg);

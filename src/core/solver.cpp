@@ -306,6 +306,12 @@ void ConstraintSolver::residualScales(const System& sys, const Evaluation& ev, c
   for (int i = 0; i < sys.n; i += 6)
     f_floor = std::max({f_floor, s1_[i], s1_[i + 1], s1_[i + 2], (s1_[i + 3] + s1_[i + 4] + s1_[i + 5]) / length});
   f_floor *= kFloor;
+  // A mechanism without mass (a kinematic one, doc/method.md "Kinematic models") has forces
+  // of round-off size only: they are weighed against the stand-in mass at the floor
+  // acceleration, so its solves are judged on the equations Phi_q a = gamma.
+  bool massless = sys.nb > 0;
+  for (int b = 1; b <= sys.nb && massless; ++b) massless = sys.bodies[b].m == 0.0;
+  if (massless) f_floor = std::max(f_floor, sys.mass_scale * a_floor);
   for (int i = 0; i < sys.n; i += 6) {
     const double f = std::max({s1_[i], s1_[i + 1], s1_[i + 2]});
     const double n = std::max({s1_[i + 3], s1_[i + 4], s1_[i + 5]});

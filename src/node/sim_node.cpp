@@ -38,6 +38,7 @@ bool NodeParams::read(const ros::NodeHandle& pnh) {
   pnh.param<std::string>("integrator", load.integrator, "");
   pnh.param<std::string>("formulation", load.formulation, "");
   pnh.param<std::string>("closures_file", load.closures_file, "");  // doc/loop_dialects.md
+  pnh.param<bool>("strict_inertia", load.strict_inertia, false);     // doc/robots.md
   std::map<std::string, double> positions, velocities;
   pnh.getParam("initial_positions", positions);
   pnh.getParam("initial_velocities", velocities);
@@ -69,7 +70,7 @@ bool SimNode::init() {
   ROS_INFO("mechanism_sim: '%s': %d bodies, %zu joint dofs, %d constraint equations; %s; assembled to %.1e; %s",
            model_->name().c_str(), model_->numMovingBodies(), model_->dofs().size(), model_->numEquations(),
            model_->dependencies().describe().c_str(), model_->assembly().position_residual,
-           model_->mechanism().formulationReason().c_str());
+           model_->formulationReason().c_str());
 
   // A sample per publish period.
   const long per_publish = std::max(1L, std::lround(1.0 / (params_.publish_rate * params_.step)));
@@ -417,7 +418,7 @@ void SimNode::diagnose(diagnostic_updater::DiagnosticStatusWrapper& status) {
   status.add("real-time factor target", pacer_->target());
   status.add("step time [s]", loop_->stepWallTime());
   status.add("solver", solver.describe());
-  status.add("formulation", model_->mechanism().formulationReason());
+  status.add("formulation", model_->formulationReason());
   status.add("iterations short of tolerance", solver.shortfalls());
 }
 

@@ -39,7 +39,7 @@ struct LoadArgs {
 
 LoadArgs loadArgs(const py::object& args, const py::object& positions, const py::object& velocities,
                   const py::object& efforts, const py::object& drives, const std::string& integrator,
-                  const py::object& closures, const std::string& formulation) {
+                  const py::object& closures, const std::string& formulation, bool strict_inertia) {
   LoadArgs a;
   if (!args.is_none())
     for (const py::handle item : args.attr("items")()) {
@@ -51,6 +51,7 @@ LoadArgs loadArgs(const py::object& args, const py::object& positions, const py:
   a.options.drives = values(drives, "drives");
   a.options.integrator = integrator;
   a.options.formulation = formulation;
+  a.options.strict_inertia = strict_inertia;
   if (!closures.is_none()) a.options.closures_file = py::str(closures).cast<std::string>();
   a.efforts = values(efforts, "efforts");
   return a;
@@ -169,7 +170,7 @@ PYBIND11_MODULE(_mechanism_sim, m) {
       .def("dependencies", [](const Simulation& s) { return s.model().dependencies().describe(); })
       .def("formulation", [](const Simulation& s) { return std::string(s.model().mechanism().formulation()); },
            "The formulation that runs: 'joint' or 'absolute' (formulation_reason() says why).")
-      .def("formulation_reason", [](const Simulation& s) { return s.model().mechanism().formulationReason(); })
+      .def("formulation_reason", [](const Simulation& s) { return s.model().formulationReason(); })
       .def("notes", [](const Simulation& s) { return s.model().notes(); },
            "What loading changed or left out, one line each (simulate prints them after its summary).")
       .def("gravity", [](const Simulation& s) {
@@ -297,12 +298,15 @@ PYBIND11_MODULE(_mechanism_sim, m) {
       "Loads, builds and assembles a model (simulate's options): args {name: value} for a .xacro file, "
       "positions/velocities {dof: value} (--set/--velocity), efforts (--effort), drives {dof: velocity} "
       "(--drive), integrator 'rk4'|'rk3'|'rk2', closures: an Extended URDF YAML (--closures), "
-      "formulation 'absolute'|'joint'|'auto' (--formulation). "
+      "formulation 'absolute'|'joint'|'auto' (--formulation), strict_inertia: refuse a body whose inertia "
+      "is not physical (--strict-inertia; by default it runs with the nearest physical one and a note). "
       "Raises mechanism_sim.LoadError.";
   m.def("load", [](const std::string& path, const py::object& args, const py::object& positions,
                    const py::object& velocities, const py::object& efforts, const py::object& drives,
-                   const std::string& integrator, const py::object& closures, const std::string& formulation) {
-    const LoadArgs a = loadArgs(args, positions, velocities, efforts, drives, integrator, closures, formulation);
+                   const std::string& integrator, const py::object& closures, const std::string& formulation,
+                   bool strict_inertia) {
+    const LoadArgs a =
+        loadArgs(args, positions, velocities, efforts, drives, integrator, closures, formulation, strict_inertia);
     std::unique_ptr<MechanismModel> model;
     {
       py::gil_scoped_release release;  // xacro runs Node.js
@@ -311,11 +315,14 @@ PYBIND11_MODULE(_mechanism_sim, m) {
     return finish(std::move(model), path, a.efforts);
   }, py::arg("path"), py::kw_only(), py::arg("args") = py::none(), py::arg("positions") = py::none(),
      py::arg("velocities") = py::none(), py::arg("efforts") = py::none(), py::arg("drives") = py::none(),
-     py::arg("integrator") = "", py::arg("closures") = py::none(), py::arg("formulation") = "", load_doc);
+     py::arg("integrator") = "", py::arg("closures") = py::none(), py::arg("formulation") = "",
+     py::arg("strict_inertia") = false, load_doc);
   m.def("load_string", [](const std::string& xml, const std::string& source, const py::object& positions,
                           const py::object& velocities, const py::object& efforts, const py::object& drives,
-                          const std::string& integrator, const py::object& closures, const std::string& formulation) {
-    const LoadArgs a = loadArgs(py::none(), positions, velocities, efforts, drives, integrator, closures, formulation);
+                          const std::string& integrator, const py::object& closures, const std::string& formulation,
+                          bool strict_inertia) {
+    const LoadArgs a =
+        loadArgs(py::none(), positions, velocities, efforts, drives, integrator, closures, formulation, strict_inertia);
     std::unique_ptr<MechanismModel> model;
     {
       py::gil_scoped_release release;
@@ -325,5 +332,5 @@ PYBIND11_MODULE(_mechanism_sim, m) {
   }, py::arg("xml"), py::arg("source") = "<string>", py::kw_only(), py::arg("positions") = py::none(),
      py::arg("velocities") = py::none(), py::arg("efforts") = py::none(), py::arg("drives") = py::none(),
      py::arg("integrator") = "", py::arg("closures") = py::none(), py::arg("formulation") = "",
-     "As load(), from URDF text (no xacro).");
+     py::arg("strict_inertia") = false, "As load(), from URDF text (no xacro).");
 }

@@ -20,6 +20,8 @@
 
 #include "joint_specs.h"
 #include "loop_dialects.h"
+#include "mechanism_sim/core/inertia.h"
+#include "mechanism_sim/core/kinematic.h"
 #include "mechanism_sim/urdf/model.h"
 #include "rigid_bodies.h"
 #include "xacro.h"
@@ -143,6 +145,8 @@ class ModelBuilder {
     const LinkTree tree(specs.tree, model_->root_link_);
     const RigidBodies bodies(tree, *urdf);
     checkInertias(robot, bodies, *urdf);
+    kinematic_ = bodies.groups().size() > 1;
+    for (size_t g = 1; g < bodies.groups().size(); ++g) kinematic_ = kinematic_ && bodies.groups()[g].mass == 0.0;
     InitialValues initial = initialValues(specs, ext);
     startInsideLimits(specs, ext, initial);
     const std::map<std::string, Isometry3d> placed = tree.poses(initial.coordinates());
@@ -152,6 +156,7 @@ class ModelBuilder {
     for (const JointSpec& s : specs.loops) addJoint(s, bodies, false);
     markPassive(ext);
     for (const JointSpec& s : specs.tree) addMimic(s, specs);
+    for (const JointSpec& s : specs.tree) tree_joints_.push_back(s.name);
     for (const Coupling& c : resolveCouplings(ext, specs, reader_)) addCoupling(c);
     model_->notes_ = ext.notes;
     model_->notes_.insert(model_->notes_.end(), root_notes_.begin(), root_notes_.end());
@@ -292,8 +297,10 @@ class ModelBuilder {
   // Inertia is judged where it acts: on the rigid body that links joined by fixed joints
   // make. A link whose own inertia is not physical (a finger pad's six entries of 1e-10)
   // but merges into a body whose inertia is runs, with a note; a body whose merged inertia
-  // is not physical is refused at the <inertia> of the link at fault. Mass-0 links' inertia
-  // is dropped (RigidBodies), with a note.
+  // is not physical runs with the nearest physical one (nearestPhysicalInertia), with one
+  // note giving its principal moments before and after, or with strict_inertia is refused
+  // at the <inertia> of the link at fault. Mass-0 links' inertia is dropped (RigidBodies),
+  // with a note.
   void checkInertias(const tinyxml2::XMLElement* robot, const RigidBodies& bodies, const urdf::ModelInterface& urdf) {
     auto element = [&](const std::string& link) -> const tinyxml2::XMLElement* {
       for (auto* e = robot->FirstChildElement("link"); e; e = e->NextSiblingElement("link"))
@@ -314,13 +321,26 @@ class ModelBuilder {
       if (!fault.empty()) own_faults[g].push_back({l.name, fault});
     }
     const std::vector<RigidGroup>& groups = bodies.groups();
+    inertia_of_group_.resize(groups.size());
     for (size_t g = 1; g < groups.size(); ++g) {
+      inertia_of_group_[g] = groups[g].Jp;
       const std::string fault = inertiaFault(groups[g].Jp);
       const auto own = own_faults.find(static_cast<int>(g));
       if (!fault.empty()) {
         const std::string link = own != own_faults.end() ? own->second.front().first : groups[g].first_link;
-        fail(element(link), "the rigid body of link '" + groups[g].first_link + "' (with the links fixed to it): " +
-                                fault + "; fix the <inertia> of link '" + link + "'");
+        if (options_.strict_inertia)
+          fail(element(link), "the rigid body of link '" + groups[g].first_link + "' (with the links fixed to it): " +
+                                  fault + "; fix the <inertia> of link '" + link + "'");
+        Eigen::Vector3d before, after;
+        inertia_of_group_[g] = nearestPhysicalInertia(groups[g].Jp, &before, &after);
+        std::ostringstream os;
+        os.precision(6);
+        os << "body '" << groups[g].first_link << "': its " << fault << "; principal moments (" << before(0) << ", "
+           << before(1) << ", " << before(2) << ") -> (" << after(0) << ", " << after(1) << ", " << after(2)
+           << ") kg m^2, the nearest physical inertia (fix the <inertia> of link '" << link
+           << "'; strict_inertia refuses)";
+        inertia_notes_.push_back(os.str());
+        continue;
       }
       if (own == own_faults.end()) continue;
       for (const auto& [link, why] : own->second)
@@ -402,7 +422,7 @@ class ModelBuilder {
       Body b;
       b.name = groups[g].first_link;
       b.m = groups[g].mass;
-      b.Jp = groups[g].Jp;
+      b.Jp = inertia_of_group_[g];
       const Isometry3d W_B = placed.at(groups[g].first_link) * groups[g].link_T_body;
       b.r = W_B.translation();
       b.p = Quaterniond(W_B.linear());
@@ -456,8 +476,9 @@ class ModelBuilder {
       d.effort_limit = s.effort;
       d.velocity_limit = s.velocity;
       model_->dofs_.push_back(d);
-      if (s.damping > 0) mech().setJointDamping(index, k, s.damping);
-      if (s.friction > 0) mech().setJointFriction(index, k, s.friction);
+      // a kinematic model has no forces: its joints' damping and friction do nothing
+      if (s.damping > 0 && !kinematic_) mech().setJointDamping(index, k, s.damping);
+      if (s.friction > 0 && !kinematic_) mech().setJointFriction(index, k, s.friction);
     }
     if (dofs == 1 && s.upper > s.lower) mech().setJointLimits(index, 0, s.lower, s.upper);
     if (s.sdf_no_limit) limit_notes_.push_back("joint '" + s.name + "': limits [-1e16, 1e16] (SDF's 'no limit') read as none");
@@ -487,6 +508,7 @@ class ModelBuilder {
         mech().joint(b->second).dof() != 1)
       fail(s.element, "mimic needs two one-dof joints ('" + s.name + "', '" + s.mimic + "')");
     mech().addCoupler(s.name + " mimic", a->second, 0, b->second, 0, s.mimic_multiplier, s.mimic_offset);
+    followers_.insert(s.name);
   }
 
   // URDF+ <coupling>: q_follower = ratio * q_leader, an exact coupler like <mimic>; the
@@ -497,6 +519,7 @@ class ModelBuilder {
         mech().joint(b->second).dof() != 1)
       fail(c.element, "a coupling needs two one-dof joints ('" + c.leader + "', '" + c.follower + "')");
     mech().addCoupler(c.name, a->second, 0, b->second, 0, c.ratio, 0.0);
+    followers_.insert(c.follower);
   }
 
   // <mechanism_sim:drive> and the options' velocity drives (which replace the file's
@@ -611,6 +634,12 @@ class ModelBuilder {
     // a URDF's mechanism runs in the formulation auto picks unless asked (doc/method.md,
     // "Formulations"); the core's own default stays the seed's absolute coordinates
     io.formulation = options_.formulation.empty() ? "auto" : options_.formulation;
+    // a kinematic model runs in absolute coordinates: the joint formulation's tree has no
+    // inertia to factor (holdFreeDofs)
+    if (kinematic_ && io.formulation == "joint")
+      fail("no moving body has mass, so the model runs kinematically, in the absolute formulation; drop "
+           "formulation 'joint'");
+    if (kinematic_) io.formulation = "absolute";
     try {
       mech().setIntegrator(io);
     } catch (const ModelError& e) {
@@ -619,6 +648,7 @@ class ModelBuilder {
   }
 
   void assemble(const InitialValues& initial) {
+    if (kinematic_) holdFreeDofs(initial);
     std::vector<CoordinateTarget> positions, velocities;
     for (const auto* m : {&initial.positions, &initial.limit_starts})
       for (const auto& p : *m) positions.push_back({joint_index_.at(p.first.first), p.first.second, p.second});
@@ -637,6 +667,65 @@ class ModelBuilder {
     noteAssemblyMoves(placed);
     model_->command_.assign(model_->dofs_.size(), 0.0);
     model_->initial_ = mech().snapshot();
+  }
+
+  // A kinematic model (no moving body has mass: a file without <inertial>s, as industrial
+  // arms' support packages and grippers' visualisation packages are) has no dynamics: each
+  // degree of freedom of its tree that the loops and couplers leave free is driven (a
+  // drive of the file or the options), else held where it starts by a velocity drive of
+  // velocity 0 (which drive commands and trajectories move like any velocity drive); the
+  // rest are solved from the loops and couplers at every step (doc/method.md, "Kinematic
+  // models"). A dof is held when its drive's equation is independent of the others and of
+  // the dofs held before it, tried in this order: the dofs given a
+  // position, the tree's other dofs, then mimic and coupling followers
+  // (independentCoordinates, before build: the held dofs' drives enter the System with
+  // the others, so assembly finds every motion prescribed).
+  void holdFreeDofs(const InitialValues& initial) {
+    std::vector<int> order;
+    std::set<std::string> tree(tree_joints_.begin(), tree_joints_.end());
+    for (int pass = 0; pass < 3; ++pass)
+      for (size_t d = 0; d < model_->dofs_.size(); ++d) {
+        const Dof& dof = model_->dofs_[d];
+        if (!tree.count(dof.joint)) continue;
+        const bool given = initial.positions.count({dof.joint, dof.k}) > 0, follower = followers_.count(dof.joint) > 0;
+        if ((pass == 0 && given) || (pass == 1 && !given && !follower) || (pass == 2 && !given && follower))
+          order.push_back(static_cast<int>(d));
+      }
+    int held = 0, driven = 0, solved = 0;
+    std::vector<std::pair<int, int>> candidates;
+    std::vector<int> candidate_dof;
+    for (const int d : order) {
+      const Dof& dof = model_->dofs_[d];
+      if (dof.drive >= 0) {
+        ++driven;
+        continue;
+      }
+      candidates.push_back({dof.joint_index, dof.k});
+      candidate_dof.push_back(d);
+    }
+    std::vector<char> free;
+    try {
+      free = independentCoordinates(mech().system(), candidates);
+    } catch (const ModelError&) {
+      return;  // the model is invalid: build() names why
+    }
+    for (size_t i = 0; i < free.size(); ++i) {
+      Dof& dof = model_->dofs_[candidate_dof[i]];
+      if (!free[i]) {  // its motion follows from the loops, couplers and drives
+        ++solved;
+        continue;
+      }
+      dof.drive = mech().addDrive(dof.joint_index, dof.k, DriveProfile::velocity(0.0),
+                                  placedCoordinate(dof.joint_index, dof.k));
+      ++held;
+      if (initial.velocities.count({dof.joint, dof.k}))
+        fail("dof '" + dof.name + "' is held (no moving body has mass, so the model runs kinematically): its initial "
+             "velocity would be lost; drive it instead (--drive " + dof.name + "=VELOCITY)");
+    }
+    model_->kinematic_ = true;
+    model_->notes_.push_back("kinematic: no moving body has mass; " + std::to_string(held) + " dofs held, " +
+                             std::to_string(driven) + " driven, " + std::to_string(solved) +
+                             " solved from the loops and couplers");
   }
 
   // "assembly moved N of M dofs ...: dof old -> new, ...": the dofs whose positions the
@@ -661,6 +750,10 @@ class ModelBuilder {
   XmlReader reader_;
   std::unique_ptr<MechanismModel> model_;
   std::vector<int> body_of_group_;          // core body of each rigid group
+  std::vector<Matrix3d> inertia_of_group_;  // each rigid group's inertia, made physical (checkInertias)
+  bool kinematic_ = false;                  // no moving body has mass (holdFreeDofs)
+  std::vector<std::string> tree_joints_;    // the tree's joints, in file order
+  std::set<std::string> followers_;         // mimic and coupling followers  // each rigid group's inertia, made physical (checkInertias)
   std::map<std::string, int> joint_index_;  // core joint of each joint with one
   std::vector<std::string> limit_notes_;     // joints started at a limit (startInsideLimits)
   std::vector<std::string> inertia_notes_;   // inertias dropped or judged on their body (checkInertias)

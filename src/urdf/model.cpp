@@ -177,4 +177,8 @@ void MechanismModel::reset() {
   for (const Dof& d : dofs_) mechanism_->setJointEffort(d.joint_index, d.k, 0.0);
 }
 
+std::string MechanismModel::formulationReason() const {
+  return kinematic_ ? "kinematic, in absolute coordinates (no moving body has mass)" : mechanism_->formulationReason();
+}
+
 }  // namespace mechanism_sim

@@ -94,7 +94,8 @@ std::string runSummary(const MechanismModel& model, long steps, double h, double
                 "violation %.2e (position), %.2e (velocity); %s%s; formulation: %s; solver: %s",
                 model.assembly().position_residual, steps, h, wall, wall > 0 ? steps * h / wall : 0.0, worst_position,
                 worst_velocity, model.dependencies().describe().c_str(), drives.c_str(),
-                model.mechanism().formulationReason().c_str(), model.solverStats().describe().c_str());
+                model.formulationReason().c_str(),
+                model.solverStats().describe().c_str());
   return line;
 }
 

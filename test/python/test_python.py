@@ -314,3 +314,17 @@ def test_the_time_is_the_start_plus_the_steps_times_the_step(formulation):
     m.restore(s)
     m.step(1e-3, 1000)
     assert m.time() == 2.3 + 1000 * 1e-3
+
+
+def test_a_non_physical_inertia_runs_with_a_note_and_strict_inertia_refuses_it():
+    finger = os.path.join(SOURCE, "test/urdf/finger_zero_moments.urdf")
+    m = mechanism_sim.load(finger)
+    assert any("principal moments (0, 0, 3e-05) -> (1e-05, 1e-05, 2e-05)" in n for n in m.notes())
+    with pytest.raises(mechanism_sim.LoadError, match="inertia violates the triangle inequality"):
+        mechanism_sim.load(finger, strict_inertia=True)
+
+
+def test_a_model_without_mass_runs_kinematically():
+    m = mechanism_sim.load(os.path.join(SOURCE, "test/urdf/kinematic_four_bar.urdf"), drives={"crank_joint": 2.0})
+    assert m.formulation_reason().startswith("kinematic")
+    assert "kinematic: no moving body has mass; 0 dofs held, 1 driven, 2 solved from the loops and couplers" in m.notes()

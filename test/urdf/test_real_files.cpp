@@ -76,7 +76,8 @@ TEST(RealFiles, AMimicFollowerOutsideItsLimitsMovesItsLeader) {
 
 // A finger pad whose own inertia is all 1e-10 (not physical: the products exceed the
 // moments) fixed to a physical link runs, with a note; the same pad as a moving body alone
-// is refused at its <inertia>, naming the link.
+// runs with the nearest physical inertia, or with strict_inertia is refused at its
+// <inertia>, naming the link.
 TEST(RealFiles, InertiaIsJudgedOnTheMergedRigidBody) {
   const std::string pad_inertia =
       R"(<inertia ixx="1e-10" iyy="1e-10" izz="1e-10" ixy="1e-10" ixz="1e-10" iyz="1e-10"/>)";
@@ -94,7 +95,15 @@ TEST(RealFiles, InertiaIsJudgedOnTheMergedRigidBody) {
   <joint name="pad_joint" type="continuous"><parent link="lower"/><child link="pad"/><origin xyz="0 0 -0.5"/>
     <axis xyz="0 1 0"/></joint>
 )";
-  const std::string e = loadError(arm(moving_pad));
+  // moving, the pad is a body of its own whose inertia (moments (0, 0, 3e-10)) is not
+  // physical: it runs with the nearest physical one, and strict_inertia refuses it
+  auto moving = loadModelString(arm(moving_pad), "robot.urdf");
+  EXPECT_TRUE(hasNote(*moving, "body 'pad': its inertia violates the triangle inequality (a principal moment exceeds the "
+                               "sum of the other two); principal moments ("));
+  EXPECT_TRUE(hasNote(*moving, "3e-10) -> (1e-10, 1e-10, 2e-10) kg m^2, the nearest physical inertia"));
+  LoadOptions strict;
+  strict.strict_inertia = true;
+  const std::string e = loadError(arm(moving_pad), strict);
   EXPECT_NE(e.find("robot.urdf:"), std::string::npos) << e;
   EXPECT_NE(e.find("the rigid body of link 'pad'"), std::string::npos) << e;
   EXPECT_NE(e.find("fix the <inertia> of link 'pad'"), std::string::npos) << e;

@@ -142,4 +142,24 @@ TEST(SimulateCli, FormulationIsChosenAndReported) {
   EXPECT_EQ(run(kSource + "/urdf/four_bar.urdf --formulation sideways").code, 1);
 }
 
+// A model without mass runs kinematically and says so: the note and the summary's
+// formulation; --strict-inertia refuses a non-physical inertia that otherwise runs.
+TEST(SimulateCli, KinematicModeAndStrictInertia) {
+  const Result r = run(kSource + "/test/urdf/kinematic_four_bar.urdf --duration 0.1 --drive crank_joint=2 --csv /dev/null");
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("kinematic_four_bar.urdf: kinematic: no moving body has mass; 0 dofs held, 1 driven, 2 solved "
+                       "from the loops and couplers\n"),
+            std::string::npos)
+      << r.out;
+  EXPECT_NE(r.out.find("formulation: kinematic, in absolute coordinates"), std::string::npos) << r.out;
+  const std::string finger = kSource + "/test/urdf/finger_zero_moments.urdf --duration 0.01 --csv /dev/null";
+  const Result loose = run(finger);
+  ASSERT_EQ(loose.code, 0) << loose.out;
+  EXPECT_NE(loose.out.find("body 'left_finger': its inertia violates the triangle inequality"), std::string::npos) << loose.out;
+  const Result strict = run(finger + " --strict-inertia");
+  EXPECT_EQ(strict.code, 1) << strict.out;
+  EXPECT_NE(strict.out.find("finger_zero_moments.urdf:8: inertia: the rigid body of link 'left_finger'"), std::string::npos)
+      << strict.out;
+}
+
 }  // namespace

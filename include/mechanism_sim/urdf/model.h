@@ -41,6 +41,10 @@ struct LoadOptions {
   // xacro arguments (name:=value) for a file ending in .xacro, which loadModelFile expands
   // first (doc/xacro.md); given for another file, they are an error.
   std::vector<std::pair<std::string, std::string>> xacro_args;
+  // A rigid body whose inertia is not physical (principal moments that break the triangle
+  // inequality) is refused; by default it runs with the nearest physical inertia and a
+  // note (doc/robots.md, "Inertias that are not physical").
+  bool strict_inertia = false;
 };
 
 // One degree of freedom of a joint, tree or loop closure.
@@ -115,6 +119,13 @@ class MechanismModel {
   // Empty when the file ran as written.
   const std::vector<std::string>& notes() const { return notes_; }
   void setGravity(const Eigen::Vector3d& g);  // overrides the file's <mechanism_sim:gravity>
+  // No moving body has mass: the model runs kinematically, each free dof driven or held
+  // (a velocity drive of velocity 0), the rest solved from the loops and couplers
+  // (doc/method.md, "Kinematic models"); a note says how many of each.
+  bool kinematic() const { return kinematic_; }
+  // The formulation that runs and why (Mechanism::formulationReason), or that the model runs
+  // kinematically (simulate's summary, the node's log and diagnostics, Python).
+  std::string formulationReason() const;
 
   // ---- where it is now
   double time() const;
@@ -189,6 +200,7 @@ class MechanismModel {
   std::vector<std::string> notes_;
   Mechanism::Snapshot initial_;
   std::vector<int> driven_after_load_;  // dofs driveDof() drove, in order
+  bool kinematic_ = false;
 };
 
 // Loads, builds and assembles. Throws LoadError naming the file, element and problem. A
