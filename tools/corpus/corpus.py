@@ -332,14 +332,16 @@ def classify_error(stage, rc, stderr, timeout):
 
 
 def cause_of(stage, line):
+    """What a refusal is about, from its line."""
     if stage == "xacro" or ": xacro:" in line or line.startswith("xacro:"):
         return "xacro expansion"
     rules = [
-        (r"without moving any mass|no mass|massless", "no mass (kinematic)"),
-        (r"inertia|triangle inequality|positive definite", "inertia"),
-        (r"does not close|assembl|residual|mirrored", "assembly"),
-        (r"at t = ", "run"),
-        (r"closed_loop|closure|loop|yaml|not a link|frame", "loop dialect"),
+        (r"at t = ", "run (failed at t > 0)"),
+        (r"joint-space dynamics", "formulation (joint)"),
+        (r"without moving any mass", "no mass (kinematic)"),
+        (r"inertia", "inertia"),
+        (r"does not close|assembl|mirrored", "assembly"),
+        (r"\.yaml:\d+:|closed_loop|joint_type|joint_name|name_mot|<loop|<constraint|loop_joint", "loop dialect"),
     ]
     for pattern, cause in rules:
         if re.search(pattern, line, re.I):
@@ -348,7 +350,7 @@ def cause_of(stage, line):
 
 
 def run_configuration(path, xargs, opts, env):
-    row = {"links": "", "joints": "", "loops": "", "us": "", "cause": ""}
+    row = {"links": "", "joints": "", "loops": "", "us": "", "cause": "", "formulation": ""}
     joint_names = None
     if path.endswith(".xacro"):
         try:
@@ -391,6 +393,8 @@ def run_configuration(path, xargs, opts, env):
         m = re.search(r"(\d+) steps of \S+ s in ([0-9.]+) s wall", err)
         if m and int(m.group(1)) > 0:
             row["us"] = "%.0f" % (float(m.group(2)) / int(m.group(1)) * 1e6)
+        m = re.search(r"formulation: (joint|absolute) coordinates", err)
+        row["formulation"] = m.group(1) if m else ""
         # loops: the joints with reactions that are not joints of the URDF (loop closures of
         # every dialect: simulate names each one)
         try:
@@ -478,15 +482,15 @@ def main():
     def cell(text):
         return str(text).replace("|", "\\|").replace("\n", " ")
 
-    print("| file | arguments | status | cause | links | joints | loops | µs a step |")
-    print("|---|---|---|---|---|---|---|---|")
+    print("| file | arguments | status | cause | links | joints | loops | µs a step | coordinates |")
+    print("|---|---|---|---|---|---|---|---|---|")
     for (label, _, xargs, _), row in zip(jobs, rows):
         if row["status"] == "not a robot":
             skipped.append((label + (" " + " ".join(xargs) if xargs else ""), "no <link> after expansion"))
             continue
-        print("| %s | %s | %s | %s | %s | %s | %s | %s |" % (
+        print("| %s | %s | %s | %s | %s | %s | %s | %s | %s |" % (
             cell(label), cell(shown(xargs)), cell(row["status"]), cell(row["cause"]), row["links"],
-            row["joints"], row["loops"], row["us"]))
+            row["joints"], row["loops"], row["us"], row["formulation"]))
     runs = sum(r["status"] == "runs" for r in rows)
     refused = sum(r["status"].startswith("refused") for r in rows)
     defects = sum(r["status"].startswith("defect") for r in rows)
