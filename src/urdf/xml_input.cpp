@@ -212,7 +212,9 @@ std::vector<std::string> validateStandard(const XMLElement* robot, const XmlRead
     if (t == "revolute" || t == "continuous" || t == "prismatic" || t == "planar") r.direction(e, "axis", Vector3d::UnitX());
     if (const XMLElement* lim = e->FirstChildElement("limit")) {
       const double lo = r.number(lim, "lower", 0.0), hi = r.number(lim, "upper", 0.0);
-      if (lo > hi) r.fail(lim, "lower limit exceeds upper limit");
+      // A fixed or continuous joint has no bounds (URDF reads lower and upper for revolute and
+      // prismatic joints only; urdfdom parses and ignores them)
+      if (lo > hi && t != "fixed" && t != "continuous") r.fail(lim, "lower limit exceeds upper limit");
       // URDF requires both (urdfdom refuses the file without them, naming no joint)
       if (t == "revolute" || t == "prismatic")
         for (const char* a : {"effort", "velocity"})
