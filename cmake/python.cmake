@@ -16,7 +16,8 @@ if(CATKIN_ENABLE_TESTING)
   # pytest files under the devel environment (CATKIN_ENV); the JUnit XML lands beside the
   # gtests' in test_results/mechanism_sim, where scripts/test counts it. test_sweep runs
   # scripts/sweep in this workspace (MECHANISM_SIM_WS) and a Dask cluster on 127.0.0.1.
-  foreach(name test_python test_sweep)
+  # test_pinocchio_oracle runs test/oracle/pinocchio_oracle.py in .venv-oracle (doc/testing.md).
+  foreach(name test_python test_sweep test_pinocchio_oracle)
     catkin_run_tests_target(pytest ${name} pytest-${name}.xml
       COMMAND "MECHANISM_SIM_SIMULATE=$<TARGET_FILE:simulate> MECHANISM_SIM_WS=${CATKIN_DEVEL_PREFIX}/.. /usr/bin/python3 -m pytest -p no:cacheprovider -q ${PROJECT_SOURCE_DIR}/test/python/${name}.py --junitxml=${CATKIN_TEST_RESULTS_DIR}/${PROJECT_NAME}/pytest-${name}.xml"
       DEPENDENCIES _mechanism_sim simulate)

@@ -32,7 +32,7 @@ target_compile_definitions(test_bag PRIVATE MECHANISM_SIM_SOURCE_DIR="${PROJECT_
   SIMULATE_BIN="$<TARGET_FILE:simulate>")
 add_dependencies(test_bag simulate ${PROJECT_NAME}_generate_messages_cpp)
 
-# xacro models (tools/xacro on Node.js, doc/xacro.md): the loader, simulate and scripts/xacro.
+# xacro models (ROS's xacro through scripts/xacro, doc/xacro.md): the loader, simulate and scripts/xacro.
 catkin_add_gtest(test_xacro test/urdf/test_xacro.cpp)
 target_include_directories(test_xacro PRIVATE src/urdf)
 target_link_libraries(test_xacro mechanism_sim_urdf gtest_main)

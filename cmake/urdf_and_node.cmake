@@ -15,8 +15,8 @@ target_link_libraries(mechanism_sim_urdf mechanism_sim_core ${urdfdom_LIBRARIES}
 # "Extended URDF" closures files (src/urdf/loop_dialects.cpp): Debian libyaml-cpp-dev.
 find_package(yaml-cpp REQUIRED)
 target_link_libraries(mechanism_sim_urdf yaml-cpp)
-# .xacro models run tools/xacro/xacro.js (Node.js) from the source tree; MECHANISM_SIM_XACRO overrides it.
-target_compile_definitions(mechanism_sim_urdf PRIVATE MECHANISM_SIM_XACRO_SCRIPT="${PROJECT_SOURCE_DIR}/tools/xacro/xacro.js")
+# .xacro models run scripts/xacro (ROS's xacro) from the source tree; MECHANISM_SIM_XACRO overrides it.
+target_compile_definitions(mechanism_sim_urdf PRIVATE MECHANISM_SIM_XACRO_SCRIPT="${PROJECT_SOURCE_DIR}/scripts/xacro")
 
 add_executable(simulate src/cli/simulate.cpp src/cli/csv_writer.cpp src/cli/bag_writer.cpp)
 # --bag: librosbag_storage and the message headers (this package's JointReactions too), no roscpp.

@@ -265,6 +265,11 @@ def sweep(model, vary, out, settings, fixed, scheduler=None, workers=None, resum
     try:
         if todo:
             _run_all(model, todo, values_of, settings, scheduler, workers, write, log, lambda: failed)
+    except SweepError:
+        if new_file and len(written) == len(done):
+            f.close()
+            os.remove(out)  # nothing ran: no file, so the same command works once fixed
+        raise
     finally:
         f.close()
     elapsed = time.monotonic() - started
@@ -293,6 +298,7 @@ def _run_all(model, todo, values_of, settings, scheduler, workers, write, log, f
                                dashboard_address=None, silence_logs=logging.ERROR)
         client = Client(cluster)
     try:
+        _check_workers(client, model)
         bar = tqdm(total=len(todo), unit="run", file=log, disable=None, dynamic_ncols=True)
         # a worker lost while running a task: the scheduler gives the task to another worker
         # (up to distributed.scheduler.allowed-failures); past that, or when the connection
@@ -330,6 +336,34 @@ def _run_all(model, todo, values_of, settings, scheduler, workers, write, log, f
         client.close()
         if cluster is not None:
             cluster.close()
+
+
+def _probe(model):
+    """What a worker needs to run the sweep: the module, and the model file."""
+    import mechanism_sim
+
+    if not os.access(model, os.R_OK):
+        raise OSError(f"cannot read {model}")
+    return mechanism_sim.__file__
+
+
+def _check_workers(client, model, timeout=60):
+    """Every worker of the cluster imports mechanism_sim and reads the model, asked once
+    before any run is submitted; else SweepError with the fix."""
+    try:
+        client.wait_for_workers(1, timeout=timeout)
+    except Exception:
+        raise SweepError(f"no worker joined the scheduler within {timeout} s")
+    bad = []
+    for address in sorted(client.scheduler_info()["workers"]):
+        try:
+            client.run(_probe, model, workers=[address])
+        except Exception as e:
+            bad.append(f"{address}: {type(e).__name__}: {e}")
+    if bad:
+        raise SweepError("workers that cannot run the sweep: " + "; ".join(bad) +
+                         ". Start each worker from a sourced workspace (source .catkin_ws/devel/setup.bash, "
+                         "then dask-worker ...) on a machine that has the model at the same path")
 
 
 def _describe(combo):

@@ -468,7 +468,6 @@ void JointStepper::step(const System& sys, State& s, const Inputs& in, double h)
     a_ref_ = s.qddot_ref.size() == model_.nv ? s.qddot_ref : s.qddot;
     closures_.passage_ref = &a_ref_;
   }
-  const double t0 = s.t;
   friction0_ = s.friction;
   // stage 1: the accelerations the last step (or settle) left, when they are of this state
   // under these inputs; else computed here (with friction: without it, frictionFor's)
@@ -518,13 +517,13 @@ void JointStepper::step(const System& sys, State& s, const Inputs& in, double h)
     if (L.kind == TreeJointKind::kFree) s.q_round.segment<4>(L.iq + 3).setZero();
   }
   if (!stiff_list_.empty()) implicitDamping(sys, s, h);
-  s.t += h;
-  ++s.steps;
+  const State::Clock clock0 = s.clock();
+  s.countStep(h);
   limit_side0_ = s.limit_side;
   try {
     finish(sys, s, in);
   } catch (...) {  // the State as it was (the last accepted step)
-    s.t = t0, --s.steps;
+    s.setClock(clock0);
     s.q = q0_, s.qdot = v0_;
     s.limit_side = limit_side0_;
     s.friction = friction0_;
@@ -958,7 +957,7 @@ void JointStepper::implicitDamping(const System& sys, State& s, double h) {
     // (Z = M^-1 G^T - Y K^-1 Y^T G^T by Woodbury), (G Z) mu = G u_free - nu: the absolute
     // formulation's KKT in the metric M + h G^T C G (stiff_damping.cpp, item 3).
     EvalContext ctx = s.context();
-    ctx.t = s.t + h;
+    ctx.t = s.timeAfterStep(h);
     closures_.setContext(ctx);
     closures_.evaluate(model_, sys, ws_, s.q);  // G and nu at s.q (ws_: s.q at rest)
     closures_.form_Y = true;

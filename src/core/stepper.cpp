@@ -250,8 +250,8 @@ void Stepper::stepOnce(const System& sys, State& s, const Inputs& in, double h) 
   combineStages(h, T.b, T.stages, T.b_den, u0_, ku_, sum_u_, s.u);
   for (int b = 0; b < sys.nb; ++b) s.x.segment<4>(BodyCoordinates::x(b) + 3).normalize();
   predictTracked(h);  // references near the new angles; finishStep tracks them exactly
-  s.t = t0 + h;
-  ++s.steps;
+  s.t = t0;
+  s.countStep(h);
   finishStep(sys, s, in, true);
 }
 

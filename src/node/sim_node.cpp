@@ -258,6 +258,7 @@ void SimNode::onEffort(const sensor_msgs::JointState::ConstPtr& msg) {
     const int d = model_->dofIndex(msg->name[i]);  // dofs are fixed after init: no lock needed
     if (d < 0) problem = "unknown joint '" + msg->name[i] + "'";
     else if (!std::isfinite(msg->effort[i])) problem = "effort for '" + msg->name[i] + "' is not finite";
+    else if (!model_->dofs()[d].actuated) problem = "'" + msg->name[i] + "' is passive (the file names its actuated joints)";
     dofs.push_back(d);
   }
   if (!problem.empty()) {

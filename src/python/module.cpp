@@ -184,6 +184,10 @@ PYBIND11_MODULE(_mechanism_sim, m) {
       .def("steps", &Simulation::steps, "Steps taken since loading or reset() (a restore() brings back its count).")
       .def("positions", [](const Simulation& s) { return perDof(s, [&](int d) { return s.model().position(d); }); })
       .def("velocities", [](const Simulation& s) { return perDof(s, [&](int d) { return s.model().velocity(d); }); })
+      .def("accelerations", [](const Simulation& s) {
+        return perDof(s, [&](int d) { return s.model().acceleration(d); });
+      }, "The accelerations solved with the state when it was reached (a step, load, set_state), "
+         "under the efforts commanded then.")
       .def("efforts", [](const Simulation& s) { return perDof(s, [&](int d) { return s.model().effort(d); }); },
            "The effort each joint applies along each dof (command, damping, friction, limit, drive).")
       .def("commanded_efforts", [](const Simulation& s) {
@@ -215,6 +219,12 @@ PYBIND11_MODULE(_mechanism_sim, m) {
           for (int j = 0; j < 4; ++j) w(i, j) = T(i, j);
         return out;
       }, "World pose of a link, a 4x4 homogeneous matrix.")
+      .def("link_velocity", [](const Simulation& s, const std::string& link) {
+        const int l = s.model().linkIndex(link);
+        if (l < 0) throw std::invalid_argument(s.path() + ": no link '" + link + "'");
+        const auto vw = s.model().linkVelocity(l);
+        return array({vw.first.x(), vw.first.y(), vw.first.z(), vw.second.x(), vw.second.y(), vw.second.z()});
+      }, "Velocity of a link's frame origin and its angular velocity, [vx, vy, vz, wx, wy, wz] in world axes.")
       .def("violation", [](const Simulation& s) {
         py::dict d;
         d["position"] = s.model().positionViolation(), d["velocity"] = s.model().velocityViolation();

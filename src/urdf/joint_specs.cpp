@@ -76,7 +76,7 @@ JointSpec treeJoint(const urdf::Joint& j, const tinyxml2::XMLElement* element, c
   if (override) {
     s.type = coreType(override->type);
     s.params.alpha = override->alpha;
-    if (override->element && override->element->FirstChildElement("axis")) axis = override->axis;
+    if (override->axes_given || (override->element && override->element->FirstChildElement("axis"))) axis = override->axis;
     axis2 = override->axis2;
     if (override->damping > 0) s.damping = override->damping;
     if (override->friction > 0) s.friction = override->friction;
@@ -100,12 +100,14 @@ JointSpec loopJoint(const ExtJoint& e, const urdf::ModelInterface& urdf,
   s.element = e.element;
   s.parent = e.parent;
   s.child = e.child;
+  // SDF's <parent>world</parent>: the world, where the URDF's root link is fixed
+  if (e.sdf && e.parent == "world" && !urdf.getLink("world")) s.parent = urdf.getRoot()->name;
   s.params.alpha = e.alpha;
   s.damping = e.damping;
   s.friction = e.friction;
-  if (!urdf.getLink(e.parent)) reader.fail(e.element, "parent link '" + e.parent + "' does not exist");
+  if (!urdf.getLink(s.parent)) reader.fail(e.element, "parent link '" + e.parent + "' does not exist");
   if (!urdf.getLink(e.child)) reader.fail(e.element, "child link '" + e.child + "' does not exist");
-  if (e.parent == e.child) reader.fail(e.element, "joint's parent is its child ('" + e.parent + "')");
+  if (s.parent == e.child) reader.fail(e.element, "joint's parent is its child ('" + e.parent + "')");
   if (!e.sdf) {
     Isometry3d child_origin = e.child_origin;
     if (e.child_rotation_from_zero_pose)  // the frames' rotations coincide at the zero pose
@@ -116,12 +118,27 @@ JointSpec loopJoint(const ExtJoint& e, const urdf::ModelInterface& urdf,
     s.C_U = child_origin;
     return s;
   }
-  const Isometry3d W_J = nominal.at(e.child) * e.child_origin;
-  auto inJoint = [&](const Vector3d& a) { return e.axis_in_model ? Vector3d(W_J.linear().transpose() * a) : a; };
+  // an SDF frame named by relative_to or expressed_in: a link (at the zero configuration),
+  // __model__ (the root link's frame) or the world
+  auto frame = [&](const std::string& name) -> Isometry3d {
+    if (name == "__model__" || (name == "world" && !urdf.getLink("world"))) return Isometry3d::Identity();
+    const auto it = nominal.find(name);
+    if (it == nominal.end())
+      reader.fail(e.element, "SDF frame '" + name + "' is not a link of the model (a link, __model__ or world)");
+    return it->second;
+  };
+  const Isometry3d W_J = e.pose_relative_to.empty() ? nominal.at(e.child) * e.child_origin
+                                                    : frame(e.pose_relative_to) * e.child_origin;
+  const Isometry3d child_origin = nominal.at(e.child).inverse() * W_J;  // the joint frame in the child link
+  auto inJoint = [&](const Vector3d& a) -> Vector3d {
+    if (e.axis_in_model) return W_J.linear().transpose() * a;
+    if (!e.axis_expressed_in.empty()) return W_J.linear().transpose() * frame(e.axis_expressed_in).linear() * a;
+    return a;
+  };
   const Matrix3d R = frameAxes(s.type, inJoint(e.axis), inJoint(e.axis2), e.element, reader);
-  s.C_J = e.child_origin * rotation(R);
-  s.C_U = e.child_origin;
-  s.P_J = nominal.at(e.parent).inverse() * nominal.at(e.child) * s.C_J;
+  s.C_J = child_origin * rotation(R);
+  s.C_U = child_origin;
+  s.P_J = nominal.at(s.parent).inverse() * nominal.at(e.child) * s.C_J;
   return s;
 }
 

@@ -5,6 +5,7 @@
 //   4. the links grouped into rigid bodies (rigid_bodies.h);
 //   5. the initial values, the bodies placed by forward kinematics, the joints, the
 //      degrees of freedom, springs and gravity in the core; then assembly.
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <fstream>
@@ -106,13 +107,19 @@ class ModelBuilder {
     }
     tinyxml2::XMLElement* robot = doc.RootElement();
     if (!robot || std::string(robot->Name()) != "robot") reader_.fail(robot, "the root element is not <robot>");
+    const std::vector<std::string> sdf_links = addSdfLinks(doc, robot, reader_);  // Gazebo (loop_dialects.h)
+    if (!sdf_links.empty()) {
+      std::string list;
+      for (const std::string& l : sdf_links) list += (list.empty() ? "'" : ", '") + l + "'";
+      root_notes_.push_back("SDF links of <gazebo> blocks are bodies, free but for their SDF joints: " + list);
+    }
     const std::vector<std::string> roots = validateStandard(robot, reader_);
     if (roots.size() > 1) floatExtraRoots(doc, robot, roots);
     noteIgnored(robot);
     Extension ext = readExtension(robot, reader_);
     readClosuresFile(options_.closures_file, robot, &ext);  // "Extended URDF" (loop_dialects.h)
     std::string why;
-    const urdf::ModelInterfaceSharedPtr urdf = parseWithUrdfdom(roots.size() > 1 ? printed(doc) : xml_, &why);
+    const urdf::ModelInterfaceSharedPtr urdf = parseWithUrdfdom(roots.size() > 1 || !sdf_links.empty() ? printed(doc) : xml_, &why);
     if (!urdf) {
       // urdfdom reads the XML with TinyXML 1, which takes a raw '&' or '<' in a name
       // differently from tinyxml2: name the element instead of a bare refusal
@@ -143,6 +150,7 @@ class ModelBuilder {
     for (const JointSpec& s : specs.tree) model_->tree_.push_back(TreeJoint{s.name, s.parent, s.child, s.type == "fixed"});
     for (const JointSpec& s : specs.tree) addJoint(s, bodies, true);
     for (const JointSpec& s : specs.loops) addJoint(s, bodies, false);
+    markPassive(ext);
     for (const JointSpec& s : specs.tree) addMimic(s);
     for (const Coupling& c : resolveCouplings(ext, specs, reader_)) addCoupling(c);
     model_->notes_ = ext.notes;
@@ -207,7 +215,7 @@ class ModelBuilder {
 
   // Elements that are read (valid URDF) but not simulated, listed once so nothing is
   // dropped without a word: transmissions, safety controllers, calibrations, collision
-  // shapes (no contact is simulated), Gazebo extensions other than loop joints (plugins,
+  // shapes (no contact is simulated), Gazebo extensions other than SDF joints and links (plugins,
   // materials, sensors) and other tools' top-level elements (<mujoco>, ...). Visuals and
   // materials are for viewers (rviz reads them) and not listed.
   void noteIgnored(const tinyxml2::XMLElement* robot) {
@@ -218,7 +226,7 @@ class ModelBuilder {
       const std::string tag = e->Name();
       if (tag == "gazebo") {
         for (const tinyxml2::XMLElement* c = e->FirstChildElement(); c; c = c->NextSiblingElement())
-          if (std::string(c->Name()) != "joint") {
+          if (std::string(c->Name()) != "joint" && std::string(c->Name()) != "link") {
             ++count["<gazebo> " + std::string(c->Name())];
           }
       } else if (tag == "link") {
@@ -454,6 +462,14 @@ class ModelBuilder {
     if (dofs == 1 && s.upper > s.lower) mech().setJointLimits(index, 0, s.lower, s.upper);
   }
 
+  // A file that names its actuated joints (Extended-URDF name_mot) makes every other dof
+  // passive, loop closures included, as the reference tool's ActuationModel does.
+  void markPassive(const Extension& ext) {
+    if (ext.actuated.empty()) return;
+    const std::set<std::string> actuated(ext.actuated.begin(), ext.actuated.end());
+    for (Dof& d : model_->dofs_) d.actuated = actuated.count(d.joint) > 0;
+  }
+
   // URDF <mimic>: an exact coupling of two one-dof joints.
   void addMimic(const JointSpec& s) {
     if (s.mimic.empty()) return;
@@ -509,6 +525,9 @@ class ModelBuilder {
         refuse("joint '" + at.first + "' has no coordinate to drive");
         continue;  // not reached
       }
+      if (!ext.actuated.empty() && std::find(ext.actuated.begin(), ext.actuated.end(), at.first) == ext.actuated.end())
+        refuse("dof '" + d.dof + "' is passive: only the actuated joints (" + ext.actuated_source +
+               ") take a drive; drive one of those or add this joint to them");
       for (const JointSpec& s : specs.tree)
         if (!s.mimic.empty() && (s.name == at.first || s.mimic == at.first))
           refuse("dof '" + d.dof + "' is coupled by mimic ('" + s.name + "' mimics '" + s.mimic +

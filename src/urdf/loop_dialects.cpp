@@ -1,9 +1,11 @@
 #include "loop_dialects.h"
 
+#include <array>
 #include <cmath>
 #include <cstring>
 #include <fstream>
 #include <map>
+#include <optional>
 #include <set>
 #include <sstream>
 
@@ -292,39 +294,197 @@ bool readLoopDialect(const XMLElement* robot, const XMLElement* e, const XmlRead
   return false;
 }
 
-// ---- onshape-to-robot (Rhoban; its documentation "Handling loop closures" and placo's
-// loader): a frame named closing_<name>_1 on one branch and closing_<name>_2 on the other;
-// their origins must coincide. Exported as fixed-jointed dummy links; each pair is a ball.
+// ---- Gazebo <gazebo><link name> (SDF link.sdf, inertial.sdf, pose.sdf; Gazebo classic
+// inserts a <gazebo> block without reference into the model it makes of the URDF, whose
+// model frame is the root link's): <pose [relative_to]>x y z roll pitch yaw</pose> in the
+// model frame or in the frame relative_to names (a link, or __model__); <inertial> with
+// <pose> (the centre of mass and inertia axes in the link frame), <mass>, <inertia><ixx>
+// ... <izz>, SDF's defaults where absent (mass 1, ixx = iyy = izz = 1, products 0, the
+// pose zero). Visuals, collisions, sensors and the like are not read (no contact is
+// simulated).
+namespace {
+
+// Text of child `tag` of e as `count` finite numbers (absent: def, when given).
+std::vector<double> sdfNumbers(const XMLElement* e, const char* tag, size_t count, const XmlReader& r,
+                               const std::vector<double>* def = nullptr) {
+  const XMLElement* c = e->FirstChildElement(tag);
+  if (!c) {
+    if (def) return *def;
+    r.fail(e, std::string("missing <") + tag + ">");
+  }
+  std::istringstream is(c->GetText() ? c->GetText() : "");
+  std::vector<double> v(count);
+  const std::string needs = count == 1 ? "needs a finite number" : "needs " + std::to_string(count) + " finite numbers";
+  for (double& x : v)
+    if (!(is >> x) || !std::isfinite(x) || std::fabs(x) > 1e6)
+      r.fail(c, needs + ": '" + oneLine(c->GetText() ? c->GetText() : "") + "'");
+  std::string extra;
+  if (is >> extra) r.fail(c, needs + ", got more: '" + oneLine(c->GetText()) + "'");
+  return v;
+}
+
+// An SDF <pose> child of e: "x y z roll pitch yaw" (degrees="true": the angles in degrees).
+Isometry3d sdfPose(const XMLElement* e, const XmlReader& r) {
+  const XMLElement* p = e->FirstChildElement("pose");
+  if (!p) return Isometry3d::Identity();
+  if (p->Attribute("rotation_format") && attr(p, "rotation_format") != "euler_rpy")
+    r.fail(p, "rotation_format '" + oneLine(attr(p, "rotation_format")) + "' is not read: write the pose as x y z roll pitch yaw");
+  const std::vector<double> v = sdfNumbers(e, "pose", 6, r);
+  const double k = attr(p, "degrees") == "true" ? M_PI / 180.0 : 1.0;
+  return poseFromXyzRpy(Vector3d(v[0], v[1], v[2]), k * Vector3d(v[3], v[4], v[5]));
+}
+
+std::string numberText(double x) {
+  std::ostringstream os;
+  os.precision(17);
+  os << x;
+  return os.str();
+}
+
+std::string xyzText(const Vector3d& v) { return numberText(v.x()) + " " + numberText(v.y()) + " " + numberText(v.z()); }
+
+}  // namespace
+
+std::vector<std::string> addSdfLinks(tinyxml2::XMLDocument& doc, XMLElement* robot, const XmlReader& r) {
+  std::vector<const XMLElement*> sdf_links;
+  for (const XMLElement* g = robot->FirstChildElement("gazebo"); g; g = g->NextSiblingElement("gazebo"))
+    for (const XMLElement* l = g->FirstChildElement("link"); l; l = l->NextSiblingElement("link")) sdf_links.push_back(l);
+  std::vector<std::string> added;
+  if (sdf_links.empty()) return added;
+  // the model frame: the root link's (the first link that is no joint's child)
+  std::set<std::string> children, joints;
+  for (const XMLElement* j = robot->FirstChildElement("joint"); j; j = j->NextSiblingElement("joint")) {
+    joints.insert(attr(j, "name"));
+    if (const XMLElement* c = j->FirstChildElement("child")) children.insert(attr(c, "link"));
+  }
+  std::string root;
+  for (const XMLElement* l = robot->FirstChildElement("link"); l && root.empty(); l = l->NextSiblingElement("link"))
+    if (!children.count(attr(l, "name"))) root = attr(l, "name");
+  if (root.empty()) r.fail(robot, "no root link: every link is a joint's child");
+  for (const XMLElement* l : sdf_links) {
+    const std::string name = nameOf(l, r);
+    if (linkElement(robot, name)) r.fail(l, "an SDF link named '" + name + "', as a URDF link already is: rename one");
+    std::string parent = root;
+    if (const XMLElement* p = l->FirstChildElement("pose"); p && p->Attribute("relative_to")) {
+      const std::string to = attr(p, "relative_to");
+      if (to != "__model__" && to != "") {
+        if (!linkElement(robot, to))
+          r.fail(p, "relative_to '" + oneLine(to) + "' is not a link of the URDF (a link, or __model__)");
+        parent = to;
+      }
+    }
+    const Isometry3d T = sdfPose(l, r);
+    // <inertial>, SDF's defaults where absent
+    double mass = 1.0;
+    std::vector<double> I = {1, 0, 0, 1, 0, 1};  // ixx ixy ixz iyy iyz izz
+    Isometry3d C = Isometry3d::Identity();
+    if (const XMLElement* in = l->FirstChildElement("inertial")) {
+      C = sdfPose(in, r);
+      const std::vector<double> one = {1.0};
+      mass = sdfNumbers(in, "mass", 1, r, &one)[0];
+      if (!(mass >= 0)) r.fail(in->FirstChildElement("mass"), "mass must be >= 0");
+      if (const XMLElement* J = in->FirstChildElement("inertia")) {
+        const char* tags[6] = {"ixx", "ixy", "ixz", "iyy", "iyz", "izz"};
+        for (int k = 0; k < 6; ++k) {
+          const std::vector<double> def = {I[k]};
+          I[k] = sdfNumbers(J, tags[k], 1, r, &def)[0];
+        }
+      }
+    }
+    std::string joint_name = name + "_floating";
+    while (joints.count(joint_name)) joint_name += "_";
+    joints.insert(joint_name);
+    // the URDF equivalent: the link with its inertial, on a floating joint from its frame
+    XMLElement* link = doc.NewElement("link");
+    link->SetAttribute("name", name.c_str());
+    XMLElement* inertial = link->InsertNewChildElement("inertial");
+    const Vector3d rpy = C.linear().eulerAngles(2, 1, 0).reverse();
+    XMLElement* origin = inertial->InsertNewChildElement("origin");
+    origin->SetAttribute("xyz", xyzText(C.translation()).c_str());
+    origin->SetAttribute("rpy", xyzText(rpy).c_str());
+    inertial->InsertNewChildElement("mass")->SetAttribute("value", numberText(mass).c_str());
+    XMLElement* inertia = inertial->InsertNewChildElement("inertia");
+    const char* names[6] = {"ixx", "ixy", "ixz", "iyy", "iyz", "izz"};
+    for (int k = 0; k < 6; ++k) inertia->SetAttribute(names[k], numberText(I[k]).c_str());
+    robot->InsertEndChild(link);
+    XMLElement* joint = doc.NewElement("joint");
+    joint->SetAttribute("name", joint_name.c_str());
+    joint->SetAttribute("type", "floating");
+    XMLElement* jo = joint->InsertNewChildElement("origin");
+    jo->SetAttribute("xyz", xyzText(T.translation()).c_str());
+    jo->SetAttribute("rpy", xyzText(T.linear().eulerAngles(2, 1, 0).reverse()).c_str());
+    joint->InsertNewChildElement("parent")->SetAttribute("link", parent.c_str());
+    joint->InsertNewChildElement("child")->SetAttribute("link", name.c_str());
+    robot->InsertEndChild(joint);
+    added.push_back(name);
+  }
+  return added;
+}
+
+// ---- onshape-to-robot (Rhoban; assembly.py, "Processing loop closing frames", and its
+// documentation "Handling kinematic loops"): a mate named closing_<name> between two parts
+// becomes a frame closing_<name>_1 on the first and closing_<name>_2 on the second, both
+// at the mate connector; a REVOLUTE mate adds closing_<name>_1_z / closing_<name>_2_z, 0.1
+// m along the connector's z (the hinge axis). In a URDF each frame is a dummy link on a
+// fixed joint (exporter_urdf.py add_frame: link <frame>, joint <frame>_frame), and the
+// closures themselves are written only for MuJoCo (exporter_mujoco.py: a <connect> per pair
+// for BALL and REVOLUTE, a <weld> for FASTENED). Read as that export: each pair is a ball
+// joint between the frames' origins, named closing_<name> (and closing_<name>_z for the
+// second pair of a hinge, whose two balls on the axis make the hinge; one of their six
+// equations is then dependent). A FASTENED mate's frames cannot be told from a ball's in a
+// URDF: they are read as a ball.
 void readOnshapeClosures(const XMLElement* robot, const XmlReader& r, Extension* ext) {
   const std::string prefix = "closing_";
+  auto endsWith = [](const std::string& s, const std::string& tail) {
+    return s.size() >= tail.size() && s.compare(s.size() - tail.size(), tail.size(), tail) == 0;
+  };
   for (const XMLElement* l = robot->FirstChildElement("link"); l; l = l->NextSiblingElement("link")) {
     const std::string name = attr(l, "name");
-    if (name.rfind(prefix, 0) != 0 || name.size() < prefix.size() + 3) continue;
-    const std::string tail = name.substr(name.size() - 2);
-    if (tail != "_1" && tail != "_2") continue;
-    const std::string stem = name.substr(0, name.size() - 2);
-    const std::string other = stem + (tail == "_1" ? "_2" : "_1");
-    const XMLElement* partner = linkElement(robot, other);
-    if (!partner)
-      r.fail(l, "an onshape-to-robot closing frame without its partner '" + other +
+    if (name.rfind(prefix, 0) != 0) continue;
+    // (first tail, second tail, closure name suffix): closing_<name>_1_z before closing_<name>_1
+    std::string tail, other, suffix;
+    for (const auto& t : std::vector<std::array<std::string, 3>>{
+             {"_1_z", "_2_z", "_z"}, {"_2_z", "_1_z", "_z"}, {"_1", "_2", ""}, {"_2", "_1", ""}})
+      if (endsWith(name, t[0]) && name.size() > prefix.size() + t[0].size()) {
+        tail = t[0], other = t[1], suffix = t[2];
+        break;
+      }
+    if (tail.empty()) continue;
+    const std::string stem = name.substr(0, name.size() - tail.size());
+    const std::string partner = stem + other;
+    if (!linkElement(robot, partner))
+      r.fail(l, "an onshape-to-robot closing frame without its partner '" + partner +
                     "' (add that link where the loop closes, or rename this one)");
-    if (tail == "_2") continue;  // the pair is read once, from _1
+    if (tail[1] == '2') continue;  // the pair is read once, from _1
     ExtJoint j;
     j.element = l;
     j.loop = true;
     j.type = "spherical";
-    j.name = stem;
+    j.name = stem + suffix;
     j.parent = name;
-    j.child = other;
+    j.child = partner;
     ext->joints.push_back(j);
   }
 }
 
-// ---- "Extended URDF" (Gepetto/example-parallel-robots, robot_loader.py
-// completeRobotLoader): closed_loop: [[frameA, frameB], ...] frames (links) to join;
-// type: [3d|6d, ...] (3d: the origins coincide, a ball; 6d: the frames coincide, fixed;
-// default 6d); name_mot: the actuated joints; joint_name/joint_type: joints made SPHERICAL
-// or FIXED.
+// ---- "Extended URDF" (Gepetto/example-parallel-robots, loader_tools.py
+// completeRobotLoader, which builds a Pinocchio model from the URDF and then):
+//  - joint_name/joint_type: rebuilds each named joint of the model at its placement as
+//    SPHERICAL (JointModelSpherical), CARDAN (JointModelRX then JointModelRY, both at the
+//    joint's origin frame: a universal joint with axes x then y of that frame), UJOINT_AB
+//    (the later versions' JointModelRA then JointModelRB, A and B among X, Y, Z) or FIXED
+//    (locked at the neutral configuration, q = 0, by buildReducedModel); a name that is no
+//    joint of the model is passed over;
+//  - closed_loop/type: for each pair, model.getFrameId(name) on the rebuilt model and a
+//    RigidConstraintModel between the two frames, CONTACT_3D for 3d/3D (the origins
+//    coincide: a ball), CONTACT_6D otherwise (the frames coincide: fixed);
+//  - name_mot: ActuationModel(model, name_mot): these joints are the motors (the actuated
+//    dofs); every other dof is passive.
+// A Pinocchio frame named in closed_loop is any frame of the URDF parser: a link's (BODY),
+// a joint's (JOINT, or FIXED_JOINT for a fixed joint: Pinocchio turns fixed joints into
+// frames) or "universe" (the world, the root link of a fixed-base model). A joint's frame is
+// attached to the joint with identity placement, which is the child link's frame (the
+// joint origin, moving with the joint): a joint's name stands for its child link.
 void readClosuresFile(const std::string& path, const XMLElement* robot, Extension* ext) {
   if (path.empty()) return;
   std::ifstream in(path);
@@ -342,7 +502,7 @@ void readClosuresFile(const std::string& path, const XMLElement* robot, Extensio
   auto stringList = [&](const char* key) {
     std::vector<std::pair<std::string, YAML::Node>> out;
     const YAML::Node n = doc[key];
-    if (!n) return out;
+    if (!n || n.IsNull()) return out;
     if (!n.IsSequence()) fail(n, std::string(key) + ": a list is needed, as [a, b]");
     for (size_t i = 0; i < n.size(); ++i) {
       if (!n[i].IsScalar()) fail(n[i], std::string(key) + "[" + std::to_string(i) + "]: a name is needed");
@@ -350,15 +510,34 @@ void readClosuresFile(const std::string& path, const XMLElement* robot, Extensio
     }
     return out;
   };
-  std::set<std::string> joints;
-  std::map<std::string, std::string> joint_type;
-  for (const XMLElement* j = robot->FirstChildElement("joint"); j; j = j->NextSiblingElement("joint"))
-    joints.insert(attr(j, "name")), joint_type[attr(j, "name")] = attr(j, "type");
+  std::map<std::string, std::string> joint_type, joint_child;  // by joint name
+  for (const XMLElement* j = robot->FirstChildElement("joint"); j; j = j->NextSiblingElement("joint")) {
+    const XMLElement* c = j->FirstChildElement("child");
+    joint_type[attr(j, "name")] = attr(j, "type");
+    joint_child[attr(j, "name")] = c ? attr(c, "link") : "";
+  }
+  std::set<std::string> children;
+  for (const auto& jc : joint_child) children.insert(jc.second);
   for (auto it = doc.begin(); it != doc.end(); ++it) {
     const std::string key = it->first.as<std::string>();
     if (key != "closed_loop" && key != "type" && key != "name_mot" && key != "joint_name" && key != "joint_type")
       fail(it->first, "unknown key '" + key + "' (closed_loop, type, name_mot, joint_name, joint_type)");
   }
+  // A Pinocchio frame's link (see above); "" if no frame has that name.
+  auto frameLink = [&](const YAML::Node& node, const std::string& at, const std::string& frame) -> std::string {
+    const bool link = linkElement(robot, frame) != nullptr;
+    const auto joint = joint_child.find(frame);
+    if (link && joint != joint_child.end() && joint->second != frame)
+      fail(node, at + "frame '" + frame + "' names both a link and joint '" + frame + "' (whose child is link '" +
+                     joint->second + "'): the frames differ; rename one of them");
+    if (link) return frame;
+    if (joint != joint_child.end()) return joint->second;
+    if (frame == "universe") {
+      for (const XMLElement* l = robot->FirstChildElement("link"); l; l = l->NextSiblingElement("link"))
+        if (!children.count(attr(l, "name"))) return attr(l, "name");
+    }
+    return "";
+  };
   const YAML::Node loops = doc["closed_loop"];
   if (!loops || !loops.IsSequence()) fail(loops ? loops : doc, "closed_loop: a list of frame pairs is needed, as [[frameA, frameB]]");
   const auto types = stringList("type");
@@ -372,42 +551,86 @@ void readClosuresFile(const std::string& path, const XMLElement* robot, Extensio
       fail(pair, at + "a pair of frame names is needed, as [frameA, frameB]");
     ExtJoint j;
     j.loop = true;
-    j.parent = pair[0].as<std::string>();
-    j.child = pair[1].as<std::string>();
-    for (const std::string* f : {&j.parent, &j.child})
-      if (!linkElement(robot, *f)) fail(pair, at + "frame '" + *f + "' is not a link of the URDF (frames are links here)");
-    if (j.parent == j.child) fail(pair, at + "a frame cannot close a loop with itself");
+    const std::string names[2] = {pair[0].as<std::string>(), pair[1].as<std::string>()};
+    std::string* links[2] = {&j.parent, &j.child};
+    for (int k = 0; k < 2; ++k) {
+      *links[k] = frameLink(pair, at, names[k]);
+      if (links[k]->empty())
+        fail(pair, at + "frame '" + names[k] + "' is not a frame of the URDF (a link, a joint or 'universe', as "
+                        "Pinocchio names them): name one of those");
+    }
+    if (j.parent == j.child)
+      fail(pair, at + "frames '" + names[0] + "' and '" + names[1] + "' are on the same link ('" + j.parent +
+                     "'): a loop closes between two bodies");
     const std::string type = types.empty() ? "6d" : types[i].first;
     if (type == "3d" || type == "3D") j.type = "spherical";
     else if (type == "6d" || type == "6D") j.type = "fixed";
     else fail(types[i].second, "type[" + std::to_string(i) + "]: unknown closure type '" + type + "' (3d: a ball; 6d: rigid)");
-    j.name = j.parent + "-" + j.child;
+    j.name = names[0] + "-" + names[1];
     ext->joints.push_back(j);
   }
-  const auto names = stringList("joint_name"), replaced = stringList("joint_type");
-  if (names.size() != replaced.size())
+  const auto replaced = stringList("joint_name"), replacement = stringList("joint_type");
+  if (replaced.size() != replacement.size())
     fail(doc["joint_type"] ? doc["joint_type"] : doc["joint_name"], "joint_name and joint_type need one entry each per joint");
-  for (size_t i = 0; i < names.size(); ++i) {
-    if (!joints.count(names[i].first)) fail(names[i].second, "joint_name: no joint '" + names[i].first + "' in the URDF");
-    const std::string t = joint_type[names[i].first];
+  std::set<std::string> seen;
+  for (size_t i = 0; i < replaced.size(); ++i) {
+    const std::string& name = replaced[i].first;
+    if (!joint_type.count(name)) {  // the reference rebuilds the model's joints only: ignored there
+      ext->notes.push_back(where(path, replaced[i].second) + "joint_name '" + name +
+                           "' names no joint of the URDF: ignored, as completeRobotLoader does");
+      continue;
+    }
+    const std::string t = joint_type[name];
     if (t == "fixed" || t == "floating")
-      fail(names[i].second, "joint_name: '" + names[i].first + "' is a " + t + " joint, whose type cannot change");
+      fail(replaced[i].second, "joint_name: '" + name + "' is a " + t + " joint, whose type cannot change");
+    if (!seen.insert(name).second) fail(replaced[i].second, "joint_name: '" + name + "' is listed twice");
     ExtJoint j;
-    j.name = names[i].first;
-    if (replaced[i].first == "SPHERICAL") j.type = "spherical";
-    else if (replaced[i].first == "FIXED") j.type = "fixed";
-    else fail(replaced[i].second, "joint_type: unknown type '" + replaced[i].first + "' (SPHERICAL, FIXED)");
+    j.name = name;
+    const std::string& to = replacement[i].first;
+    if (to == "SPHERICAL") {
+      j.type = "spherical";
+    } else if (to == "FIXED") {
+      j.type = "fixed";
+    } else if (to == "CARDAN" || (to.size() == 9 && to.rfind("UJOINT_", 0) == 0)) {
+      // CARDAN: RX then RY; UJOINT_AB: RA then RB (A, B among X, Y, Z), at the joint's origin
+      const std::string axes = to == "CARDAN" ? "XY" : to.substr(7, 2);
+      auto unit = [](char c) -> std::optional<Vector3d> {
+        if (c == 'X') return Vector3d::UnitX();
+        if (c == 'Y') return Vector3d::UnitY();
+        if (c == 'Z') return Vector3d::UnitZ();
+        return std::nullopt;
+      };
+      const auto a = unit(axes[0]), b = unit(axes[1]);
+      if (!a || !b || axes[0] == axes[1])
+        fail(replacement[i].second, "joint_type: '" + to + "': a UJOINT_AB needs two different axes A, B among X, Y, Z");
+      j.type = "universal";
+      j.axis = *a;
+      j.axis2 = *b;
+      j.has_axis2 = j.axes_given = true;
+    } else {
+      fail(replacement[i].second, "joint_type: unknown type '" + to + "' (SPHERICAL, CARDAN, UJOINT_XY and the like, FIXED)");
+    }
     ext->joints.push_back(j);
   }
   std::string motors;
   for (const auto& m : stringList("name_mot")) {
-    if (!joints.count(m.first)) fail(m.second, "name_mot: no joint '" + m.first + "' in the URDF");
+    if (!joint_type.count(m.first)) fail(m.second, "name_mot: no joint '" + m.first + "' in the URDF");
+    const std::string t = joint_type[m.first];
+    if (t == "fixed" || t == "floating")
+      fail(m.second, "name_mot: '" + m.first + "' is a " + t + " joint, which has no dof to actuate");
+    if (seen.count(m.first)) {
+      for (size_t i = 0; i < replaced.size(); ++i)
+        if (replaced[i].first == m.first && replacement[i].first == "FIXED")
+          fail(m.second, "name_mot: '" + m.first + "' is made FIXED by joint_type, which leaves no dof to actuate");
+    }
+    ext->actuated.push_back(m.first);
     motors += (motors.empty() ? "" : ", ") + m.first;
   }
-  if (!motors.empty())
+  if (!motors.empty()) {
+    ext->actuated_source = "name_mot in " + path;
     ext->notes.push_back("actuated joints (name_mot in " + path + "): " + motors +
-                         " read, not simulated as actuated: they move freely (drive them with "
-                         "<mechanism_sim:drive> or --drive)");
+                         "; every other dof is passive (no effort command, no drive)");
+  }
 }
 
 std::string siblingClosuresFile(const std::string& urdf_path) {

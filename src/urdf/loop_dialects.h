@@ -9,6 +9,7 @@
 //   <coupling>                                   URDF+ transmission (a ratio of rates)
 //   <constraint>                                 urdfdom PR 264 / urdfdom_headers PR 108
 //   <drake:ball_constraint>                      Drake
+//   <gazebo><link> (SDF links; their joints: xml_input.h)  Gazebo
 //   closing_<name>_1 / closing_<name>_2 links    onshape-to-robot
 //   robot.yaml beside robot.urdf                 "Extended URDF" (Gepetto)
 #pragma once
@@ -27,6 +28,12 @@ namespace urdf_input {
 // constraint, drake:ball_constraint) into ext; false if it is none of them.
 bool readLoopDialect(const tinyxml2::XMLElement* robot, const tinyxml2::XMLElement* e, const XmlReader& reader,
                      Extension* ext);
+
+// Gazebo: each SDF <link> of a <gazebo> block (its <pose> in the model frame, the root
+// link's, or in the link its relative_to names; its <inertial>) becomes a URDF <link> of
+// `doc` with a floating joint from that frame, so that it is a body of the model, free but
+// for the SDF joints that name it. Returns the links added (empty: none, doc unchanged).
+std::vector<std::string> addSdfLinks(tinyxml2::XMLDocument& doc, tinyxml2::XMLElement* robot, const XmlReader& reader);
 
 // onshape-to-robot: every pair of links closing_<name>_1 / closing_<name>_2 is a ball
 // joint between their origins.

@@ -46,6 +46,16 @@ Eigen::Isometry3d MechanismModel::linkPose(int link) const {
   return W_B * l.body_T_link;
 }
 
+std::pair<Eigen::Vector3d, Eigen::Vector3d> MechanismModel::linkVelocity(int link) const {
+  const Link& l = links_.at(link);
+  if (l.body == Mechanism::kGround) return {Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero()};
+  // the body's state: v_i of its origin r_i (world), w_i in body axes
+  const Eigen::Matrix3d A_Oi = mechanism_->rotation(l.body);
+  const auto u_i = mechanism_->state().u.segment<6>(6 * (l.body - 1));
+  const Eigen::Vector3d w = A_Oi * u_i.tail<3>();
+  return {u_i.head<3>() + w.cross(A_Oi * l.body_T_link.translation()), w};
+}
+
 std::vector<JointReaction> MechanismModel::jointReactions() const {
   const std::vector<Reaction> r = mechanism_->jointReactions();
   std::vector<JointReaction> out(r.size());
@@ -79,6 +89,9 @@ double MechanismModel::velocity(int dof) const {
 double MechanismModel::effort(int dof) const {
   return mechanism_->jointEffort(dofs_.at(dof).joint_index, dofs_[dof].k);
 }
+double MechanismModel::acceleration(int dof) const {
+  return mechanism_->jointAcceleration(dofs_.at(dof).joint_index, dofs_[dof].k);
+}
 
 void MechanismModel::commandDriveVelocity(int dof, double v, double acc) {
   if (dof < 0 || dof >= static_cast<int>(dofs_.size())) throw UsageError("no such degree of freedom");
@@ -96,6 +109,8 @@ double MechanismModel::driveVelocity(int dof) const {
 void MechanismModel::setEffort(int dof, double tau) {
   if (dof < 0 || dof >= static_cast<int>(dofs_.size())) throw UsageError("no such degree of freedom");
   if (!std::isfinite(tau)) throw UsageError("effort for '" + dofs_[dof].name + "' is not finite");
+  if (!dofs_[dof].actuated)
+    throw UsageError(source_ + ": dof '" + dofs_[dof].name + "' is passive (the file names its actuated joints): command an actuated one");
   const double limit = dofs_[dof].effort_limit;
   command_[dof] = limit > 0 ? std::max(-limit, std::min(limit, tau)) : tau;
 }
@@ -133,6 +148,8 @@ void MechanismModel::driveDof(int dof) {
   if (dof < 0 || dof >= static_cast<int>(dofs_.size())) throw UsageError("no such degree of freedom");
   Dof& d = dofs_[dof];
   if (d.drive >= 0) throw UsageError("dof '" + d.name + "' is driven already");
+  if (!d.actuated)
+    throw UsageError(source_ + ": dof '" + d.name + "' is passive (the file names its actuated joints): drive an actuated one");
   try {
     d.drive = mechanism_->addDrive(d.joint_index, d.k, DriveProfile::velocity(0.0));
   } catch (const ModelError& e) {

@@ -1,4 +1,5 @@
-// Runs tools/xacro/xacro.js under Node.js and returns its standard output (xacro.h).
+// Runs scripts/xacro (ROS's xacro, tools/xacro/run_xacro.py) and returns its standard output
+// (xacro.h).
 #include "xacro.h"
 
 #include <fcntl.h>
@@ -30,22 +31,6 @@ constexpr size_t kMaxOutput = 256u << 20;  // a URDF larger than this is a runaw
 std::string fromEnv(const char* name, const std::string& otherwise) {
   const char* v = std::getenv(name);
   return v && *v ? v : otherwise;
-}
-
-// The first of `names` that is an executable file in a PATH directory, or "".
-std::string onPath(const std::vector<std::string>& names) {
-  const std::string path = fromEnv("PATH", "/usr/bin:/bin");
-  for (const std::string& name : names) {
-    size_t start = 0;
-    while (start <= path.size()) {
-      const size_t end = std::min(path.find(':', start), path.size());
-      const std::string dir = end > start ? path.substr(start, end - start) : ".";
-      const std::string candidate = dir + "/" + name;
-      if (access(candidate.c_str(), X_OK) == 0) return candidate;
-      start = end + 1;
-    }
-  }
-  return "";
 }
 
 // The line of the script's standard error that says what is wrong ("xacro: FILE: what"),
@@ -86,13 +71,10 @@ std::string expandXacro(const std::string& path, const XacroArgs& args, double t
   auto fail = [&](const std::string& what) -> LoadError {
     return LoadError(path + ": xacro: " + urdf_input::oneLine(what, 400));
   };
-  const std::string node = fromEnv("MECHANISM_SIM_NODE", onPath({"node", "nodejs"}));
-  if (node.empty() || access(node.c_str(), X_OK) != 0)
-    throw fail("Node.js ('node') is not installed: run scripts/install-deps");
   const std::string script = fromEnv("MECHANISM_SIM_XACRO", MECHANISM_SIM_XACRO_SCRIPT);
-  if (access(script.c_str(), R_OK) != 0) throw fail("no script '" + script + "' (MECHANISM_SIM_XACRO)");
+  if (access(script.c_str(), X_OK) != 0) throw fail("no program '" + script + "' to run (MECHANISM_SIM_XACRO)");
 
-  std::vector<std::string> argv = {node, script, path};
+  std::vector<std::string> argv = {script, path};
   for (const auto& a : args) argv.push_back(a.first + ":=" + a.second);
   std::vector<char*> cargv;
   for (std::string& a : argv) cargv.push_back(a.data());
@@ -135,7 +117,7 @@ std::string expandXacro(const std::string& path, const XacroArgs& args, double t
   }
   if (n == static_cast<ssize_t>(sizeof exec_errno)) {
     reap();
-    throw fail("cannot run '" + node + "': " + std::strerror(exec_errno) + " (run scripts/install-deps)");
+    throw fail("cannot run '" + script + "': " + std::strerror(exec_errno));
   }
 
   std::string stdout_text, stderr_text;
@@ -178,8 +160,8 @@ std::string expandXacro(const std::string& path, const XacroArgs& args, double t
   if (WIFEXITED(status) && WEXITSTATUS(status) == 0) return stdout_text;
   std::string why = reason(stderr_text, path);
   if (why.empty())
-    why = WIFSIGNALED(status) ? "node was killed by signal " + std::to_string(WTERMSIG(status))
-                              : "node exited with status " + std::to_string(WEXITSTATUS(status)) + " and no message";
+    why = WIFSIGNALED(status)  ? "xacro was killed by signal " + std::to_string(WTERMSIG(status))
+                              : "xacro exited with status " + std::to_string(WEXITSTATUS(status)) + " and no message";
   throw fail(why);
 }
 

@@ -308,7 +308,7 @@ ExtJoint readExtJoint(const XMLElement* e, const XmlReader& r) {
 }
 
 // <gazebo><joint name type><pose>..</pose><parent>..</parent><child>..</child><axis><xyz>..
-ExtJoint readSdfJoint(const XMLElement* e, const XmlReader& r) {
+ExtJoint readSdfJoint(const XMLElement* e, const XmlReader& r, std::vector<std::string>* notes) {
   ExtJoint j;
   j.element = e;
   j.sdf = true;
@@ -318,13 +318,22 @@ ExtJoint readSdfJoint(const XMLElement* e, const XmlReader& r) {
   j.name = e->Attribute("name");
   const std::string type = e->Attribute("type");
   static const std::map<std::string, std::string> types = {
-      {"revolute", "revolute"}, {"prismatic", "prismatic"}, {"ball", "spherical"},
+      {"revolute", "revolute"}, {"continuous", "revolute"}, {"prismatic", "prismatic"}, {"ball", "spherical"},
       {"universal", "universal"}, {"screw", "screw"}, {"fixed", "fixed"}};
-  if (!types.count(type)) r.fail(e, "unsupported SDF joint type '" + type + "' (revolute, prismatic, ball, universal, screw, fixed)");
+  if (type == "revolute2" || type == "gearbox")
+    r.fail(e, "unsupported SDF joint type '" + type + "': write it as " +
+                  (type == "revolute2" ? "a universal joint (perpendicular axes)" : "a <mimic> of the two joints it gears"));
+  if (!types.count(type))
+    r.fail(e, "unsupported SDF joint type '" + oneLine(type) + "' (revolute, continuous, prismatic, ball, universal, screw, fixed)");
   j.type = types.at(type);
   j.parent = r.text(e, "parent");
   j.child = r.text(e, "child");
   if (const XMLElement* pose = e->FirstChildElement("pose")) {
+    // SDF 1.7+: the pose in the frame relative_to names (default: the child link)
+    if (const char* to = pose->Attribute("relative_to"); to && *to && std::string(to) != j.child)
+      j.pose_relative_to = to;
+    if (pose->Attribute("degrees") || pose->Attribute("rotation_format"))
+      r.fail(pose, "degrees and rotation_format are not read on a joint pose: write x y z roll pitch yaw in radians");
     std::istringstream is(pose->GetText() ? pose->GetText() : "");
     double v[6];
     for (double& x : v)
@@ -356,6 +365,11 @@ ExtJoint readSdfJoint(const XMLElement* e, const XmlReader& r) {
     if ((in && std::string(in) == "__model__") ||
         (upm && upm->GetText() && std::string(upm->GetText()).find("true") != std::string::npos))
       j.axis_in_model = true;
+    else if (in && *in && std::string(in) != j.name) {  // (the joint's own frame is the default)
+      if (!j.axis_expressed_in.empty() && j.axis_expressed_in != in)
+        r.fail(xyz, "axis and axis2 expressed in different frames: express both in one");
+      j.axis_expressed_in = in;
+    }
     return true;
   };
   if (!sdfAxis("axis", &j.axis) && j.type != "spherical" && j.type != "fixed") r.fail(e, "missing <axis>");
@@ -372,8 +386,11 @@ ExtJoint readSdfJoint(const XMLElement* e, const XmlReader& r) {
       const double tp = std::atof(p2->GetText() ? p2->GetText() : "0");
       if (tp == 0.0 || !std::isfinite(tp)) r.fail(p2, "thread_pitch must be finite and non-zero");
       j.alpha = -1.0 / tp;
-    } else {
-      r.fail(e, "a screw joint needs <screw_thread_pitch> or <thread_pitch>");
+    } else {  // SDF's default thread_pitch, 1, which Gazebo classic's ScrewJoint::Load takes with a warning
+      j.alpha = -1.0;
+      notes->push_back(r.file + ":" + std::to_string(e->GetLineNum()) + ": SDF screw joint '" + j.name +
+                       "' has no <screw_thread_pitch> or <thread_pitch>: SDF's default thread_pitch 1 (radians per metre, "
+                       "left-handed: 6.28 m per turn) is used, as Gazebo does; give the pitch");
     }
   }
   return j;
@@ -387,7 +404,7 @@ Extension readExtension(const XMLElement* robot, const XmlReader& r) {
     const std::string tag = e->Name();
     if (tag == "gazebo") {
       for (const XMLElement* j = e->FirstChildElement("joint"); j; j = j->NextSiblingElement("joint"))
-        ext.joints.push_back(readSdfJoint(j, r));
+        ext.joints.push_back(readSdfJoint(j, r, &ext.notes));
       continue;
     }
     if (readLoopDialect(robot, e, r, &ext)) continue;

@@ -49,11 +49,17 @@ struct ExtJoint {
   bool loop = false;          // a loop closure between two links (else: overrides a URDF joint)
   bool sdf = false;           // from <gazebo><joint>: SDF pose and axis conventions
   bool axis_in_model = false; // SDF use_parent_model_frame / expressed_in="__model__"
+  // SDF frames named by the joint's <pose relative_to> and its axes' expressed_in (a link
+  // of the model; "" for the default: the child link, the joint frame)
+  std::string pose_relative_to, axis_expressed_in;
   std::string parent, child;
   Isometry3d origin = Isometry3d::Identity();        // joint frame in the parent link (extension)
   Isometry3d child_origin = Isometry3d::Identity();  // joint frame in the child link
   Vector3d axis = Vector3d::UnitZ(), axis2 = Vector3d::UnitY();
   bool has_axis2 = false;
+  // Overriding a URDF joint's type: axis and axis2 replace the URDF axis (an Extended-URDF
+  // CARDAN joint's x and y); else the URDF axis stays unless the element gives <axis>.
+  bool axes_given = false;
   double alpha = 0.0;  // screw lead per radian
   double damping = 0.0, friction = 0.0;
   // The child side's rotation is the one that makes the two frames coincide with every
@@ -103,6 +109,10 @@ struct Extension {
   std::optional<Vector3d> gravity;
   std::vector<ExtCoupling> couplings;  // URDF+ <coupling>
   std::vector<std::string> notes;      // what was read but is not simulated (MechanismModel::notes)
+  // The actuated joints when a file names them (Extended-URDF name_mot): every other dof is
+  // passive (no effort command, no drive). Empty: every dof is actuated.
+  std::vector<std::string> actuated;
+  std::string actuated_source;  // where they are named, for messages
 };
 
 // What makes an inertia matrix (about a centre of mass) unphysical, or "" if it is physical:

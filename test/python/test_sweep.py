@@ -161,6 +161,36 @@ def test_a_killed_worker_loses_no_run_and_every_row_is_simulates(cluster, tmp_pa
     assert_rows_equal_simulate(FOUR_BAR_DRIVEN, rows, keys, options)
 
 
+def test_workers_that_cannot_import_the_module_stop_the_sweep_before_any_run(tmp_path):
+    # a worker started outside the sourced workspace: one line with the fix, no results file
+    log = open(tmp_path / "cluster.log", "w")
+    info = tmp_path / "scheduler.json"
+    bare = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "ROS_PACKAGE_PATH", "LD_LIBRARY_PATH")}
+    procs = [start(["dask-scheduler", "--host", "127.0.0.1", "--port", "0", "--no-dashboard",
+                    "--scheduler-file", str(info)], log, bare)]
+    try:
+        for _ in range(300):
+            if info.exists() and info.stat().st_size > 0:
+                break
+            time.sleep(0.05)
+        address = json.loads(info.read_text())["address"]
+        procs.append(start(["dask-worker", address, "--nthreads", "1", "--no-nanny", "--no-dashboard",
+                            "--host", "127.0.0.1", "--name", "bare"], log, bare))
+        out = tmp_path / "results.csv"
+        sw = sweep(FOUR_BAR_DRIVEN, "--vary", "drive:crank_joint=2,3", "--out", str(out), "--scheduler", address)
+        _, stderr = sw.communicate(timeout=120)
+        assert sw.returncode == 2, stderr
+        line = stderr.strip().splitlines()[-1]
+        assert line.startswith("sweep: workers that cannot run the sweep: tcp://127.0.0.1:"), stderr
+        assert "ModuleNotFoundError: No module named 'mechanism_sim'" in line, stderr
+        assert "Start each worker from a sourced workspace" in line, stderr
+        assert not out.exists()
+    finally:
+        for p in reversed(procs):
+            stop(p)
+        log.close()
+
+
 def test_an_interrupted_sweep_resumes_where_it_stopped(tmp_path):
     # xacro arguments (one value makes a negative mass: that run's row says so) and an
     # initial position, on two local worker processes

@@ -137,7 +137,7 @@ TEST(Dialects, ExtendedUrdfClosuresFile) {
   auto beside = loadModelFile(urdf);
   EXPECT_EQ(beside->numEquations(), kTreeEquations + 3);
   ASSERT_EQ(beside->notes().size(), 1u);
-  EXPECT_NE(beside->notes()[0].find("actuated joints (name_mot in " + yaml + "): crank_joint read, not simulated"),
+  EXPECT_NE(beside->notes()[0].find("actuated joints (name_mot in " + yaml + "): crank_joint; every other dof is passive"),
             std::string::npos)
       << beside->notes()[0];
   const std::string xml = readText(urdf);
@@ -151,6 +151,219 @@ TEST(Dialects, ExtendedUrdfClosuresFile) {
   six.close();
   with.closures_file = testing::TempDir() + "/closures_6d.yaml";
   EXPECT_EQ(loadModelString(xml, "string", with)->numEquations(), kTreeEquations + 6);
+}
+
+// Extended-URDF frames are Pinocchio's: a fixed joint's name is its frame (the child
+// link's), and so is a moving joint's, turning with the joint. The four-bar's coupler pin
+// welded (6d) to the frame of the hinge closedloop_A on the rocker moves as the same file
+// naming the links (pin_on_coupler, rocker_tip); were the hinge's frame taken on its parent
+// side (the rocker), the weld would lock the four-bar still.
+TEST(Dialects, ExtendedUrdfFramesArePinocchioFrames) {
+  const std::string urdf = kDir + "/four_bar_extended_frames.urdf";
+  auto joints = loadModelFile(urdf);
+  EXPECT_EQ(joints->numEquations(), 4 * 5 + 6);
+  ASSERT_EQ(joints->loopJoints().size(), 1u);
+  EXPECT_EQ(joints->loopJoints()[0].name, "pin_on_coupler_frame-closedloop_A");
+  std::ofstream links(testing::TempDir() + "/closures_links.yaml");
+  links << "closed_loop: [[pin_on_coupler, rocker_tip]]\ntype: [6d]\nname_mot: [crank_joint]\n";
+  links.close();
+  LoadOptions with;
+  with.closures_file = testing::TempDir() + "/closures_links.yaml";
+  auto by_links = loadModelFile(urdf, with);
+  const std::vector<double> a = positionsAfter(*joints, 2.0), b = positionsAfter(*by_links, 2.0);
+  EXPECT_GT(std::fabs(a[0]), 0.1) << "the four-bar should move";
+  for (size_t k = 0; k < a.size(); ++k) EXPECT_NEAR(a[k], b[k], 1e-12) << k;
+  // "universe" is the world: the root link
+  std::ofstream world(testing::TempDir() + "/closures_universe.yaml");
+  world << "closed_loop: [[universe, crank_joint]]\ntype: [3d]\n";
+  world.close();
+  with.closures_file = testing::TempDir() + "/closures_universe.yaml";
+  auto m = loadModelFile(urdf, with);
+  ASSERT_EQ(m->loopJoints().size(), 1u);
+  EXPECT_EQ(m->links()[m->loopJoints()[0].parent_link].name, "ground");
+  EXPECT_EQ(m->links()[m->loopJoints()[0].child_link].name, "crank");
+}
+
+// joint_name/joint_type: CARDAN is the reference loader's JointModelRX then JointModelRY at
+// the joint's origin (a universal joint, axes x then y of that frame), SPHERICAL a ball,
+// FIXED the joint locked at zero. The four-bar with its coupler joint made a cardan and its
+// loop a ball moves in its plane as the hinged one (the cardan's x turn stays zero).
+TEST(Dialects, ExtendedUrdfJointTypes) {
+  const std::string xml = readText(kDir + "/four_bar_extended.urdf");
+  auto yaml = [&](const std::string& text) {
+    const std::string path = testing::TempDir() + "/closures_types.yaml";
+    std::ofstream(path) << text;
+    LoadOptions with;
+    with.closures_file = path;
+    return loadModelString(xml, "four_bar_extended", with);
+  };
+  const std::string loop = "closed_loop: [[pin_on_coupler, pin_on_rocker]]\ntype: [3d]\n";
+  auto cardan = yaml(loop + "joint_name: [coupler_joint]\njoint_type: [CARDAN]\n");
+  EXPECT_EQ(cardan->numEquations(), 10 + 4 + 3);
+  const int x = cardan->dofIndex("coupler_joint.axis1"), y = cardan->dofIndex("coupler_joint.axis2");
+  ASSERT_GE(x, 0);
+  ASSERT_GE(y, 0);
+  auto reference = loadModelFile(kDir + "/four_bar_mechanism_sim.urdf");
+  for (int s = 0; s < 1000; ++s) cardan->step(1e-3), reference->step(1e-3);
+  EXPECT_GT(std::fabs(reference->position(reference->dofIndex("crank_joint"))), 0.1);
+  for (const char* dof : {"crank_joint", "rocker_joint"})
+    EXPECT_NEAR(cardan->position(cardan->dofIndex(dof)), reference->position(reference->dofIndex(dof)), 1e-9) << dof;
+  EXPECT_NEAR(cardan->position(y), reference->position(reference->dofIndex("coupler_joint")), 1e-9);
+  EXPECT_NEAR(cardan->position(x), 0.0, 1e-9);
+  // UJOINT_AB (later versions): RA then RB; UJOINT_ZY turns about the joint origin's z
+  // first, so its second axis y is the hinge: the same planar motion, the z turn zero
+  auto zy = yaml(loop + "joint_name: [coupler_joint]\njoint_type: [UJOINT_ZY]\n");
+  for (int s = 0; s < 1000; ++s) zy->step(1e-3);
+  EXPECT_NEAR(zy->position(zy->dofIndex("coupler_joint.axis2")), cardan->position(y), 1e-9);
+  EXPECT_NEAR(zy->position(zy->dofIndex("coupler_joint.axis1")), 0.0, 1e-9);
+  EXPECT_EQ(yaml(loop + "joint_name: [coupler_joint]\njoint_type: [SPHERICAL]\n")->numEquations(), 10 + 3 + 3);
+  // a name that is no joint is passed over, as the reference does, with a note
+  auto ghost = yaml(loop + "joint_name: [ghost_joint]\njoint_type: [SPHERICAL]\n");
+  EXPECT_EQ(ghost->numEquations(), kTreeEquations + 3);
+  bool noted = false;
+  for (const std::string& n : ghost->notes()) noted = noted || n.find("joint_name 'ghost_joint' names no joint of the URDF: ignored") != std::string::npos;
+  EXPECT_TRUE(noted);
+  // FIXED merges crank and coupler into one body: the loop is then a rigid triangle
+  EXPECT_EQ(yaml(loop + "joint_name: [coupler_joint]\njoint_type: [FIXED]\n")->numEquations(), 10 + 3);
+}
+
+// name_mot: the actuated joints; every other dof (loop closures too) is passive, as the
+// reference loader's ActuationModel has it: a passive dof takes no effort command and no
+// drive, an actuated one both.
+TEST(Dialects, ExtendedUrdfNameMotMakesTheOthersPassive) {
+  const std::string urdf = kDir + "/four_bar_extended.urdf";
+  auto m = loadModelFile(urdf);
+  for (const Dof& d : m->dofs()) EXPECT_EQ(d.actuated, d.name == "crank_joint") << d.name;
+  EXPECT_THROW(m->setEffort(m->dofIndex("rocker_joint"), 1.0), UsageError);
+  EXPECT_THROW(m->driveDof(m->dofIndex("rocker_joint")), UsageError);  // a trajectory's or ~position_command's drive
+  m->setEffort(m->dofIndex("crank_joint"), 1.0);
+  EXPECT_EQ(m->commandedEffort(m->dofIndex("crank_joint")), 1.0);
+  LoadOptions drive;
+  drive.drives = {{"crank_joint", 1.0}};
+  auto driven = loadModelFile(urdf, drive);
+  for (int s = 0; s < 500; ++s) driven->step(1e-3);
+  EXPECT_NEAR(driven->position(driven->dofIndex("crank_joint")), 0.5, 1e-12);
+  drive.drives = {{"rocker_joint", 1.0}};
+  try {
+    loadModelFile(urdf, drive);
+    ADD_FAILURE() << "a passive dof was driven";
+  } catch (const LoadError& e) {
+    EXPECT_NE(std::string(e.what()).find("dof 'rocker_joint' is passive: only the actuated joints (name_mot in"),
+              std::string::npos)
+        << e.what();
+  }
+  // without name_mot every dof is actuated
+  for (const Dof& d : loadModelFile(kDir + "/four_bar_mechanism_sim.urdf")->dofs()) EXPECT_TRUE(d.actuated) << d.name;
+}
+
+// onshape-to-robot 1.x writes a REVOLUTE closing mate as two frame pairs on the hinge axis,
+// closing_pin_1/_2 and closing_pin_1_z/_2_z (its MuJoCo export: two <connect>s): two balls,
+// 6 equations of which one is dependent, the hinge. The four-bar moves as the hinged one.
+TEST(Dialects, OnshapeRevoluteClosingMateIsTwoBallsOnTheAxis) {
+  auto m = loadModelFile(kDir + "/four_bar_onshape_hinge.urdf");
+  EXPECT_EQ(m->numEquations(), kTreeEquations + 6);
+  ASSERT_EQ(m->loopJoints().size(), 2u);
+  EXPECT_EQ(m->loopJoints()[0].name, "closing_pin");
+  EXPECT_EQ(m->loopJoints()[1].name, "closing_pin_z");
+  auto reference = loadModelFile(kDir + "/four_bar_mechanism_sim.urdf");
+  const std::vector<double> q_ref = positionsAfter(*reference, 2.0), q = positionsAfter(*m, 2.0);
+  for (size_t k = 0; k < q.size(); ++k) EXPECT_NEAR(q[k], q_ref[k], 1e-12) << k;
+}
+
+// A gripper closed in <gazebo> blocks as PR2's: the SDF parallel links are bodies (with
+// their SDF inertials and poses), the SDF hinges make each finger a parallelogram and the
+// SDF prismatic joint ties the tips, so driving the left finger opens both symmetrically
+// with the tips parallel; the SDF screw advances its nut by the lead per turn.
+TEST(Dialects, GazeboSdfLinksAndJointsCloseAPr2LikeGripper) {
+  const std::string path = kDir + "/pr2_like_gripper.urdf";
+  LoadOptions drive;
+  const double w_finger = 0.3, w_screw = 2.0 * M_PI, t = 1.0, lead = 0.004;
+  drive.drives = {{"l_finger_joint", w_finger}, {"motor_screw_joint", w_screw}};
+  auto m = loadModelFile(path, drive);
+  EXPECT_EQ(m->loopJoints().size(), 6u);
+  EXPECT_EQ(m->numMovingBodies(), 8);  // 6 URDF links and the 2 SDF parallel links
+  ASSERT_GE(m->linkIndex("l_parallel_link"), 0);
+  bool noted = false;
+  for (const std::string& n : m->notes()) noted = noted || n.find("SDF links of <gazebo> blocks are bodies") != std::string::npos;
+  EXPECT_TRUE(noted);
+  EXPECT_LE(m->assembly().position_residual, 1e-12);
+  // the SDF link sits where its <pose> puts it (the model frame: the root link's)
+  EXPECT_LE((m->linkPose(m->linkIndex("l_parallel_link")).translation() - Eigen::Vector3d(0.06, 0.03, 0)).norm(), 1e-12);
+  for (long s = 0; s < std::lround(t / 1e-3); ++s) m->step(1e-3);
+  const double th = w_finger * t;
+  auto q = [&](const char* dof) { return m->position(m->dofIndex(dof)); };
+  EXPECT_NEAR(q("l_finger_joint"), th, 1e-12);
+  EXPECT_NEAR(q("r_finger_joint"), th, 1e-9);
+  EXPECT_NEAR(q("l_finger_tip_joint"), th, 1e-9);  // the tip keeps its orientation
+  EXPECT_NEAR(q("r_finger_tip_joint"), th, 1e-9);
+  // the tips' gap along y: 2 (0.09 sin th + 0.005 (cos th - 1)) wider than at zero
+  EXPECT_NEAR(q("gripper_joint"), 2.0 * (0.09 * std::sin(th) + 0.005 * (std::cos(th) - 1.0)), 1e-9);
+  // the parallel link turns with the finger
+  const Eigen::Matrix3d R = m->linkPose(m->linkIndex("l_parallel_link")).linear();
+  EXPECT_NEAR(std::atan2(R(1, 0), R(0, 0)), th, 1e-9);
+  // a right-handed screw turned +phi with its nut held from turning: the nut moves back
+  // lead phi / (2 pi) (one turn here: 4 mm)
+  EXPECT_NEAR(q("motor_screw_joint"), w_screw * t, 1e-12);
+  EXPECT_NEAR(q("motor_slider_joint"), -lead * w_screw * t / (2 * M_PI), 1e-12);
+  // Gazebo classic's thread_pitch (radians per metre, positive left-handed; SDF 1.11 joint.sdf:
+  // thread_pitch = -2 pi / screw_thread_pitch) moves it the same
+  const std::string xml = replaced(readText(path), "<screw_thread_pitch>0.004</screw_thread_pitch>",
+                                   "<thread_pitch>-1570.7963267948966</thread_pitch>");
+  auto classic = loadModelString(xml, "classic", drive);
+  for (long s = 0; s < std::lround(t / 1e-3); ++s) classic->step(1e-3);
+  EXPECT_NEAR(classic->position(classic->dofIndex("motor_slider_joint")), -lead, 1e-12);
+}
+
+// Every SDF joint type a <gazebo> block may close a loop with, by its equations: the
+// four-bar's closure as revolute 5, prismatic 5, screw 5, universal 4, ball 3, fixed 6,
+// continuous 5; SDF's pose relative_to and axis expressed_in; "world" as the parent is the
+// root link; revolute2 is refused with its fix.
+TEST(Dialects, GazeboSdfJointTypes) {
+  const std::string xml = readText(kDir + "/four_bar_gazebo.urdf");
+  const std::string hinge = R"(<joint name="closure" type="revolute">)";
+  auto equations = [&](const std::string& type, const std::string& extra) {
+    std::string x = replaced(xml, hinge, "<joint name=\"closure\" type=\"" + type + "\">" + extra);
+    return loadModelString(x, type)->numEquations() - kTreeEquations;
+  };
+  EXPECT_EQ(equations("prismatic", ""), 5);
+  EXPECT_EQ(equations("screw", "<thread_pitch>100</thread_pitch>"), 5);
+  // no pitch: SDF's default thread_pitch 1 (Gazebo classic's, with a warning), noted
+  auto no_pitch = loadModelString(replaced(xml, hinge, R"(<joint name="closure" type="screw">)"), "no pitch");
+  bool noted = false;
+  for (const std::string& n : no_pitch->notes()) noted = noted || n.find("SDF's default thread_pitch 1") != std::string::npos;
+  EXPECT_TRUE(noted);
+  EXPECT_EQ(equations("universal", "<axis2><xyz>1 0 0</xyz></axis2>"), 4);
+  EXPECT_EQ(equations("ball", ""), 3);
+  EXPECT_EQ(equations("fixed", ""), 6);
+  EXPECT_EQ(equations("continuous", ""), 5);
+  // SDF 1.7+ frames: the joint pose relative_to the parent link, the axis expressed_in a
+  // link while the joint frame is turned 90 degrees about x: the same hinge, the same motion
+  const std::string pose = "<pose>0.12 0 0.46 0 0 0</pose>";
+  auto reference = loadModelString(xml, "reference");
+  auto relative = loadModelString(replaced(xml, pose, R"(<pose relative_to="coupler">0.4 0 0.3 0 0 0</pose>)"), "relative_to");
+  auto expressed = loadModelString(
+      replaced(replaced(xml, pose, "<pose>0.12 0 0.46 1.5707963267948966 0 0</pose>"), "<xyz>0 1 0</xyz>",
+               R"(<xyz expressed_in="rocker">0 1 0</xyz>)"),
+      "expressed_in");
+  const std::vector<double> q_ref = positionsAfter(*reference, 1.0), q_rel = positionsAfter(*relative, 1.0),
+                            q_exp = positionsAfter(*expressed, 1.0);
+  for (size_t k = 0; k < q_ref.size(); ++k) {
+    EXPECT_NEAR(q_rel[k], q_ref[k], 1e-12) << k;
+    EXPECT_NEAR(q_exp[k], q_ref[k], 1e-12) << k;
+  }
+  try {
+    loadModelString(replaced(xml, hinge, R"(<joint name="closure" type="revolute2">)"), "revolute2");
+    ADD_FAILURE() << "revolute2 loaded";
+  } catch (const LoadError& e) {
+    EXPECT_NE(std::string(e.what()).find("unsupported SDF joint type 'revolute2': write it as a universal joint"),
+              std::string::npos)
+        << e.what();
+  }
+  // <parent>world</parent>: the rocker pinned to the world at its pin: the loop is then
+  // closed on the ground instead of the coupler (a locked four-bar stays locked)
+  std::string world = replaced(xml, "<parent>coupler</parent>", "<parent>world</parent>");
+  auto m = loadModelString(world, "world");
+  EXPECT_EQ(m->links()[m->loopJoints()[0].parent_link].name, "ground");
 }
 
 // urdfdom <constraint>: each type's equations (a revolute's 5 were checked above).

@@ -1,6 +1,8 @@
-// xacro models (doc/xacro.md): test/xacro/robot.urdf.xacro expands to what its macros,
-// properties and arguments say; arguments change it; broken files give one line naming
-// the file; the simulate CLI and scripts/xacro take xacro arguments.
+// xacro models, expanded by ROS's own xacro (doc/xacro.md): test/xacro/robot.urdf.xacro and
+// the description package test/xacro/ws/src/acme_description expand to what their macros,
+// properties, YAML files and arguments say; arguments change them; $(find) reaches a sibling
+// package with or without ROS_PACKAGE_PATH; a ROS installation's xacro is preferred; broken
+// files give one line naming the file; the simulate CLI and scripts/xacro take arguments.
 #include <gtest/gtest.h>
 
 #include <sys/stat.h>
@@ -14,6 +16,7 @@
 #include <string>
 
 #include <Eigen/Eigenvalues>
+#include <urdf_parser/urdf_parser.h>
 
 #include "mechanism_sim/urdf/model.h"
 #include "run_command.h"
@@ -96,13 +99,15 @@ TEST_F(Xacro, ArgumentsOverrideTheDefaults) {
 TEST_F(Xacro, BrokenFilesGiveOneLineNamingTheFile) {
   const std::string dir = kSource + "/test/xacro/broken/";
   const std::vector<std::pair<std::string, std::string>> cases = {
-      {"undefined_property.urdf.xacro", "xacro: in \"${wheel_radius}\": undefined variable: wheel_radius"},
-      {"unknown_macro.urdf.xacro", "xacro: Cannot find macro \"wheel\""},
-      {"bad_xml.urdf.xacro", "xacro: " + dir + "bad_xml.urdf.xacro:4: XML: Opening and ending tag mismatch"},
-      {"missing_include.urdf.xacro",
-       "xacro: include: " + dir + "no_such_file.xacro: cannot read the included file (ENOENT)"},
-      {"unsupported_eval.urdf.xacro", "xacro: $(eval 'base'): substitution 'eval' is not supported"},
-      {"undefined_arg.urdf.xacro", "xacro: in \"$(arg prefix)base\": Undefined substitution argument prefix"},
+      {"undefined_property.urdf.xacro",
+       "xacro: name 'wheel_radius' is not defined when evaluating expression 'wheel_radius'"},
+      {"unknown_macro.urdf.xacro", "xacro: unknown macro name: xacro:wheel"},
+      {"bad_xml.urdf.xacro", "xacro: XML parsing error: mismatched tag: line 5, column 2"},
+      {"missing_include.urdf.xacro", "xacro: No such file or directory: " + dir + "no_such_file.xacro"},
+      {"undefined_arg.urdf.xacro", "xacro: Undefined substitution argument prefix"},
+      {"yaml_error.urdf.xacro", "xacro: while scanning a quoted scalar"},
+      {"missing_package.urdf.xacro",
+       "xacro: $(find no_such_description): package 'no_such_description' not found on ROS_PACKAGE_PATH"},
       // expands; the URDF it expands to is wrong: the loader's message, lines of the expansion
       {"negative_mass.urdf.xacro", "(xacro expansion):"},
   };
@@ -155,13 +160,13 @@ class EnvOverride {
   std::string old_;
 };
 
-TEST_F(Xacro, MissingNodeSaysToRunInstallDeps) {
-  EnvOverride node("MECHANISM_SIM_NODE", "/nonexistent/node");
+TEST_F(Xacro, AMissingProgramIsNamed) {
+  EnvOverride program("MECHANISM_SIM_XACRO", "/nonexistent/xacro");
   try {
     loadModelFile(kRobot);
     FAIL();
   } catch (const LoadError& e) {
-    EXPECT_EQ(std::string(e.what()), kRobot + ": xacro: Node.js ('node') is not installed: run scripts/install-deps");
+    EXPECT_EQ(std::string(e.what()), kRobot + ": xacro: no program '/nonexistent/xacro' to run (MECHANISM_SIM_XACRO)");
   }
 }
 
@@ -170,7 +175,7 @@ TEST_F(Xacro, AHungExpansionIsKilled) {
   const std::string hang = ::testing::TempDir() + "/hang.sh";
   std::ofstream(hang) << "#!/bin/sh\nexec sleep 30\n";
   ASSERT_EQ(chmod(hang.c_str(), 0755), 0);
-  EnvOverride node("MECHANISM_SIM_NODE", hang);
+  EnvOverride program("MECHANISM_SIM_XACRO", hang);
   const auto start = std::chrono::steady_clock::now();
   try {
     expandXacro(kRobot, {}, 0.5);
@@ -198,7 +203,108 @@ TEST_F(Xacro, SimulateTakesXacroArguments) {
   // a broken xacro: one line, exit code 1
   r = runCommand(std::string(SIMULATE_BIN) + " " + kSource + "/test/xacro/broken/unknown_macro.urdf.xacro 2>&1");
   EXPECT_EQ(r.code, 1) << r.out;
-  EXPECT_EQ(r.out, "simulate: " + kSource + "/test/xacro/broken/unknown_macro.urdf.xacro: xacro: Cannot find macro \"wheel\"\n");
+  EXPECT_EQ(r.out, "simulate: " + kSource + "/test/xacro/broken/unknown_macro.urdf.xacro: xacro: unknown macro name: xacro:wheel\n");
+}
+
+const std::string kAcme = kSource + "/test/xacro/ws/src/acme_description/urdf/acme.urdf.xacro";
+
+// The URDF that scripts/xacro writes for `file args`, as urdfdom reads it (nullptr: no URDF).
+urdf::ModelInterfaceSharedPtr expandToUrdf(const std::string& file, const std::string& args,
+                                           const std::string& env = "") {
+  const auto r = runCommand(env + " " + kSource + "/scripts/xacro " + file + " " + args);
+  EXPECT_EQ(r.code, 0) << r.out;
+  return r.code == 0 ? urdf::parseURDF(r.out) : nullptr;
+}
+
+double degrees(double d) { return d * M_PI / 180.0; }
+
+// The acme package uses what the makers' descriptions use; each value below is what ROS's
+// xacro gives for the expression or YAML entry that the fixture's comment names.
+TEST_F(Xacro, ADescriptionPackageExpandsAsRosXacroSays) {
+  // $(find acme_grippers) and $(find acme_description) from the workspace around the file:
+  // ROS_PACKAGE_PATH names neither package.
+  const auto m = expandToUrdf(kAcme, "prefix:=left_", "ROS_PACKAGE_PATH=" + kSource);
+  ASSERT_TRUE(m);
+  EXPECT_EQ(m->getName(), "acme");
+  // (prefix + 'BASE').lower()
+  ASSERT_TRUE(m->getLink("left_base"));
+  // load_yaml with !degrees / !radians, limits[name]['key'] and limits[name].key
+  const auto pan = m->getJoint("left_shoulder_pan");
+  ASSERT_TRUE(pan && pan->limits);
+  EXPECT_NEAR(pan->limits->lower, degrees(-170), 1e-15);
+  EXPECT_NEAR(pan->limits->upper, degrees(170), 1e-15);
+  EXPECT_NEAR(pan->limits->velocity, degrees(180), 1e-15);
+  EXPECT_EQ(pan->limits->effort, 150.0);
+  EXPECT_EQ(pan->axis.z, 1.0);  // the macro's axis argument
+  const auto elbow = m->getJoint("left_elbow");
+  ASSERT_TRUE(elbow && elbow->limits);
+  EXPECT_NEAR(elbow->limits->upper, degrees(135), 1e-15);
+  EXPECT_EQ(elbow->axis.y, 1.0);  // the macro's default axis:='0 1 0'
+  // !millimeters through xacro.dotify: the elbow sits 425 mm above the shoulder, and the
+  // upper arm's mass is 2.5 + 0.5 * (0.425 > 0.4)
+  EXPECT_NEAR(elbow->parent_to_joint_origin_transform.position.z, 0.425, 1e-15);
+  EXPECT_EQ(m->getLink("left_upper_arm")->inertial->mass, 3.0);
+  // a property whose value spans two lines: iyy == ixx of the solid cylinder
+  const auto& I = *m->getLink("left_forearm")->inertial;
+  EXPECT_NEAR(I.iyy, 1.5 * (3 * 0.03 * 0.03 + 0.39 * 0.39) / 12, 1e-15);
+  EXPECT_EQ(I.iyy, I.ixx);
+  // wrist-2020 is not in ['wrist-2010', 'wrist-2017']: 0.1 m, int(split('-')[1]) names it
+  ASSERT_TRUE(m->getLink("left_wrist_2020"));
+  EXPECT_EQ(m->getLink("left_wrist_2020")->inertial->mass, 0.3);  // $(eval ... if ... else ...)
+  EXPECT_EQ(m->getJoint("left_wrist")->axis.y, 1.0);              // python.isinstance(...) and year < 2015
+  // the recursive macro: two finger segments, each half as long as the one above
+  ASSERT_TRUE(m->getJoint("left_wrist_2020_s2_s1_joint"));
+  EXPECT_FALSE(m->getLink("left_wrist_2020_s2_s1_s0"));
+  EXPECT_NEAR(m->getJoint("left_wrist_2020_s2_s1_joint")->parent_to_joint_origin_transform.position.z, 0.05, 1e-15);
+  // the gripper from the sibling package, its prefix:=^ from the caller's property
+  ASSERT_TRUE(m->getJoint("left_finger_joint"));
+  EXPECT_EQ(m->getJoint("left_finger_joint")->limits->upper, 0.05);
+  // scope="parent" read back with lazy_eval="false": the first joint the macro made, and
+  // $(optenv) with its default
+  EXPECT_TRUE(m->getLink("left_note_first_joint_left_shoulder_pan"));
+}
+
+TEST_F(Xacro, ArgumentsSelectTheBranchesOfADescription) {
+  const auto m = expandToUrdf(kAcme, "wrist_model:=wrist-2010 fingers:=3 gripper:=false",
+                              "ACME_NOTE='set by env'");
+  ASSERT_TRUE(m);
+  ASSERT_TRUE(m->getLink("wrist_2010"));
+  EXPECT_EQ(m->getLink("wrist_2010")->inertial->mass, 0.4);
+  EXPECT_EQ(m->getJoint("wrist")->axis.x, 1.0);
+  EXPECT_NEAR(m->getJoint("wrist_2010_s3_joint")->parent_to_joint_origin_transform.position.z, 0.08, 1e-15);
+  EXPECT_TRUE(m->getJoint("wrist_2010_s3_s2_s1_joint"));
+  EXPECT_FALSE(m->getJoint("finger_joint"));
+  EXPECT_TRUE(m->getLink("note_set_by_env"));
+  // the same file runs in the simulator, through the loader's expansion
+  LoadOptions o;
+  o.xacro_args = {{"wrist_model", "wrist-2017"}};
+  const auto model = loadModelFile(kAcme, o);
+  EXPECT_GE(model->dofIndex("finger_joint"), 0);
+  EXPECT_GE(model->linkIndex("wrist_2017"), 0);
+}
+
+// A ROS installation's xacro (found by rospack) is preferred to the PyPI package.
+TEST_F(Xacro, ARosInstallationsXacroIsPreferred) {
+  const std::string ros = ::testing::TempDir() + "/ros_share";
+  const std::string pkg = ros + "/xacro", mod = pkg + "/src/xacro";
+  ASSERT_EQ(runCommand("mkdir -p " + mod).code, 0);
+  std::ofstream(pkg + "/package.xml") << "<package format=\"2\"><name>xacro</name><version>1.14.99</version>"
+                                          "<description>a stand-in</description><maintainer email=\"a@b.c\">a</maintainer>"
+                                          "<license>BSD</license></package>\n";
+  std::ofstream(mod + "/__init__.py")
+      << "import xml.dom.minidom\n__version__ = '1.14.99'\nfilestack = []\nmacrostack = []\n"
+         "def process_file(path, mappings=None):\n"
+         "    return xml.dom.minidom.parseString('<robot name=\"from_ros\"><link name=\"%s\"/></robot>' % mappings.get('l', 'x'))\n";
+  std::ofstream(mod + "/substitution_args.py") << "_eval_find = None\n";
+  const std::string env = "ROS_PACKAGE_PATH=" + ros + " ROS_HOME=" + ros + "/home";
+  const auto v = runCommand(env + " " + kSource + "/scripts/xacro --version");
+  EXPECT_EQ(v.out, "xacro 1.14.99 (ROS installation: " + mod + ")\n");
+  const auto r = runCommand(env + " " + kSource + "/scripts/xacro " + kRobot + " l:=arm");
+  EXPECT_NE(r.out.find("<robot name=\"from_ros\">"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("<link name=\"arm\"/>"), std::string::npos) << r.out;
+  // without it, the project's PyPI package
+  const auto pypi = runCommand("ROS_PACKAGE_PATH=" + kSource + " " + kSource + "/scripts/xacro --version");
+  EXPECT_EQ(pypi.out.rfind("xacro 2.1.1 (PyPI: ", 0), 0u) << pypi.out;
 }
 
 // scripts/xacro (launch/simulate.launch's robot_description): a plain URDF byte for byte,

@@ -163,6 +163,27 @@ class System {
 struct State {
   double t = 0.0;
   long steps = 0;
+  // The time is the start of the current run of equal steps plus their count times the
+  // step, t = t_run + n_run h_run, never a running sum: after any number of steps it is
+  // exact to one rounding. A step of another size starts a new run where the time stands.
+  double t_run = 0.0, h_run = 0.0;
+  long n_run = 0;
+  // The time after one more step of h (the State's t is not changed).
+  double timeAfterStep(double h) const {
+    return h == h_run ? t_run + static_cast<double>(n_run + 1) * h : t + h;
+  }
+  struct Clock {
+    double t, t_run, h_run;
+    long steps, n_run;
+  };
+  Clock clock() const { return {t, t_run, h_run, steps, n_run}; }
+  void setClock(const Clock& c) { t = c.t, t_run = c.t_run, h_run = c.h_run, steps = c.steps, n_run = c.n_run; }
+  // Counts one step of h taken: t becomes timeAfterStep(h), steps one more.
+  void countStep(double h) {
+    if (h != h_run) t_run = t, h_run = h, n_run = 0;
+    ++n_run, ++steps;
+    t = t_run + static_cast<double>(n_run) * h;
+  }
   Eigen::VectorXd x;  // per moving body: r (3), p (4: w x y z)
   Eigen::VectorXd u;  // per moving body: v (3), w' (3)
   std::vector<Tracked> tracked;            // per constraint

@@ -8,6 +8,7 @@
 #include <memory>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Geometry>
@@ -50,6 +51,9 @@ struct Dof {
   int k = 0;              // coordinate of that joint
   double effort_limit = 0.0, velocity_limit = 0.0;  // 0: none
   int drive = -1;         // Mechanism drive index, or -1 (not driven)
+  // Takes an effort command or a drive. False for the passive dofs of a file that names its
+  // actuated joints (an Extended-URDF name_mot: doc/loop_dialects.md).
+  bool actuated = true;
 };
 
 struct Link {
@@ -107,8 +111,8 @@ class MechanismModel {
   const AssemblyReport& assembly() const { return assembly_; }
   const Eigen::Vector3d& gravity() const;
   // What loading changed or left out, one line each: "assembly moved ..." (dofs the
-  // assembly moved onto the loop closures, old -> new), actuated joints read but not
-  // simulated as actuated. Empty when the file ran as written.
+  // assembly moved onto the loop closures, old -> new), the actuated joints a file names.
+  // Empty when the file ran as written.
   const std::vector<std::string>& notes() const { return notes_; }
   void setGravity(const Eigen::Vector3d& g);  // overrides the file's <mechanism_sim:gravity>
 
@@ -116,11 +120,16 @@ class MechanismModel {
   double time() const;
   // World pose of a link.
   Eigen::Isometry3d linkPose(int link) const;
+  // Velocity of a link's frame origin and its angular velocity, both in world axes.
+  std::pair<Eigen::Vector3d, Eigen::Vector3d> linkVelocity(int link) const;
   // Degree of freedom: position, rate, and the effort the joint applies along it
   // (commanded effort minus damping plus friction, plus a limit's reaction).
   double position(int dof) const;
   double velocity(int dof) const;
   double effort(int dof) const;
+  // Its acceleration, solved with the state when it was reached (a step, an assembly) under
+  // the inputs in force then (Mechanism::jointAcceleration).
+  double acceleration(int dof) const;
   double kineticEnergy() const;
   double potentialEnergy() const;   // gravity and springs
   // Every joint with equations (tree joints that are not fixed or floating, and loop
