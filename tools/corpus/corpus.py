@@ -392,7 +392,8 @@ def run_configuration(path, xargs, opts, env):
         row["status"] = "runs"
         m = re.search(r"(\d+) steps of \S+ s in ([0-9.]+) s wall", err)
         if m and int(m.group(1)) > 0:
-            row["us"] = "%.0f" % (float(m.group(2)) / int(m.group(1)) * 1e6)
+            us = float(m.group(2)) / int(m.group(1)) * 1e6
+            row["us"] = "%.1f" % us if us < 10 else "%.0f" % us
         m = re.search(r"formulation: (joint|absolute) coordinates", err)
         row["formulation"] = m.group(1) if m else ""
         # loops: the joints with reactions that are not joints of the URDF (loop closures of
