@@ -19,6 +19,13 @@ target_compile_definitions(test_simulate_cli PRIVATE MECHANISM_SIM_SOURCE_DIR="$
   SIMULATE_BIN="$<TARGET_FILE:simulate>")
 add_dependencies(test_simulate_cli simulate)
 
+# scripts/corpus (doc/robots.md, "Running a corpus") on test/corpus/src.
+catkin_add_gtest(test_corpus_cli test/urdf/test_corpus_cli.cpp)
+target_link_libraries(test_corpus_cli gtest_main)
+target_compile_definitions(test_corpus_cli PRIVATE MECHANISM_SIM_SOURCE_DIR="${PROJECT_SOURCE_DIR}"
+  SIMULATE_BIN="$<TARGET_FILE:simulate>")
+add_dependencies(test_corpus_cli simulate)
+
 # simulate --trajectory (doc/trajectories.md): a recorded run fed back, and bad files.
 catkin_add_gtest(test_trajectory_cli test/urdf/test_trajectory_cli.cpp)
 target_link_libraries(test_trajectory_cli gtest_main)

@@ -212,10 +212,12 @@ std::vector<std::string> validateStandard(const XMLElement* robot, const XmlRead
     const std::string t = type;
     if (t == "revolute" || t == "continuous" || t == "prismatic" || t == "planar") r.direction(e, "axis", Vector3d::UnitX());
     if (const XMLElement* lim = e->FirstChildElement("limit")) {
-      // any finite value: SDF's "no limit", +-1e16, is read by the loader (kNoLimit)
+      // any finite value: SDF's "no limit", +-1e16, is read by the loader (joint_specs.cpp)
       const double big = std::numeric_limits<double>::max();
       const double lo = r.number(lim, "lower", 0.0, big), hi = r.number(lim, "upper", 0.0, big);
-      if (lo > hi) r.fail(lim, "lower limit exceeds upper limit");
+      // A fixed or continuous joint has no bounds (URDF reads lower and upper for revolute and
+      // prismatic joints only; urdfdom parses and ignores them)
+      if (lo > hi && t != "fixed" && t != "continuous") r.fail(lim, "lower limit exceeds upper limit");
       // URDF requires both (urdfdom refuses the file without them, naming no joint)
       if (t == "revolute" || t == "prismatic")
         for (const char* a : {"effort", "velocity"})

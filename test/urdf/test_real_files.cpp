@@ -146,6 +146,25 @@ TEST(RealFiles, ALimitWithoutEffortIsRefusedAtItsLine) {
   EXPECT_NE(e.find("missing attribute 'effort'"), std::string::npos) << e;
 }
 
+// The bounds of a <limit> on a fixed or a continuous joint are not read: reversed ones load
+// (a fixed joint of Omnid's spring.urdf has lower="1000" upper="-1000"); on a revolute
+// joint they are refused at the <limit>'s line.
+TEST(RealFiles, ReversedBoundsOfAFixedOrContinuousJointAreNotRead) {
+  const std::string reversed = "lower=\"1000\" upper=\"-1000\" effort=\"10\" velocity=\"5\"";
+  auto tool = [&](const std::string& type) {
+    return R"(<link name="tool"><inertial><mass value="0.1"/>
+    <inertia ixx="1e-4" iyy="1e-4" izz="1e-4" ixy="0" ixz="0" iyz="0"/></inertial></link>
+  <joint name="mount" type=")" + type + R"("><parent link="lower"/><child link="tool"/><origin xyz="0 0 -0.5"/>
+    <axis xyz="0 0 1"/><limit )" + reversed + R"(/></joint>
+)";
+  };
+  EXPECT_EQ(loadError(arm(tool("fixed"))), "(loaded)");
+  EXPECT_EQ(loadError(arm(tool("continuous"))), "(loaded)");
+  const std::string e = loadError(arm(tool("revolute")));
+  EXPECT_NE(e.find("robot.urdf:14: "), std::string::npos) << e;
+  EXPECT_NE(e.find("lower limit exceeds upper limit"), std::string::npos) << e;
+}
+
 // A step that fails names the file and the time, in one line.
 TEST(RealFiles, AFailedStepNamesTheFileAndTheTime) {
   LoadOptions o;
