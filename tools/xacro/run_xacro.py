@@ -156,7 +156,9 @@ def _message(e):
     suffix = getattr(e, "suffix", None)
     if inner is not None:
         text = _message(inner)
-        if own and not own.endswith(": " + str(inner)):
+        if isinstance(inner, OSError) and own:
+            text = own  # xacro's own words already name the file; the OSError repeats them
+        elif own and not own.endswith(": " + str(inner)):
             text = own + " " + text
     else:
         text = str(e) or repr(e)
@@ -210,15 +212,24 @@ def main(argv):
     _give_dirname_its_file(xacro)
     if "find" in getattr(substitution_args, "_eval_dict", {}):
         substitution_args._eval_dict["find"] = find
+    # xacro's warnings (deprecations, a file's own xacro.warning) go to standard error as it
+    # writes them; they are held back until the outcome is known, so that an error stays the
+    # one line below.
+    import io
+    held, stderr = io.StringIO(), sys.stderr
+    sys.stderr = held
     try:
         doc = xacro.process_file(path, mappings=mappings)
         text = doc.toprettyxml(indent="  ")
     except Exception as e:  # xacro's own errors, expression errors, YAML, XML, I/O: one line
         import xml.parsers.expat
+        sys.stderr = stderr
         msg = _message(e)
         if isinstance(e, xml.parsers.expat.ExpatError):
             msg = "XML parsing error: " + msg
         _fail(path, msg + _where(xacro))
+    sys.stderr = stderr
+    stderr.write(held.getvalue())
     sys.stdout.write(text)
     return 0
 
