@@ -67,6 +67,27 @@ urdf::ModelInterfaceSharedPtr parseWithUrdfdom(const std::string& xml, std::stri
   return model;
 }
 
+// What tinyxml2's parse error means in the XML a user writes, and how it is fixed.
+std::string xmlErrorWords(tinyxml2::XMLError id) {
+  switch (id) {
+    case tinyxml2::XML_ERROR_EMPTY_DOCUMENT: return "the file has no element";
+    case tinyxml2::XML_ERROR_PARSING_DECLARATION:
+      return "the XML declaration <?xml ...?> must be the first thing in the file, closed by ?> (a comment or "
+             "element comes before it?)";
+    case tinyxml2::XML_ERROR_MISMATCHED_ELEMENT:
+      return "an end tag does not match the open element (an element left unclosed?)";
+    case tinyxml2::XML_ERROR_PARSING_ELEMENT: return "an element is not closed or its tag is malformed";
+    case tinyxml2::XML_ERROR_PARSING_ATTRIBUTE:
+      return "an attribute is malformed (a value without quotes, a name given twice, or a raw '<' in a value?)";
+    case tinyxml2::XML_ERROR_PARSING_TEXT: return "text is malformed (a raw '&' or '<'? write &amp; or &lt;)";
+    case tinyxml2::XML_ERROR_PARSING_CDATA: return "a <![CDATA[ section is not closed by ]]>";
+    case tinyxml2::XML_ERROR_PARSING_COMMENT: return "a comment <!-- is not closed by -->";
+    case tinyxml2::XML_ERROR_PARSING_UNKNOWN: return "a <!...> declaration is not closed by >";
+    case tinyxml2::XML_ELEMENT_DEPTH_EXCEEDED: return "the elements nest too deep";
+    default: return "the XML cannot be read";
+  }
+}
+
 // A joint coordinate: (joint name, coordinate index).
 using Coordinate = std::pair<std::string, int>;
 
@@ -104,11 +125,13 @@ class ModelBuilder {
     tinyxml2::XMLDocument doc;
     if (doc.Parse(xml_.c_str(), xml_.size()) != tinyxml2::XML_SUCCESS) {
       std::ostringstream os;
-      os << reader_.file << ":" << doc.ErrorLineNum() << ": malformed XML: " << doc.ErrorName();
+      os << reader_.file << ":" << doc.ErrorLineNum() << ": malformed XML: " << xmlErrorWords(doc.ErrorID()) << " ("
+         << doc.ErrorName() << ")";
       throw LoadError(os.str());
     }
     tinyxml2::XMLElement* robot = doc.RootElement();
     if (!robot || std::string(robot->Name()) != "robot") reader_.fail(robot, "the root element is not <robot>");
+    const bool implicit_world = addImplicitWorld(doc, robot);
     const std::vector<std::string> sdf_links = addSdfLinks(doc, robot, reader_);  // Gazebo (loop_dialects.h)
     if (!sdf_links.empty()) {
       std::string list;
@@ -116,12 +139,12 @@ class ModelBuilder {
       root_notes_.push_back("SDF links of <gazebo> blocks are bodies, free but for their SDF joints: " + list);
     }
     const std::vector<std::string> roots = validateStandard(robot, reader_);
-    if (roots.size() > 1) floatExtraRoots(doc, robot, roots);
+    if (roots.size() > 1) floatExtraRoots(doc, robot, roots, implicit_world);
     noteIgnored(robot);
     Extension ext = readExtension(robot, reader_);
     readClosuresFile(options_.closures_file, robot, &ext);  // "Extended URDF" (loop_dialects.h)
     std::string why;
-    const urdf::ModelInterfaceSharedPtr urdf = parseWithUrdfdom(roots.size() > 1 || !sdf_links.empty() ? printed(doc) : xml_, &why);
+    const urdf::ModelInterfaceSharedPtr urdf = parseWithUrdfdom(roots.size() > 1 || !sdf_links.empty() || implicit_world ? printed(doc) : xml_, &why);
     if (!urdf) {
       // urdfdom reads the XML with TinyXML 1, which takes a raw '&' or '<' in a name
       // differently from tinyxml2: name the element instead of a bare refusal
@@ -255,7 +278,51 @@ class ModelBuilder {
   // equals) is the model's root; each other root gets a floating joint from it, so it and
   // its subtree move freely, as Drake does with a model's extra roots (MuJoCo welds them to
   // the world). urdfdom takes only one root, so it reads the document with these joints.
-  void floatExtraRoots(tinyxml2::XMLDocument& doc, tinyxml2::XMLElement* robot, const std::vector<std::string>& roots) {
+  // Drake's URDF parser takes the link name 'world' for the world body, declared or not: a
+  // joint whose parent is 'world' welds (or hinges) its child to the world. A file that names
+  // 'world' in a joint and declares no such link gets one (before urdfdom reads the file, which
+  // would refuse the joint), and it is the model's root: ground. A fixed joint with 'world' as
+  // its child is the same weld read the other way; other joints need the world as parent.
+  bool addImplicitWorld(tinyxml2::XMLDocument& doc, tinyxml2::XMLElement* robot) {
+    for (auto* l = robot->FirstChildElement("link"); l; l = l->NextSiblingElement("link"))
+      if (l->Attribute("name") && std::string(l->Attribute("name")) == "world") return false;
+    std::string naming;
+    for (auto* j = robot->FirstChildElement("joint"); j; j = j->NextSiblingElement("joint")) {
+      tinyxml2::XMLElement* p = j->FirstChildElement("parent");
+      tinyxml2::XMLElement* c = j->FirstChildElement("child");
+      if (!p || !c || !p->Attribute("link") || !c->Attribute("link")) continue;  // validateStandard says so
+      const std::string name = j->Attribute("name") ? j->Attribute("name") : "";
+      if (std::string(c->Attribute("link")) == "world") {
+        if (!j->Attribute("type") || std::string(j->Attribute("type")) != "fixed")
+          fail(j, "link 'world' (the world, as in Drake) is the child of this movable joint: make 'world' its parent");
+        // the weld read from the world: the parent's frame in the world is the inverse of
+        // the origin, the child's (the world's) frame in the parent
+        const Isometry3d T = reader_.origin(j).inverse();
+        const Eigen::Vector3d ypr = T.linear().eulerAngles(2, 1, 0);
+        tinyxml2::XMLElement* o = j->FirstChildElement("origin");
+        if (!o) o = j->InsertNewChildElement("origin");
+        std::ostringstream xyz, rpy;
+        xyz.precision(17);
+        rpy.precision(17);
+        xyz << T.translation().x() << " " << T.translation().y() << " " << T.translation().z();
+        rpy << ypr(2) << " " << ypr(1) << " " << ypr(0);
+        o->SetAttribute("xyz", xyz.str().c_str());
+        o->SetAttribute("rpy", rpy.str().c_str());
+        const std::string parent = p->Attribute("link");
+        p->SetAttribute("link", "world");
+        c->SetAttribute("link", parent.c_str());
+      }
+      if (naming.empty() && std::string(p->Attribute("link")) == "world") naming = name;
+    }
+    if (naming.empty()) return false;
+    robot->InsertFirstChild(doc.NewElement("link"))->ToElement()->SetAttribute("name", "world");
+    root_notes_.push_back("joint '" + naming + "' names link 'world', which the file does not declare: it is the world "
+                          "(ground), as in Drake's URDF parser");
+    return true;
+  }
+
+  void floatExtraRoots(tinyxml2::XMLDocument& doc, tinyxml2::XMLElement* robot, const std::vector<std::string>& roots,
+                       bool implicit_world) {
     std::map<std::string, std::vector<std::string>> children;
     std::set<std::string> joint_names;
     for (auto* j = robot->FirstChildElement("joint"); j; j = j->NextSiblingElement("joint")) {
@@ -270,6 +337,7 @@ class ModelBuilder {
     std::string main = roots.front();
     for (const std::string& r : roots)
       if (size(r) > size(main)) main = r;
+    if (implicit_world) main = "world";  // the world is ground; the other trees float (Drake's free bodies)
     std::string floating;
     for (const std::string& r : roots) {
       if (r == main) continue;

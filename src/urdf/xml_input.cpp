@@ -406,8 +406,25 @@ Extension readExtension(const XMLElement* robot, const XmlReader& r) {
   for (const XMLElement* e = robot->FirstChildElement(); e; e = e->NextSiblingElement()) {
     const std::string tag = e->Name();
     if (tag == "gazebo") {
-      for (const XMLElement* j = e->FirstChildElement("joint"); j; j = j->NextSiblingElement("joint"))
+      for (const XMLElement* j = e->FirstChildElement("joint"); j; j = j->NextSiblingElement("joint")) {
         ext.joints.push_back(readSdfJoint(j, r, &ext.notes));
+        // Gazebo classic converts the URDF's joints into its model and then adds the <gazebo>
+        // block's SDF joints, as joints of their own: an SDF joint named as a URDF joint (PR2's
+        // gripper_v0 closes the fingers with an SDF 'r_gripper_joint' beside the URDF gap
+        // joint 'r_gripper_joint') is a second joint. The URDF joint keeps its name (joint
+        // states, drives and initial values name it); the loop closure is '<name> (gazebo)'.
+        ExtJoint& sdf = ext.joints.back();
+        bool urdf_name = false;
+        for (const XMLElement* u = robot->FirstChildElement("joint"); u && !urdf_name; u = u->NextSiblingElement("joint"))
+          urdf_name = u->Attribute("name") && sdf.name == u->Attribute("name");
+        if (urdf_name) {
+          const std::string urdf_joint = sdf.name;
+          sdf.name += " (gazebo)";
+          ext.notes.push_back(r.file + ":" + std::to_string(j->GetLineNum()) + ": the <gazebo> block's SDF joint '" +
+                              urdf_joint + "' is a joint of its own beside the URDF joint '" + urdf_joint +
+                              "', as in Gazebo: the loop closure '" + sdf.name + "'");
+        }
+      }
       continue;
     }
     if (readLoopDialect(robot, e, r, &ext)) continue;

@@ -382,6 +382,55 @@ TEST(Dialects, UrdfdomConstraintTypes) {
   EXPECT_TRUE(u->notes().empty());
 }
 
+// PR2's gripper_v0: an SDF joint of a <gazebo> block named as a URDF joint is a second
+// joint, as in Gazebo classic: the URDF joint keeps its name and the closure is 'g (gazebo)'.
+// The closure makes the two tips fall as one body (0.5 kg) against the right tip's damping
+// c = 2 N s/m: z(t) = -(M g / c) (t - (M / c)(1 - exp(-c t / M))), where the right tip alone
+// would fall slower and the left one freely.
+TEST(Dialects, GazeboJointNamedAsAUrdfJointIsALoopClosureBesideIt) {
+  auto m = loadModelFile(kDir + "/gazebo_joint_named_as_urdf_joint.urdf");
+  ASSERT_EQ(m->loopJoints().size(), 1u);
+  EXPECT_EQ(m->loopJoints()[0].name, "g (gazebo)");
+  EXPECT_GE(m->dofIndex("g"), 0);
+  EXPECT_GE(m->dofIndex("g (gazebo)"), 0);
+  EXPECT_NE(m->dofIndex("g"), m->dofIndex("g (gazebo)"));
+  bool noted = false;
+  for (const std::string& note : m->notes()) noted = noted || note.find("'g (gazebo)'") != std::string::npos;
+  EXPECT_TRUE(noted);
+  const double M = 0.5, c = 2.0, g = 9.81, t = 1.0;
+  const double h = 1e-3;
+  for (int s = 0; s < 1000; ++s) m->step(h);
+  const double z = -(M * g / c) * (t - (M / c) * (1.0 - std::exp(-c * t / M)));
+  EXPECT_NEAR(m->position(m->dofIndex("tip_r_joint")), z, 1e-3 * std::fabs(z));
+  EXPECT_NEAR(m->position(m->dofIndex("tip_l_joint")), z, 1e-3 * std::fabs(z));
+  EXPECT_NEAR(m->position(m->dofIndex("g")), 0.0, 1e-12);  // the URDF gap joint: nothing moves it
+}
+
+// Drake's 'world' (strandbeest): a link welded to an undeclared 'world' is fixed to ground,
+// and the four-bar moves as the one whose frame link is the root (1 m up and turned 0.7 rad
+// about the vertical, which gravity does not see), written either way round.
+TEST(Dialects, DrakeWorldIsGroundWithoutALink) {
+  auto reference = loadModelFile(kDir + "/four_bar_drake.urdf");
+  const std::vector<double> q_ref = positionsAfter(*reference, 2.0);
+  ASSERT_GT(std::fabs(q_ref[0]), 0.1) << "the four-bar should have moved";
+  for (const char* file : {"four_bar_drake_world.urdf", "four_bar_drake_world_reversed.urdf"}) {
+    auto m = loadModelFile(kDir + "/" + file);
+    EXPECT_EQ(m->rootLink(), "world") << file;
+    EXPECT_EQ(m->loopJoints().size(), 1u) << file;
+    EXPECT_EQ(m->numEquations(), kTreeEquations + 3) << file;
+    bool noted = false;
+    for (const std::string& note : m->notes()) noted = noted || note.find("Drake") != std::string::npos;
+    EXPECT_TRUE(noted) << file;
+    const Eigen::Isometry3d base = m->linkPose(m->linkIndex("base"));
+    EXPECT_NEAR((base.translation() - Eigen::Vector3d(0, 0, 1)).norm(), 0.0, 1e-12) << file;
+    const Eigen::Matrix3d turned = Eigen::AngleAxisd(0.7, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+    EXPECT_NEAR((base.linear() - turned).norm(), 0.0, 1e-12) << file;
+    const std::vector<double> q = positionsAfter(*m, 2.0);
+    for (size_t k = 0; k < q.size(); ++k) EXPECT_NEAR(q[k], q_ref[k], 1e-9) << file << " dof " << k;
+    EXPECT_NEAR((m->linkPose(m->linkIndex("base")).translation() - Eigen::Vector3d(0, 0, 1)).norm(), 0.0, 1e-12);
+  }
+}
+
 // One file per dialect and per way it can be wrong, each with its exact one-line error
 // naming the file (the URDF, or its YAML closures file) and line.
 TEST(Dialects, EachInvalidFileFailsWithItsMessage) {
