@@ -88,7 +88,7 @@ LoopClosures::LoopClosures(const TreeModel& model, const System& sys) : model_(&
   for (int k : model.ties) {
     const TreeLink& S = model.links[k];
     const TreeLink& M = model.links[S.tie];
-    bool driven = false;  // (a driven slave's limit stays: refuseDrivenPastLimit names it)
+    bool driven = false;  // (a driven slave's limit stays: drivenAtLimit names it)
     for (const DriveSpec& d : sys.drives) driven = driven || (d.joint == S.joint && d.k == 0);
     for (size_t ls = 0; ls < sys.limits.size() && !driven; ++ls) {
       if (sys.limits[ls].joint != S.joint || sys.limits[ls].k != 0) continue;
@@ -430,7 +430,7 @@ int LoopClosures::activateReachedLimits(const System& sys, const TreeModel& mode
     }
     const int side = limitSide(L, q);
     if (!side) continue;
-    refuseDrivenPastLimit(sys, L, q, ctx.t);
+    if (drivenAtLimit(sys, L, q, ctx.t)) continue;
     limit_side[l] = static_cast<signed char>(side);
     ++changed;
   }

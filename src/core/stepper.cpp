@@ -357,7 +357,7 @@ bool Stepper::updateLimits(const System& sys, State& s) {
     const double q = rows[L.k].Phi;
     const int side = limitSide(L, q);
     if (!side) continue;
-    refuseDrivenPastLimit(sys, L, q, s.t);
+    if (drivenAtLimit(sys, L, q, s.t)) continue;
     s.limit_side[l] = static_cast<signed char>(side);
     changed = true;
   }

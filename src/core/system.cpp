@@ -228,14 +228,19 @@ int limitSide(const LimitSpec& L, double q) {
   return q < L.lower - slack ? -1 : q > L.upper + slack ? 1 : 0;
 }
 
-void refuseDrivenPastLimit(const System& sys, const LimitSpec& L, double q, double t) {
+bool drivenAtLimit(const System& sys, const LimitSpec& L, double q, double t) {
   for (const DriveSpec& D : sys.drives)
     if (D.joint == L.joint && D.k == L.k) {
+      // within the assembly's slack of the bound (a gripper's finger held at its stop, off by
+      // round-off): the drive holds it there, no limit to activate
+      const double slack = 1e-9 * (std::fabs(L.lower) + std::fabs(L.upper) + sys.length_scale);
+      if (q >= L.lower - slack && q <= L.upper + slack) return true;
       std::ostringstream os;
       os << "at t = " << t << " s: the drive of joint '" << sys.joints[L.joint]->name() << "' moves it to " << fmt(q)
          << ", past its limits [" << fmt(L.lower) << ", " << fmt(L.upper) << "]; change the drive or the limits";
       throw SimulationError(os.str());
     }
+  return false;
 }
 
 }  // namespace mechanism_sim

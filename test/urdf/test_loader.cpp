@@ -225,6 +225,16 @@ TEST(Urdf, SdfNoLimitBoundsAreNoLimit) {
   EXPECT_NEAR(m->position(m->dofIndex("spin")), 20.0, 1e-9);  // no gravity about z: 20 rad/s for 1 s
 }
 
+// A held finger that starts on its stop: the kinematic hold keeps it there, round-off of
+// the arm's pose (7e-17 past the bound) does not count as the drive pushing past the limit.
+TEST(Urdf, AHeldFingerOnItsStopStaysThere) {
+  auto m = load("test/urdf/kinematic_arm_hand.urdf");
+  run(*m, 1.0);
+  EXPECT_NEAR(m->position(m->dofIndex("finger_joint1")), 0.0, 1e-12);
+  EXPECT_NEAR(m->position(m->dofIndex("finger_joint2")), 0.0, 1e-12);
+  EXPECT_LE(m->positionViolation(), 1e-12);
+}
+
 TEST(Urdf, TheReadmeExtensionExampleRuns) {
   auto m = load("test/urdf/readme_example.urdf");
   EXPECT_EQ(m->mechanism().joint(m->dofs()[m->dofIndex("spindle")].joint_index).type(), "screw");

@@ -250,7 +250,7 @@ class LoopClosures {
   // Limits' activation, the caller's (the absolute Stepper's rules, on limit_side: size
   // sys.limits.size(), e.g. State::limit_side.data()):
   //   activateReachedLimits: a free limit whose coordinate is past a bound gets side -1 /
-  //     +1 (one a drive moves throws SimulationError: refuseDrivenPastLimit); the
+  //     +1 (one a drive moves throws SimulationError past round-off: drivenAtLimit); the
   //     coordinate is q's own where the limit is on a tree coordinate (a direct row),
   //     else Joint::coordinates at q's kinematics (forwardKinematics into ws, only then),
   //     tracked angles of context();

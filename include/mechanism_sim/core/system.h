@@ -236,9 +236,12 @@ State initialState(const System& sys);
 Inputs zeroInputs(const System& sys);
 
 // A limit reached (its coordinate at q, past a bound, at time t) on a coordinate a drive
-// moves: throws SimulationError naming the joint (the drive's motion is prescribed; no
-// stop can hold it). Both formulations call it where they activate a limit.
-void refuseDrivenPastLimit(const System& sys, const LimitSpec& limit, double q, double t);
+// moves: true when q is within round-off of the bound (1e-9 of the limits' and the model's
+// scale, as assembly judges an initial position): the drive holds it, the limit is not
+// activated; throws SimulationError naming the joint when it is past by more (the drive's
+// motion is prescribed; no stop can hold it); false for a coordinate no drive moves. Both
+// formulations call it where they activate a limit.
+bool drivenAtLimit(const System& sys, const LimitSpec& limit, double q, double t);
 // Which bound a free limit's coordinate q is past: -1 (lower), +1 (upper) or 0, with a
 // round-off slack of a few ulps of the bounds' size: a coordinate driven exactly onto its
 // bound (q = 2 t reaching 1 at t = 0.5, t itself a sum of steps) is at it, not past it,
