@@ -418,11 +418,15 @@ class TreeAssembly {
   Eigen::VectorXd vunit_, runit_, q_, x_, u_;
 };
 
-}  // namespace
 
-AssemblyReport assemble(const System& sys, State& s, Stepper& st,
-                        const std::vector<CoordinateTarget>& positions,
-                        const std::vector<CoordinateTarget>& velocities, DependencyReport* deps) {
+// assembleOnce found a coordinate no target named outside its limits: the bound to set it on.
+struct OutsideLimit {
+  CoordinateTarget bound;
+};
+
+AssemblyReport assembleOnce(const System& sys, State& s, Stepper& st,
+                            const std::vector<CoordinateTarget>& positions,
+                            const std::vector<CoordinateTarget>& velocities, DependencyReport* deps) {
   auto checkTarget = [&](const CoordinateTarget& t, const char* what) {
     if (t.joint < 0 || t.joint >= sys.numJoints() || t.k < 0 || t.k >= sys.joints[t.joint]->dof())
       throw ModelError(std::string("assembly: ") + what + " target names no joint coordinate");
@@ -592,12 +596,17 @@ AssemblyReport assemble(const System& sys, State& s, Stepper& st,
       throw ModelError(os.str());
     }
   }
-  // An initial position outside a joint's limits is an error, never a jump.
+  // An initial position outside a joint's limits is an error, never a jump. A coordinate no
+  // target named, which the closing of the loops took outside its limits, is set on its
+  // nearest bound and the assembly is done again (assembleWithinLimits).
   for (const LimitSpec& L : sys.limits) {
     const CoordinateTarget t{L.joint, L.k, 0.0};
     const double q = coordinateRow(sys, s, ev, t).Phi;
     const double slack = 1e-9 * (std::fabs(L.lower) + std::fabs(L.upper) + sys.length_scale);
     if (q < L.lower - slack || q > L.upper + slack) {
+      bool targeted = false;
+      for (const auto& p : positions) targeted = targeted || (p.joint == L.joint && p.k == L.k);
+      if (!targeted) throw OutsideLimit{CoordinateTarget{L.joint, L.k, q < L.lower ? L.lower : L.upper}};
       std::ostringstream os;
       os << "joint '" << sys.joints[L.joint]->name() << "': initial position " << fmt(q)
          << " is outside its limits [" << fmt(L.lower) << ", " << fmt(L.upper) << "]";
@@ -673,6 +682,26 @@ AssemblyReport assemble(const System& sys, State& s, Stepper& st,
   }
   st.load(sys, s.x.data(), s.u.data());
   return report;
+}
+
+}  // namespace
+
+// The assembly within the joints' limits: each coordinate the loops' closing takes outside
+// its limits is held on its nearest bound and the whole assembly starts again from the
+// given state; at most once per limit, as each round adds one target.
+AssemblyReport assemble(const System& sys, State& s, Stepper& st,
+                        const std::vector<CoordinateTarget>& positions,
+                        const std::vector<CoordinateTarget>& velocities, DependencyReport* deps) {
+  const State start = s;
+  std::vector<CoordinateTarget> targets = positions;
+  for (;;) {
+    try {
+      return assembleOnce(sys, s, st, targets, velocities, deps);
+    } catch (const OutsideLimit& out) {
+      s = start;
+      targets.push_back(out.bound);
+    }
+  }
 }
 
 }  // namespace mechanism_sim

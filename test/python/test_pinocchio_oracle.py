@@ -9,6 +9,7 @@ module, so test/oracle/pinocchio_oracle.py runs there and the two sides exchange
 """
 import json
 import os
+import re
 import subprocess
 import tempfile
 from pathlib import Path
@@ -40,7 +41,7 @@ def read_expected():
         line = line.strip()
         if line and not line.startswith("#"):
             file, who, words = (x.strip() for x in line.split("|", 2))
-            assert who in ("mechanism_sim", "pinocchio", "defect"), line
+            assert who in ("mechanism_sim", "pinocchio", "defect", "projected"), line
             out[file] = (who, words)
     return out
 
@@ -85,6 +86,14 @@ def test_robot(robot):
     assert who != "defect", f"the known defect '{words}' is gone: it runs (update test/oracle/expected.txt)"
     assert m.steps() == 2000
     assert np.all(np.isfinite(m.positions())) and np.all(np.isfinite(m.velocities()))
+    # ---- a non-physical inertia runs as its nearest physical one, with a note, and
+    # strict_inertia refuses it for the stated reason; not compared: Pinocchio takes the
+    # file's own inertia, which no physical body has
+    if who == "projected":
+        assert any("the nearest physical inertia" in n for n in m.notes()), m.notes()
+        with pytest.raises(mechanism_sim.ModelError, match=re.escape(words)):
+            mechanism_sim.load(robot["path"], strict_inertia=True)
+        return
     # ---- forward dynamics against Pinocchio's (or Pinocchio's stated reason not to)
     if "pin_error" in robot:
         assert who == "pinocchio", f"Pinocchio: {robot['pin_error']}"
