@@ -172,6 +172,29 @@ TEST(Assembly, TargetsChooseTheOtherBranch) {
   EXPECT_NEAR(m.jointPosition(fb.rocker_joint, 0), q_rocker, 1e-12);
 }
 
+// The nearest closed pose puts the rocker past a limit the file gives it: the assembly
+// holds the rocker on that bound and closes the loop there (the crank moves instead).
+TEST(Assembly, AClosingThatWouldLeaveALimitEndsOnTheBound) {
+  double q_free = 0;
+  {
+    Mechanism m;
+    Parts p{m};
+    FourBar fb;
+    fb.build(p);
+    m.assemble();
+    q_free = m.jointPosition(fb.rocker_joint, 0);
+  }
+  Mechanism m;
+  Parts p{m};
+  FourBar fb;
+  fb.build(p);
+  const double bound = q_free > 0 ? q_free - 0.05 : q_free + 0.05;
+  m.setJointLimits(fb.rocker_joint, 0, q_free > 0 ? -kPi : bound, q_free > 0 ? bound : kPi);
+  m.assemble();
+  EXPECT_LT(m.positionViolation(), 1e-12);
+  EXPECT_NEAR(m.jointPosition(fb.rocker_joint, 0), bound, 1e-9);
+}
+
 TEST(Assembly, FourBarThatCannotReachAcrossItsGroundIsRefusedNamingTheLoop) {
   Mechanism m;
   Parts p{m};
