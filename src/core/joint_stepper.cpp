@@ -50,8 +50,8 @@ std::string jointFormulationUnsupported(const System& sys) {
   // revolutes with two massless links between them) passes its child's inertia up only
   // along the motions its child's joint does not take: where the joints' motions become
   // dependent (the middle revolute lines up the outer axes, a gimbal lock) the joint-space
-  // mass matrix is singular and the articulated-body recursion divides by zero. Whether a
-  // reachable pose does depends on the whole chain, so any such body refuses the joint
+  // mass matrix is singular and the articulated-body recursion divides by zero. Whether
+  // such a pose is reachable depends on the whole chain, so any such body refuses the joint
   // formulation; the absolute formulation runs it (its dependent equations are solved).
   std::vector<char> inert(tree.nb + 1, 0);  // per host: the welded group has mass or inertia
   for (const TreeLink& L : tree.links) {
