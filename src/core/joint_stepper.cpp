@@ -45,6 +45,29 @@ std::string jointFormulationUnsupported(const System& sys) {
       return "body '" + sys.bodies[L.body].name + "' and the bodies it carries have neither mass nor inertia: " +
              (L.joint >= 0 ? "joint '" + sys.joints[L.joint]->name() + "'" : std::string("its free motion")) +
              " moves no mass, which the joint formulation's recursion cannot take";
+  // A moving body that, with the bodies welded to it, has neither mass nor inertia and
+  // carries a moving body on a joint of its own (a CAD exporter's spherical joint as three
+  // revolutes with two massless links between them) passes its child's inertia up only
+  // along the motions its child's joint does not take: where the joints' motions become
+  // dependent (the middle revolute lines up the outer axes, a gimbal lock) the joint-space
+  // mass matrix is singular and the articulated-body recursion divides by zero. Whether
+  // such a pose is reachable depends on the whole chain, so any such body refuses the joint
+  // formulation; the absolute formulation runs it (its dependent equations are solved).
+  std::vector<char> inert(tree.nb + 1, 0);  // per host: the welded group has mass or inertia
+  for (const TreeLink& L : tree.links) {
+    const Body& B = sys.bodies[L.body];
+    if (L.host > 0 && (B.m > 0.0 || !B.Jp.isZero(0.0))) inert[L.host] = 1;
+  }
+  for (int b : tree.order) {
+    const TreeLink& L = tree.links[b - 1];
+    if (L.nv == 0 || L.aparent == 0 || inert[L.aparent]) continue;
+    const TreeLink& P = tree.links[L.aparent - 1];
+    auto joint = [&](const TreeLink& K) {
+      return K.joint >= 0 ? "joint '" + sys.joints[K.joint]->name() + "'" : std::string("its free motion");
+    };
+    return "body '" + sys.bodies[P.body].name + "' has neither mass nor inertia between " + joint(P) + " and " +
+           joint(L) + ": the joint-space mass matrix is singular where their motions become dependent (a gimbal lock)";
+  }
   return why;
 }
 
@@ -55,7 +78,8 @@ Formulation chooseFormulation(const System& sys, Formulation asked, std::string*
   }
   const std::string unsupported = jointFormulationUnsupported(sys);
   if (asked == Formulation::kJoint) {
-    if (!unsupported.empty()) throw ModelError("the joint formulation cannot run this mechanism: " + unsupported);
+    if (!unsupported.empty())
+      throw ModelError("the joint formulation cannot run this mechanism: " + unsupported + "; use formulation 'absolute'");
     if (why) *why = "joint coordinates, as asked";
     return Formulation::kJoint;
   }

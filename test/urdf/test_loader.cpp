@@ -2,6 +2,7 @@
 // each with its exact error.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -529,6 +530,46 @@ TEST(FuzzFindings, NearlyParallelAxesStopInsteadOfBreakingTheConstraints) {
       EXPECT_NE(std::string(e.what()).find("the velocities cannot be brought onto the constraints"), std::string::npos)
           << e.what();
     }
+  }
+}
+
+// Corpus finding (DEFECTS.md A.1): a spherical joint written as three revolutes with two
+// massless links between them. Where the middle revolute lines up the outer axes
+// (y = pi/2) the joint-space mass matrix is singular, so auto runs it in absolute
+// coordinates and says why; swung through y = pi/2 it keeps its energy and its joints.
+TEST(Formulation, MasslessLinksBetweenRevolutesRunInAbsoluteCoordinates) {
+  auto m = load("test/urdf/massless_gimbal.urdf");
+  ASSERT_STREQ(m->mechanism().formulation(), "absolute");
+  EXPECT_EQ(m->formulationReason(),
+            "absolute coordinates (auto: body 'int1' has neither mass nor inertia between joint 'rx' and joint 'ry': the "
+            "joint-space mass matrix is singular where their motions become dependent (a gimbal lock))");
+  const int ry = m->dofIndex("ry");
+  const double e0 = m->kineticEnergy() + m->potentialEnergy();
+  ASSERT_NEAR(m->kineticEnergy(), 3.0, 1e-12);  // 0.5 (0.02 + 1 * 0.2^2) 10^2
+  double highest = 0.0, worst_drift = 0.0;
+  for (int k = 0; k < 500; ++k) {
+    m->step(1e-3);
+    highest = std::max(highest, std::abs(m->position(ry)));
+    worst_drift = std::max(worst_drift, std::abs(m->kineticEnergy() + m->potentialEnergy() - e0));
+    ASSERT_LE(m->mechanism().positionViolation(), 1e-10) << "t = " << m->time();
+  }
+  EXPECT_GT(highest, M_PI / 2 + 0.3);  // through the gimbal lock
+  EXPECT_LT(worst_drift, 1e-6 * e0);
+}
+
+// The same model asked in joint coordinates is refused at load, in one line naming the
+// body and the formulation that runs it.
+TEST(Formulation, JointCoordinatesRefuseMasslessLinksBetweenJoints) {
+  LoadOptions o;
+  o.formulation = "joint";
+  try {
+    load("test/urdf/massless_gimbal.urdf", o);
+    FAIL() << "loaded";
+  } catch (const LoadError& e) {
+    EXPECT_EQ(std::string(e.what()),
+              kSource + "/test/urdf/massless_gimbal.urdf: the joint formulation cannot run this mechanism: body 'int1' has "
+                        "neither mass nor inertia between joint 'rx' and joint 'ry': the joint-space mass matrix is "
+                        "singular where their motions become dependent (a gimbal lock); use formulation 'absolute'");
   }
 }
 

@@ -140,6 +140,21 @@ TEST(SimulateCli, FormulationIsChosenAndReported) {
   EXPECT_EQ(joint_loop.code, 0) << joint_loop.out;
   EXPECT_NE(joint_loop.out.find("formulation: joint coordinates, as asked"), std::string::npos) << joint_loop.out;
   EXPECT_EQ(run(kSource + "/urdf/four_bar.urdf --formulation sideways").code, 1);
+  // massless links between revolutes (a gimbal): auto runs absolute coordinates, joint
+  // coordinates asked are refused in one line
+  const std::string gimbal = kSource + "/test/urdf/massless_gimbal.urdf";
+  const Result auto_gimbal = run(gimbal + " --duration 0.01 --csv /dev/null");
+  ASSERT_EQ(auto_gimbal.code, 0) << auto_gimbal.out;
+  EXPECT_NE(auto_gimbal.out.find("formulation: absolute coordinates (auto: body 'int1' has neither mass nor inertia"),
+            std::string::npos)
+      << auto_gimbal.out;
+  const Result joint_gimbal = run(gimbal + " --formulation joint");
+  EXPECT_EQ(joint_gimbal.code, 1) << joint_gimbal.out;
+  EXPECT_NE(joint_gimbal.out.find(gimbal + ": the joint formulation cannot run this mechanism: body 'int1' has neither "
+                                           "mass nor inertia between joint 'rx' and joint 'ry'"),
+            std::string::npos)
+      << joint_gimbal.out;
+  EXPECT_NE(joint_gimbal.out.find("(a gimbal lock); use formulation 'absolute'\n"), std::string::npos) << joint_gimbal.out;
 }
 
 // A model without mass runs kinematically and says so: the note and the summary's
