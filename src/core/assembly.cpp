@@ -422,6 +422,7 @@ class TreeAssembly {
 // assembleOnce found a coordinate no target named outside its limits: the bound to set it on.
 struct OutsideLimit {
   CoordinateTarget bound;
+  std::string what;  // the coordinate and its limits
 };
 
 AssemblyReport assembleOnce(const System& sys, State& s, Stepper& st,
@@ -596,23 +597,27 @@ AssemblyReport assembleOnce(const System& sys, State& s, Stepper& st,
       throw ModelError(os.str());
     }
   }
-  // An initial position outside a joint's limits is an error, never a jump. A coordinate no
-  // target named, which the closing of the loops took outside its limits, is set on its
-  // nearest bound and the assembly is done again (assembleWithinLimits).
-  for (const LimitSpec& L : sys.limits) {
-    const CoordinateTarget t{L.joint, L.k, 0.0};
-    const double q = coordinateRow(sys, s, ev, t).Phi;
-    const double slack = 1e-9 * (std::fabs(L.lower) + std::fabs(L.upper) + sys.length_scale);
-    if (q < L.lower - slack || q > L.upper + slack) {
-      bool targeted = false;
-      for (const auto& p : positions) targeted = targeted || (p.joint == L.joint && p.k == L.k);
-      if (!targeted) throw OutsideLimit{CoordinateTarget{L.joint, L.k, q < L.lower ? L.lower : L.upper}};
+  // An initial position outside a joint's limits is an error, never a jump: a target's
+  // first. A coordinate no target named, which the closing of the loops took outside its
+  // limits, is set on its nearest bound and the assembly done again (assemble, below).
+  auto targeted = [&](const LimitSpec& L) {
+    for (const auto& p : positions)
+      if (p.joint == L.joint && p.k == L.k) return true;
+    return false;
+  };
+  for (const bool targets : {true, false})
+    for (const LimitSpec& L : sys.limits) {
+      if (targeted(L) != targets) continue;
+      const CoordinateTarget t{L.joint, L.k, 0.0};
+      const double q = coordinateRow(sys, s, ev, t).Phi;
+      const double slack = 1e-9 * (std::fabs(L.lower) + std::fabs(L.upper) + sys.length_scale);
+      if (q >= L.lower - slack && q <= L.upper + slack) continue;
       std::ostringstream os;
       os << "joint '" << sys.joints[L.joint]->name() << "': initial position " << fmt(q)
          << " is outside its limits [" << fmt(L.lower) << ", " << fmt(L.upper) << "]";
+      if (!targets) throw OutsideLimit{CoordinateTarget{L.joint, L.k, q < L.lower ? L.lower : L.upper}, os.str()};
       throw ModelError(os.str());
     }
-  }
   checkMassRank(sys, ev, H);
   const DependencyReport dependencies = st.analyzeDependencies(sys, s);
   if (deps) *deps = dependencies;
@@ -700,6 +705,13 @@ AssemblyReport assemble(const System& sys, State& s, Stepper& st,
     } catch (const OutsideLimit& out) {
       s = start;
       targets.push_back(out.bound);
+      try {
+        return assembleOnce(sys, s, st, targets, velocities, deps);
+      } catch (const OutsideLimit&) {  // another coordinate: the next round sets it too
+        s = start;
+      } catch (const ModelError& e) {
+        throw ModelError(out.what + " where the loops close, and held on its bound they do not (" + e.what() + ")");
+      }
     }
   }
 }
