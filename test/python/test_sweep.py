@@ -104,24 +104,35 @@ def stop(proc):
             proc.wait()
 
 
+def start_scheduler(tmp_path, log, env):
+    """A Dask scheduler on 127.0.0.1 (a free port): its process and address."""
+    info = tmp_path / "scheduler.json"
+    proc = start(["dask-scheduler", "--host", "127.0.0.1", "--port", "0", "--no-dashboard",
+                  "--scheduler-file", str(info)], log, env)
+    for _ in range(300):
+        if info.exists() and info.stat().st_size > 0:
+            break
+        time.sleep(0.05)
+    return proc, json.loads(info.read_text())["address"]
+
+
+def start_worker(address, name, log, env=None):
+    return start(["dask-worker", address, "--nthreads", "1", "--no-nanny", "--no-dashboard",
+                  "--host", "127.0.0.1", "--name", name], log, env)
+
+
 @pytest.fixture
 def cluster(tmp_path):
     """A Dask scheduler and two workers (no nanny: a killed worker stays dead) on 127.0.0.1.
     The scheduler gives up on a task at the first worker lost under it (allowed-failures 0,
     KilledWorker): the sweep submits it again itself (its own path, not the scheduler's)."""
     log = open(tmp_path / "cluster.log", "w")
-    info = tmp_path / "scheduler.json"
     env = dict(os.environ, DASK_DISTRIBUTED__SCHEDULER__ALLOWED_FAILURES="0")
-    procs = [start(["dask-scheduler", "--host", "127.0.0.1", "--port", "0", "--no-dashboard",
-                    "--scheduler-file", str(info)], log, env)]
+    procs = []
     try:
-        for _ in range(300):
-            if info.exists() and info.stat().st_size > 0:
-                break
-            time.sleep(0.05)
-        address = json.loads(info.read_text())["address"]
-        workers = [start(["dask-worker", address, "--nthreads", "1", "--no-nanny", "--no-dashboard",
-                          "--host", "127.0.0.1", "--name", f"w{i}"], log) for i in range(2)]
+        scheduler, address = start_scheduler(tmp_path, log, env)
+        procs.append(scheduler)
+        workers = [start_worker(address, f"w{i}", log) for i in range(2)]
         procs += workers
         from distributed import Client
         with Client(address, timeout="30s") as c:
@@ -164,18 +175,12 @@ def test_a_killed_worker_loses_no_run_and_every_row_is_simulates(cluster, tmp_pa
 def test_workers_that_cannot_import_the_module_stop_the_sweep_before_any_run(tmp_path):
     # a worker started outside the sourced workspace: one line with the fix, no results file
     log = open(tmp_path / "cluster.log", "w")
-    info = tmp_path / "scheduler.json"
     bare = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "ROS_PACKAGE_PATH", "LD_LIBRARY_PATH")}
-    procs = [start(["dask-scheduler", "--host", "127.0.0.1", "--port", "0", "--no-dashboard",
-                    "--scheduler-file", str(info)], log, bare)]
+    procs = []
     try:
-        for _ in range(300):
-            if info.exists() and info.stat().st_size > 0:
-                break
-            time.sleep(0.05)
-        address = json.loads(info.read_text())["address"]
-        procs.append(start(["dask-worker", address, "--nthreads", "1", "--no-nanny", "--no-dashboard",
-                            "--host", "127.0.0.1", "--name", "bare"], log, bare))
+        scheduler, address = start_scheduler(tmp_path, log, bare)
+        procs.append(scheduler)
+        procs.append(start_worker(address, "bare", log, bare))
         out = tmp_path / "results.csv"
         sw = sweep(FOUR_BAR_DRIVEN, "--vary", "drive:crank_joint=2,3", "--out", str(out), "--scheduler", address)
         _, stderr = sw.communicate(timeout=120)
