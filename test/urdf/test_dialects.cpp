@@ -253,7 +253,8 @@ TEST(Dialects, ExtendedUrdfNameMotMakesTheOthersPassive) {
         << e.what();
   }
   // without name_mot every dof is actuated
-  for (const Dof& d : loadModelFile(kDir + "/four_bar_mechanism_sim.urdf")->dofs()) EXPECT_TRUE(d.actuated) << d.name;
+  const auto all = loadModelFile(kDir + "/four_bar_mechanism_sim.urdf");
+  for (const Dof& d : all->dofs()) EXPECT_TRUE(d.actuated) << d.name;
 }
 
 // onshape-to-robot 1.x writes a REVOLUTE closing mate as two frame pairs on the hinge axis,
