@@ -34,9 +34,9 @@
 #include <benchmark/benchmark.h>
 
 #include "harness_models.h"
-#include "mechanism_sim/core/solver.h"
+#include "core/absolute/solver.h"
 #if __has_include("mechanism_sim/core/sparse_ldlt.h")
-#include "mechanism_sim/core/sparse_ldlt.h"
+#include "core/linalg/sparse_ldlt.h"
 #define HAVE_SPARSE_LDLT 1
 #endif
 #ifdef MECHANISM_SIM_HAVE_CHOLMOD

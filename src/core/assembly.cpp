@@ -10,20 +10,17 @@
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 
-#include "mechanism_sim/core/joint_space.h"
-#include "mechanism_sim/core/mechanism.h"
-#include "mechanism_sim/core/sparse_ldlt.h"
+#include "core/joint_space/tree.h"
+#include "core/assembly.h"
+#include "core/numerics.h"
+#include "core/linalg/sparse_ldlt.h"
 
 namespace mechanism_sim {
 namespace {
 
 
-// Assembly's limits: Levenberg-Marquardt iterations on the positions, augmented Lagrangian
-// passes on the velocities, and the relative residual above which either fails (ModelError:
-// the targets or the closures cannot be met) whatever the tolerances ask.
-constexpr int kMaxPositionIterations = 300;
-constexpr int kMaxVelocityIterations = 60;
-constexpr double kAssemblyFailureResidual = 1e-9;
+// Assembly's iteration caps and thresholds (numerics.h says why each has its value).
+using namespace numerics::assembly;
 
 // The constrained mass matrix H cannot be factored at the assembled pose although every
 // motion moves mass (checkMassRank passed): its condition is past double precision.
@@ -156,13 +153,6 @@ bool mirrored(const Evaluation& ev, const Joint& jt, double* cz, double* cx) {
 // predictor along the path's tangent, then Levenberg-Marquardt (Marquardt's scaling, steps
 // capped at half a radian or half a length) as corrector; so the pose moves continuously
 // from the file's onto the nearest branch. Then the least-squares minimum at s = 1.
-constexpr int kCorrectorIterations = 12;   // Levenberg-Marquardt iterations per continuation step
-constexpr int kFinalIterations = 200;      // at s = 1
-constexpr double kMinContinuationStep = 1.0 / 1024;
-constexpr double kMaxStep = 0.5;           // radians, or length scales, per coordinate per iteration
-constexpr double kFollowTolerance = 1e-6;  // |R(q) - (1 - s) R(q0)| that counts as on the path
-constexpr double kOpposed = 1e-6;          // 2 - |bz_j - bz_i| below which axes count as opposed
-constexpr double kNudge = 0.1;             // radians (length scales) the start is moved from there
 
 class TreeAssembly {
  public:

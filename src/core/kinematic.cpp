@@ -2,7 +2,7 @@
 
 #include <Eigen/Core>
 
-#include "mechanism_sim/core/evaluation.h"
+#include "core/absolute/evaluation.h"
 
 namespace mechanism_sim {
 

@@ -1,13 +1,30 @@
-// Mechanism: the embedding facade over System, State, Inputs and Stepper.
+// Mechanism: the embedding facade over System, State, Inputs and the two formulations'
+// steppers.
 #include "mechanism_sim/core/mechanism.h"
 
 #include <algorithm>
 #include <cmath>
 #include <sstream>
 
-#include "mechanism_sim/core/couplers.h"
+#include "core/absolute/evaluation.h"
+#include "core/absolute/solver.h"
+#include "core/absolute/stepper.h"
+#include "core/assembly.h"
+#include "core/joint_space/joint_stepper.h"
+#include "core/joint_space/tree_reactions.h"
+#include "mechanism_sim/core/model/couplers.h"
 
 namespace mechanism_sim {
+
+// The reactions' solves, with their own evaluations and scratch (queries leave stepping
+// alone): the least-norm one (absolute formulation, dependent equations), the tree pass
+// (joint formulation).
+struct Mechanism::ReactionSolve {
+  SolverStats stats;
+  Evaluation ev;
+  std::unique_ptr<ConstraintSolver> solver;
+  std::unique_ptr<TreeReactionWorkspace> tree;
+};
 namespace {
 
 // An input set again to the same bits (signed zeros apart): nothing to recompute.
@@ -25,6 +42,10 @@ Mechanism::Mechanism() : sys_(std::make_shared<System>()) {
   ground.name = "ground";
   sys_->bodies.push_back(ground);
 }
+
+Mechanism::~Mechanism() = default;
+
+const BodyKin& Mechanism::kin(int b) const { return evaluated().kin.at(b); }
 
 void Mechanism::requireUnbuilt(const char* what) const {
   if (built_) throw UsageError(std::string("Mechanism::") + what + " after build()");

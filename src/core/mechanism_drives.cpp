@@ -4,8 +4,11 @@
 // State is carried over row by row, and a new Stepper evaluates it.
 #include <cmath>
 
-#include "mechanism_sim/core/couplers.h"
+#include "mechanism_sim/core/model/couplers.h"
 #include "mechanism_sim/core/mechanism.h"
+#include "core/absolute/stepper.h"
+#include "core/assembly.h"
+#include "core/joint_space/joint_stepper.h"
 
 namespace mechanism_sim {
 

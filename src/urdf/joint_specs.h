@@ -10,7 +10,7 @@
 #include <Eigen/Geometry>
 #include <urdf_model/model.h>
 
-#include "mechanism_sim/core/joint.h"
+#include "mechanism_sim/core/model/joint.h"
 #include "xml_input.h"
 
 namespace mechanism_sim {

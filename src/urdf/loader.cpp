@@ -20,7 +20,7 @@
 
 #include "joint_specs.h"
 #include "loop_dialects.h"
-#include "mechanism_sim/core/inertia.h"
+#include "mechanism_sim/core/model/inertia.h"
 #include "mechanism_sim/core/kinematic.h"
 #include "mechanism_sim/urdf/model.h"
 #include "rigid_bodies.h"

@@ -8,7 +8,7 @@
 #include <set>
 #include <sstream>
 
-#include "mechanism_sim/core/couplers.h"
+#include "mechanism_sim/core/model/couplers.h"
 
 namespace mechanism_sim {
 namespace {

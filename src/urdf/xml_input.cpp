@@ -11,7 +11,7 @@
 #include <Eigen/Eigenvalues>
 
 #include "loop_dialects.h"
-#include "mechanism_sim/core/joint.h"
+#include "mechanism_sim/core/model/joint.h"
 #include "mechanism_sim/urdf/model.h"
 
 namespace mechanism_sim {

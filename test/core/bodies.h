@@ -2,7 +2,7 @@
 #pragma once
 #include <string>
 
-#include "mechanism_sim/core/system.h"
+#include "mechanism_sim/core/model/system.h"
 
 namespace mechanism_sim {
 

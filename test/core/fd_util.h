@@ -6,7 +6,7 @@
 
 #include <Eigen/Dense>
 
-#include "mechanism_sim/core/primitives.h"
+#include "mechanism_sim/core/model/primitives.h"
 
 namespace mechanism_sim {
 namespace test {

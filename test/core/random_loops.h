@@ -10,10 +10,10 @@
 #include <vector>
 
 #include "bodies.h"
-#include "mechanism_sim/core/couplers.h"
-#include "mechanism_sim/core/drive.h"
-#include "mechanism_sim/core/joint_space.h"
-#include "mechanism_sim/core/system.h"
+#include "mechanism_sim/core/model/couplers.h"
+#include "mechanism_sim/core/model/drive.h"
+#include "core/joint_space/tree.h"
+#include "mechanism_sim/core/model/system.h"
 
 namespace mechanism_sim {
 namespace test_util {

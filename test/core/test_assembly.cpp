@@ -18,7 +18,7 @@
 #include <vector>
 
 #include "bodies.h"
-#include "mechanism_sim/core/errors.h"
+#include "mechanism_sim/core/model/errors.h"
 #include "mechanism_sim/core/mechanism.h"
 #include "mechanism_sim/core/models.h"
 

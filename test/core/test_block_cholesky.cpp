@@ -8,7 +8,7 @@
 
 #include <Eigen/Dense>
 
-#include "mechanism_sim/core/block_cholesky.h"
+#include "core/linalg/block_cholesky.h"
 
 namespace mechanism_sim {
 namespace {

@@ -8,8 +8,8 @@
 #include <cstring>
 #include <random>
 
-#include "mechanism_sim/core/closure_solver.h"
-#include "mechanism_sim/core/loop_closure.h"
+#include "core/joint_space/closure_solver.h"
+#include "core/joint_space/loop_closure.h"
 #include "mechanism_sim/core/models.h"
 
 namespace mechanism_sim {

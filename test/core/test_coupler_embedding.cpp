@@ -17,9 +17,9 @@
 #include <vector>
 
 #include "bodies.h"
-#include "mechanism_sim/core/joint_stepper.h"
+#include "core/joint_space/joint_stepper.h"
 #include "mechanism_sim/core/mechanism.h"
-#include "mechanism_sim/core/tree_reactions.h"
+#include "core/joint_space/tree_reactions.h"
 
 namespace mechanism_sim {
 namespace {

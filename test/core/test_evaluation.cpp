@@ -9,7 +9,7 @@
 #include <cmath>
 #include <random>
 
-#include "mechanism_sim/core/evaluation.h"
+#include "core/absolute/evaluation.h"
 #include "mechanism_sim/core/mechanism.h"
 #include "mechanism_sim/core/models.h"
 

@@ -8,7 +8,7 @@
 #include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 
-#include "mechanism_sim/core/inertia.h"
+#include "mechanism_sim/core/model/inertia.h"
 
 namespace mechanism_sim {
 namespace {

@@ -1,4 +1,4 @@
-// Joint-space tree dynamics (joint_space.h) against the absolute-coordinate solver and against
+// Joint-space tree dynamics (joint_space/tree.h) against the absolute-coordinate solver and against
 // physics with known answers: random trees of every joint type (either orientation), a
 // free-floating body, metre and millimetre scales.
 #include <gtest/gtest.h>
@@ -13,11 +13,11 @@
 #include <string>
 #include <vector>
 
-#include "mechanism_sim/core/closure_solver.h"
-#include "mechanism_sim/core/joint_space.h"
-#include "mechanism_sim/core/joint_stepper.h"
+#include "core/joint_space/closure_solver.h"
+#include "core/joint_space/tree.h"
+#include "core/joint_space/joint_stepper.h"
 #include "mechanism_sim/core/models.h"
-#include "mechanism_sim/core/stepper.h"
+#include "core/absolute/stepper.h"
 
 namespace mechanism_sim {
 namespace {
@@ -190,7 +190,7 @@ double accelerationDifference(const Eigen::VectorXd& acc1, const Eigen::VectorXd
 struct Comparison {
   double acc = 0, settle_moved = 0, coord = 0, rate = 0, inverse = 0;
   int links[9][2] = {};  // per TreeJointKind, parent-first and child-first
-  // welded bodies (joint_space.h): a moving link on a welded body, a body welded to a
+  // welded bodies (joint_space/tree.h): a moving link on a welded body, a body welded to a
   // welded body, a welded body with loads (merged into a moving host)
   int on_welded = 0, welded_chain = 0, loaded_welded = 0;
 };
@@ -383,7 +383,7 @@ void runComparisons(double length, double gravity_factor, const char* label) {
     for (int k = 0; k < 9; ++k) links[k][0] += c.links[k][0], links[k][1] += c.links[k][1];
     on_welded += c.on_welded, welded_chain += c.welded_chain, loaded_welded += c.loaded_welded;
   }
-  // the merged welded bodies' cases (joint_space.h): each met at least once
+  // the merged welded bodies' cases (joint_space/tree.h): each met at least once
   EXPECT_GE(on_welded, 1) << label << ": no moving link on a welded body";
   EXPECT_GE(welded_chain, 1) << label << ": no body welded to a welded body";
   EXPECT_GE(loaded_welded, 1) << label << ": no loaded welded body";

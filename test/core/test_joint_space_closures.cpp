@@ -18,10 +18,10 @@
 #include <string>
 #include <vector>
 
-#include "mechanism_sim/core/couplers.h"
-#include "mechanism_sim/core/drive.h"
-#include "mechanism_sim/core/loop_closure.h"
-#include "mechanism_sim/core/stepper.h"
+#include "mechanism_sim/core/model/couplers.h"
+#include "mechanism_sim/core/model/drive.h"
+#include "core/joint_space/loop_closure.h"
+#include "core/absolute/stepper.h"
 
 namespace mechanism_sim {
 namespace {

@@ -14,10 +14,10 @@
 #include <string>
 #include <vector>
 
-#include "mechanism_sim/core/evaluation.h"
-#include "mechanism_sim/core/loop_closure.h"
+#include "core/absolute/evaluation.h"
+#include "core/joint_space/loop_closure.h"
 #include "mechanism_sim/core/models.h"
-#include "mechanism_sim/core/stepper.h"
+#include "core/absolute/stepper.h"
 
 namespace mechanism_sim {
 namespace {

@@ -12,8 +12,8 @@
 #include <cmath>
 
 #include "fd_util.h"
-#include "mechanism_sim/core/errors.h"
-#include "mechanism_sim/core/joint.h"
+#include "mechanism_sim/core/model/errors.h"
+#include "mechanism_sim/core/model/joint.h"
 
 namespace mechanism_sim {
 namespace {

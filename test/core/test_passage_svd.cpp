@@ -13,7 +13,7 @@
 #include <Eigen/QR>
 #include <Eigen/SVD>
 
-#include "mechanism_sim/core/loop_closure.h"
+#include "core/joint_space/loop_closure.h"
 
 namespace mechanism_sim {
 namespace {

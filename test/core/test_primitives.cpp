@@ -3,7 +3,7 @@
 #include <gtest/gtest.h>
 
 #include "fd_util.h"
-#include "mechanism_sim/core/primitives.h"
+#include "mechanism_sim/core/model/primitives.h"
 
 namespace mechanism_sim {
 namespace {

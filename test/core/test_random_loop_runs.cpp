@@ -32,10 +32,10 @@
 
 #include "random_loops.h"
 #include "sanitizers.h"
-#include "mechanism_sim/core/evaluation.h"
-#include "mechanism_sim/core/joint_stepper.h"
-#include "mechanism_sim/core/loop_closure.h"
-#include "mechanism_sim/core/stepper.h"
+#include "core/absolute/evaluation.h"
+#include "core/joint_space/joint_stepper.h"
+#include "core/joint_space/loop_closure.h"
+#include "core/absolute/stepper.h"
 
 namespace mechanism_sim {
 namespace {

@@ -11,7 +11,7 @@
 
 #include "bodies.h"
 #include "mechanism_sim/core/mechanism.h"
-#include "mechanism_sim/core/solver.h"
+#include "core/absolute/solver.h"
 
 namespace mechanism_sim {
 namespace {

@@ -10,7 +10,7 @@
 
 #include <Eigen/Dense>
 
-#include "mechanism_sim/core/sparse_ldlt.h"
+#include "core/linalg/sparse_ldlt.h"
 
 namespace mechanism_sim {
 namespace {

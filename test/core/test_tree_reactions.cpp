@@ -12,10 +12,10 @@
 #include <random>
 
 #include "bodies.h"
-#include "mechanism_sim/core/loop_closure.h"
+#include "core/joint_space/loop_closure.h"
 #include "mechanism_sim/core/models.h"
-#include "mechanism_sim/core/stepper.h"
-#include "mechanism_sim/core/tree_reactions.h"
+#include "core/absolute/stepper.h"
+#include "core/joint_space/tree_reactions.h"
 #include "pendulum.h"
 
 namespace mechanism_sim {

@@ -5,7 +5,7 @@
 #include <utility>
 #include <vector>
 
-#include "mechanism_sim/core/system.h"
+#include "mechanism_sim/core/model/system.h"
 
 namespace mechanism_sim {
 

@@ -1,8 +1,9 @@
 // A mechanism, as programs embed it: describe it (bodies, joints, forces), build and
-// assemble it, then step it and ask where it is. A thin owner of the three parts of the
-// core (system.h, stepper.h): the System it builds once, the State it advances (a plain
-// value: snapshot() copies it, restore() assigns it) and the Stepper that advances it,
-// plus the Inputs set between steps.
+// assemble it, then step it and ask where it is. The core's public facade: a thin owner of
+// the System it builds once (model/system.h), the State it advances (a plain value:
+// snapshot() copies it, restore() assigns it), the Inputs set between steps, and the
+// stepper of the formulation that runs (src/core/absolute/ or src/core/joint_space/, whose
+// headers are private to the library; doc/embedding.md draws the rooms).
 #pragma once
 #include <algorithm>
 #include <array>
@@ -11,12 +12,14 @@
 #include <utility>
 #include <vector>
 
-#include "mechanism_sim/core/joint_stepper.h"
-#include "mechanism_sim/core/stepper.h"
-#include "mechanism_sim/core/system.h"
-#include "mechanism_sim/core/tree_reactions.h"
+#include "mechanism_sim/core/model/system.h"
+#include "mechanism_sim/core/reports.h"
 
 namespace mechanism_sim {
+
+class Stepper;       // absolute formulation (src/core/absolute/stepper.h)
+class JointStepper;  // joint formulation (src/core/joint_space/joint_stepper.h)
+struct Evaluation;   // src/core/absolute/evaluation.h
 
 // A target for one joint coordinate during assembly.
 struct CoordinateTarget {
@@ -36,18 +39,12 @@ struct Reaction {
   Vector3d force = Vector3d::Zero(), torque = Vector3d::Zero();
 };
 
-// Brings the state onto the constraints (positions, then velocities), holding the given
-// joint coordinates; checks that every free motion moves mass and reports dependent
-// equations. Throws ModelError naming the joints that do not close.
-AssemblyReport assemble(const System& sys, State& s, Stepper& stepper,
-                        const std::vector<CoordinateTarget>& positions,
-                        const std::vector<CoordinateTarget>& velocities, DependencyReport* deps);
-
 class Mechanism {
  public:
   static constexpr int kGround = System::kGround;
   using Snapshot = State;
   Mechanism();
+  ~Mechanism();
   Mechanism(const Mechanism&) = delete;
   Mechanism& operator=(const Mechanism&) = delete;
 
@@ -206,7 +203,7 @@ class Mechanism {
   // Chooses the formulation from the System's options (chooseFormulation), with `settle`
   // bringing the State to it.
   void useFormulation(bool settle);
-  const BodyKin& kin(int b) const { return evaluated().kin.at(b); }
+  const BodyKin& kin(int b) const;
   // Joint::coordinates of a joint at state_ (its rows, one per dof), computed once per state
   // like evaluated(): a sample asks each dof's position, velocity and effort.
   const Row* coordinateRows(int joint) const;
@@ -226,12 +223,7 @@ class Mechanism {
   // The reactions' solves, with their own evaluations and scratch (queries leave stepping
   // alone): the least-norm one (absolute formulation, dependent equations), the tree pass
   // (joint formulation).
-  struct ReactionSolve {
-    SolverStats stats;
-    Evaluation ev;
-    std::unique_ptr<ConstraintSolver> solver;
-    std::unique_ptr<TreeReactionWorkspace> tree;
-  };
+  struct ReactionSolve;  // mechanism.cpp
   mutable std::unique_ptr<ReactionSolve> reactions_;
   DependencyReport dependencies_;
 };

@@ -1,0 +1,250 @@
+// What a mechanism is (System), where it is now (State), what acts on it from outside
+// (Inputs). After Drake's System/Context and Pinocchio's Model/Data: a System is built and
+// validated once and never changes; a State is a plain value (a copy is a snapshot, a
+// reset is an assignment); the Stepper (stepper.h) maps (System, State, Inputs, h) to the
+// next State with its own scratch space.
+#pragma once
+#include <array>
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "mechanism_sim/core/model/drive.h"
+#include "mechanism_sim/core/model/errors.h"
+#include "mechanism_sim/core/model/joint.h"
+
+namespace mechanism_sim {
+
+
+struct Body {
+  std::string name;
+  double m = 0.0;                    // mass
+  Matrix3d Jp = Matrix3d::Zero();    // inertia about the centre of mass, body components
+  Vector3d r = Vector3d::Zero();     // centre of mass (the body's reference point)
+  Quaterniond p = Quaterniond::Identity();
+  Vector3d v = Vector3d::Zero();
+  Vector3d w = Vector3d::Zero();     // omega', body components
+};
+
+// Linear spring-damper-actuator between point sp_i on body_i and sp_j on body_j:
+// tension F = k (L - L0) + c L_dot + f_act pulls the points together when positive.
+struct SpringDamper {
+  std::string name;
+  int body_i = 0, body_j = 0;
+  Vector3d sp_i = Vector3d::Zero(), sp_j = Vector3d::Zero();
+  double k = 0.0, c = 0.0, L0 = 0.0, f_act = 0.0;
+};
+
+// Which formulation runs a mechanism (joint_stepper.h): the tree in joint coordinates
+// ("joint"), every body in absolute coordinates ("absolute", the seed lecture's method and
+// the reference), or per mechanism ("auto").
+enum class Formulation { kAuto, kJoint, kAbsolute };
+Formulation parseFormulation(const std::string& name);  // ModelError for an unknown name
+const char* formulationName(Formulation f);
+
+struct IntegratorOptions {
+  // "rk4" (classical Runge-Kutta, default), "rk3" (Kutta's third order: three solves a
+  // step, stable for undamped oscillation) or "rk2" (Heun).
+  std::string method = "rk4";
+  // Relative tolerances: of each equation against the size of its own terms (positions,
+  // velocities, the equations of motion). Scale-free: metres or millimetres alike.
+  double position_tol = 1e-13;
+  double velocity_tol = 1e-14;
+  double solve_tol = 1e-13;
+  // "absolute" (default), "joint" or "auto" (Formulation; joint_stepper.h says what the
+  // joint formulation runs so far).
+  std::string formulation = "absolute";
+  // Throws ModelError naming what is wrong (an unknown method, a tolerance not positive).
+  void validate() const;
+};
+
+// Position limit of a joint coordinate; `constraint` is its LimitConstraint.
+struct LimitSpec {
+  int joint = 0, k = 0;
+  double lower = 0.0, upper = 0.0;
+  int constraint = 0;
+};
+
+// Prescribed motion of joint coordinate k; `constraint` is its DriveConstraint.
+struct DriveSpec {
+  int joint = 0, k = 0;
+  DriveProfile profile;
+  double q0 = 0.0;  // a velocity drive's position at t = 0
+  int constraint = 0;
+};
+
+// Where a constraint's equations and Jacobian columns sit.
+struct ConstraintLayout {
+  int row = 0, size = 0;
+  std::vector<int> bodies;    // moving-body index (body - 1) per slot, -1 for ground
+  std::vector<int> address;   // BlockCholesky block of slot pair (k1, k2), k1 <= k2 (-1: ground)
+  std::vector<char> transposed;
+};
+
+// The spanning tree (forest) of joints that the tree KKT solver holds exactly, computed
+// once by System::finalize (src/core/model/topology.cpp). Block rows of the KKT matrix: 0..nb-1
+// the moving bodies, nb + k the k-th tree joint (its equations, then the drives and limits
+// of its coordinates that fit in 6 rows). Empty (tree false) for a mechanism with loop
+// closures or couplers: its equations are all in penalty form.
+struct TreeTopology {
+  bool tree = false;
+  // The spanning forest (also where tree is false: the loops' cut joints are off it)
+  std::vector<int> parent;         // per moving body: its parent (moving index), -1 the ground
+  std::vector<int> parent_joint;   // per moving body: the constraint tying it to its parent, -1
+  std::vector<int> node;           // per constraint: its KKT block row, -1 when penalized
+  struct NodeRow {
+    int row, constraint, e;        // global row; its constraint and row there
+  };
+  std::vector<std::vector<NodeRow>> node_rows;  // per tree block (row nb + k): its rows
+  std::vector<int> penalized;      // constraints in penalty form
+  int nodes = 0;                   // block rows
+  std::vector<int> order;          // elimination order (post-order: leaves first)
+  std::vector<signed char> signs;  // per block row: +1 body, -1 joint
+  std::vector<std::pair<int, int>> edges;  // block pattern
+  // Per constraint: KKT blocks of its slot pairs (penalized: body-body as in
+  // ConstraintLayout; tree: (node, slot) per slot, the node's diagonal last).
+  std::vector<std::vector<int>> address;
+  std::vector<std::vector<char>> transposed;
+  std::vector<int> added;          // off-diagonal blocks the penalized equations add to
+};
+
+class System {
+ public:
+  static constexpr int kGround = 0;
+
+  // ---- description (validated in finalize())
+  std::vector<Body> bodies;  // bodies[0] is ground; r, p, v, w give the initial state
+  std::vector<std::shared_ptr<Constraint>> constraints;  // joints, couplers, then limits
+  std::vector<const Joint*> joints;
+  std::vector<int> joint_constraint;
+  std::vector<SpringDamper> springs;
+  std::vector<LimitSpec> limits;
+  std::vector<DriveSpec> drives;
+  std::vector<std::array<double, 3>> damping, friction;  // per joint coordinate
+  Vector3d gravity = Vector3d(0, 0, -9.81);
+  IntegratorOptions options;
+
+  // ---- derived once by finalize()
+  int nb = 0;          // moving bodies
+  int n = 0;           // 6 nb velocity coordinates
+  int m = 0;           // rows (limits included)
+  int m_eq = 0;        // rows of the equality constraints (without limits)
+  std::vector<ConstraintLayout> layout;
+  std::vector<std::pair<int, int>> block_edges;  // body graph of H
+  std::vector<int> rheonomic;                    // constraints with a velocity term (drives)
+  std::vector<int> all_constraints;              // 0, 1, ..., numConstraints() - 1
+  TreeTopology tree;
+  // Per moving body: inverse masses with stand-ins (for the row weights: a massless body
+  // weighs the mean mass, a body without moments the mean moment, every moment raised by
+  // 1e-3 of the body's mean moment; see finalize).
+  std::vector<Eigen::Matrix<double, 6, 6>> Minv;
+  // Scales: a length (largest lever arm / joint offset / body distance), a mass and a
+  // rotational inertia (means over bodies that have them); the stand-ins for what massless
+  // bodies lack in the row weights.
+  double length_scale = 1.0, mass_scale = 1.0, inertia_scale = 1.0;
+  // What the loads alone would do: an acceleration (|g|, springs' k L + |f_act| over the
+  // mass scale) and the velocity sqrt(a L) it gives over the length scale. Residual floors
+  // use them, so a mechanism at rest is not judged on round-off divided by round-off.
+  double acceleration_scale = 0.0, velocity_scale = 0.0;
+
+  // Validates and lays out; throws ModelError naming what is wrong.
+  void finalize();
+  void updateLoadScales();  // acceleration_scale, velocity_scale (after gravity changes)
+  int numBodies() const { return static_cast<int>(bodies.size()); }
+  int numJoints() const { return static_cast<int>(joints.size()); }
+  int numConstraints() const { return static_cast<int>(constraints.size()); }
+};
+
+// Plain value: everything that changes while a mechanism moves.
+struct State {
+  double t = 0.0;
+  long steps = 0;
+  // The time is the start of the current run of equal steps plus their count times the
+  // step, t = t_run + n_run h_run, never a running sum: after any number of steps it is
+  // exact to one rounding. A step of another size starts a new run where the time stands.
+  double t_run = 0.0, h_run = 0.0;
+  long n_run = 0;
+  // The time after one more step of h (the State's t is not changed).
+  double timeAfterStep(double h) const {
+    return h == h_run ? t_run + static_cast<double>(n_run + 1) * h : t + h;
+  }
+  struct Clock {
+    double t, t_run, h_run;
+    long steps, n_run;
+  };
+  Clock clock() const { return {t, t_run, h_run, steps, n_run}; }
+  void setClock(const Clock& c) { t = c.t, t_run = c.t_run, h_run = c.h_run, steps = c.steps, n_run = c.n_run; }
+  // Counts one step of h taken: t becomes timeAfterStep(h), steps one more.
+  void countStep(double h) {
+    if (h != h_run) t_run = t, h_run = h, n_run = 0;
+    ++n_run, ++steps;
+    t = t_run + static_cast<double>(n_run) * h;
+  }
+  Eigen::VectorXd x;  // per moving body: r (3), p (4: w x y z)
+  Eigen::VectorXd u;  // per moving body: v (3), w' (3)
+  std::vector<Tracked> tracked;            // per constraint
+  std::vector<signed char> limit_side;     // per limit: -1 lower, +1 upper, 0 free
+  std::vector<char> dropped;               // per row: a dependent equation, left out of solves
+  Eigen::VectorXd lambda;                  // multipliers at this state (and warm start)
+  Eigen::VectorXd acc;                     // accelerations at this state
+  std::vector<std::array<double, 3>> friction;  // friction effort of the step that led here
+  std::vector<DriveRamp> drive;            // per drive: a velocity drive's reference
+  // The joint formulation's state (joint_stepper.h; empty in the absolute formulation):
+  // joint positions, rates and accelerations (x, u, acc above are written from them).
+  Eigen::VectorXd q, qdot, qddot;
+  // what a branch passage of a loop held when qddot was computed (branch_passage.cpp: the
+  // accelerations at the start of the step that led here), so a restored State computes
+  // qddot again to the same bits
+  Eigen::VectorXd qddot_ref;
+  // the round-off of q and qdot's last update, carried into the next step (joint_stepper.cpp:
+  // compensated summation); zero after settle
+  Eigen::VectorXd q_round, qdot_round;
+  // The joint formulation's damping classification, held over the next steps while the
+  // mechanism has not moved far from where it was found (joint_stepper.cpp, classifyDamping:
+  // the stiff set and the decay rates h s_k found, per damped coordinate; the positions x,
+  // step h, tableau bound and limit sides it was found at; how many more steps it may serve,
+  // 0: none). A snapshot carries it, so a restored State classifies as the run it came from;
+  // settle() and a changed System clear it.
+  struct DampingHold {
+    std::vector<char> stiff;
+    std::vector<double> rate;
+    Eigen::VectorXd x;
+    std::vector<signed char> limit_side;
+    double h = 0.0, bound = 0.0;
+    int left = 0;
+  };
+  DampingHold damping_hold;
+  EvalContext context() const { return EvalContext{tracked.data(), limit_side.data(), t, drive.data()}; }
+};
+
+// What acts from outside; set between steps.
+struct Inputs {
+  std::vector<std::array<double, 3>> effort;  // per joint coordinate
+  std::vector<Vector3d> force, torque;        // per body: global force at the centre of mass,
+                                              // torque in body components
+  std::vector<double> spring_actuation;       // per spring, added to its tension
+};
+
+// Computes sys.tree and sys.all_constraints (topology.cpp; finalize calls it).
+void buildTreeTopology(System& sys);
+
+State initialState(const System& sys);
+Inputs zeroInputs(const System& sys);
+
+// A limit reached (its coordinate at q, past a bound, at time t) on a coordinate a drive
+// moves: true when q is within round-off of the bound (1e-9 of the limits' and the model's
+// scale, as assembly judges an initial position): the drive holds it, the limit is not
+// activated; throws SimulationError naming the joint when it is past by more (the drive's
+// motion is prescribed; no stop can hold it); false for a coordinate no drive moves. Both
+// formulations call it where they activate a limit.
+bool drivenAtLimit(const System& sys, const LimitSpec& limit, double q, double t);
+// Which bound a free limit's coordinate q is past: -1 (lower), +1 (upper) or 0, with a
+// round-off slack of a few ulps of the bounds' size: a coordinate driven exactly onto its
+// bound (q = 2 t reaching 1 at t = 0.5, t itself a sum of steps) is at it, not past it,
+// in both formulations alike (one computes q from the bodies, the other integrates it).
+int limitSide(const LimitSpec& limit, double q);
+
+}  // namespace mechanism_sim

@@ -1,0 +1,1149 @@
+// Loop closures on the joint-space tree (loop_closure.h).
+//
+// References: Featherstone, "Rigid Body Dynamics Algorithms" (RBDA), Springer 2008,
+// chapter 8 "Closed Loop Systems": 8.1 (equations of motion with loop constraints, the
+// multipliers), 8.2 (the constraint equations of a cut joint, here the seed lecture's
+// Phi(x) with Jacobian Phi_x over [delta r (global), delta theta' (body)] and gamma with
+// Phi_x a = gamma), 8.3 (solving them: q_ddot = q_ddot_free + M^-1 G^T lambda with M^-1 G^T
+// from the articulated-body algorithm, "method 2"; position and velocity stabilisation).
+#include "core/joint_space/loop_closure.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <exception>
+#include <random>
+
+#include "mechanism_sim/core/model/couplers.h"
+#include "mechanism_sim/core/model/errors.h"
+#include "core/absolute/evaluation.h"
+
+namespace mechanism_sim {
+namespace {
+
+inline Eigen::Vector4d quatProduct(const Eigen::Vector4d& a, const Eigen::Vector4d& b) {
+  Eigen::Vector4d out;
+  out(0) = a(0) * b(0) - a.tail<3>().dot(b.tail<3>());
+  out.tail<3>() = a(0) * b.tail<3>() + b(0) * a.tail<3>() + a.tail<3>().cross(b.tail<3>());
+  return out;
+}
+// exp of a rotation vector as a quaternion (w x y z).
+inline Eigen::Vector4d quatExp(const Vector3d& phi) {
+  const double a = phi.norm();
+  Eigen::Vector4d out;
+  if (a < 1e-8) {
+    out << 1.0 - a * a / 8, 0.5 * phi;
+  } else {
+    out << std::cos(a / 2), std::sin(a / 2) / a * phi;
+  }
+  return out;
+}
+
+// Whether `now` holds the bits of `copy` (sizes included: -0.0 is not 0.0 here, NaN is
+// itself); `copy` becomes `now` either way (same sizes: no allocation).
+template <class M>
+bool unchangedSince(const Eigen::MatrixBase<M>& now, M& copy) {
+  bool same = now.rows() == copy.rows() && now.cols() == copy.cols();
+  const double *a = now.derived().data(), *b = copy.data();
+  for (Eigen::Index i = 0; same && i < now.size(); ++i) {
+    std::uint64_t x, y;  // (bits: a memcmp call costs more than these few words)
+    std::memcpy(&x, a + i, sizeof x);
+    std::memcpy(&y, b + i, sizeof y);
+    same = x == y;
+  }
+  if (!same) copy = now;
+  return same;
+}
+
+template <class M>
+bool unchangedSince(const AlignedVector<M>& now, AlignedVector<M>& copy) {
+  bool same = now.size() == copy.size();
+  if (!same) copy.resize(now.size());
+  for (size_t k = 0; k < now.size(); ++k) same &= unchangedSince(now[k], copy[k]);
+  return same;
+}
+
+// A limit whose side in the context is 0 (free): its row is zero (LimitConstraint).
+inline bool inactiveLimit(const Constraint& C, const EvalContext& ctx) {
+  const int l = C.limit();
+  return l >= 0 && ctx.limit_side && ctx.limit_side[l] == 0;
+}
+
+}  // namespace
+
+LoopClosures::LoopClosures(const TreeModel& model, const System& sys) : model_(&model), sys_(&sys) {
+  nv = model.nv;
+  // Every constraint the tree does not hold, in System order: cut joints, couplers, drives,
+  // limits (the layout's order, so sys_row ascends).
+  std::vector<char> tree_joint(sys.numConstraints(), 0);
+  for (int j = 0; j < sys.numJoints(); ++j)
+    if (model.joint_link[j] >= 0) tree_joint[sys.joint_constraint[j]] = 1;
+  for (int k : model.ties) tree_joint[model.links[k].tie_coupler] = 1;  // (couplers the tree holds)
+  // A held slave's limit that its master's limit implies (q_s = r q_m + o within the
+  // slave's bounds wherever q_m is within the master's: a parallel gripper's fingers with
+  // the same limits) is left out: it could only ever bind together with the master's, as
+  // a row dependent on it (the master's multiplier then carries the stop).
+  implied_.assign(sys.limits.size(), 0);
+  for (int k : model.ties) {
+    const TreeLink& S = model.links[k];
+    const TreeLink& M = model.links[S.tie];
+    bool driven = false;  // (a driven slave's limit stays: drivenAtLimit names it)
+    for (const DriveSpec& d : sys.drives) driven = driven || (d.joint == S.joint && d.k == 0);
+    for (size_t ls = 0; ls < sys.limits.size() && !driven; ++ls) {
+      if (sys.limits[ls].joint != S.joint || sys.limits[ls].k != 0) continue;
+      double lo = (sys.limits[ls].lower - S.tie_offset) / S.tie_mult, hi = (sys.limits[ls].upper - S.tie_offset) / S.tie_mult;
+      if (lo > hi) std::swap(lo, hi);
+      const double slack = 1e-12 * std::max({std::fabs(lo), std::fabs(hi), 1e-300});
+      for (const LimitSpec& lm : sys.limits)
+        if (lm.joint == M.joint && lm.k == 0 && lm.lower >= lo - slack && lm.upper <= hi + slack) {
+          implied_[ls] = 1;
+          tree_joint[sys.limits[ls].constraint] = 1;
+        }
+    }
+  }
+  for (int c = 0; c < sys.numConstraints(); ++c)
+    if (!tree_joint[c]) constraints.push_back(c);
+  // per velocity coordinate: the length that makes its rate a speed (the length scale for
+  // an angle, 1 for a length), for the direct rows' residual floor
+  unit_.setOnes(nv);
+  angle_.assign(nv, 0);
+  for (const TreeLink& L : model.links) {
+    for (int k = 0; k < L.nv; ++k) {
+      bool angle = false;
+      if (L.kind == TreeJointKind::kFree) angle = k >= 3;
+      else if (L.kind == TreeJointKind::kSpherical) angle = true;
+      else if (L.ptr) angle = L.ptr->trackedSlot(k) >= 0;
+      if (angle) unit_(L.iv + k) = sys.length_scale;
+      angle_[L.iv + k] = angle;
+    }
+  }
+  // limits and couplers on tree coordinates: rows directly on q
+  direct_.assign(constraints.size(), DirectRow());
+  auto coordinate = [&](const Joint& J, int k, DirectRow& d, int slot) {
+    int link = -1;
+    for (int j = 0; j < sys.numJoints(); ++j)
+      if (&*sys.joints[j] == &J) link = model.joint_link[j];
+    if (link < 0) return false;
+    const TreeLink& L = model.links[link];
+    if (L.kind == TreeJointKind::kSpherical || L.kind == TreeJointKind::kFree || L.ptr != &J) return false;
+    d.col[slot] = L.iv + k;
+    d.qcol[slot] = L.iq + k;
+    d.angle[slot] = J.trackedSlot(k) >= 0;
+    return true;
+  };
+  for (size_t i = 0; i < constraints.size(); ++i) {
+    const Constraint& C = *sys.constraints[constraints[i]];
+    DirectRow d;
+    if (C.limit() >= 0) {
+      const LimitSpec& spec = sys.limits[C.limit()];
+      if (coordinate(*sys.joints[spec.joint], spec.k, d, 0)) d.n = 1, d.coef[0] = 1.0, d.limit = C.limit();
+    } else if (const auto* cc = dynamic_cast<const CoordinateCoupler*>(&C)) {
+      if (coordinate(cc->jointA(), cc->coordinateA(), d, 0) && coordinate(cc->jointB(), cc->coordinateB(), d, 1))
+        d.n = 2, d.coef[0] = 1.0, d.coef[1] = -cc->multiplier(), d.offset = cc->offset();
+    }
+    direct_[i] = d;
+  }
+  only_limits_ = true;
+  for (int c : constraints) only_limits_ = only_limits_ && sys.constraints[c]->limit() >= 0;
+  limit_col_.assign(sys.limits.size(), -1);
+  for (size_t i = 0; i < constraints.size(); ++i) {
+    const int l = sys.constraints[constraints[i]]->limit();
+    if (l >= 0 && direct_[i].n == 1) limit_col_[l] = direct_[i].col[0];
+  }
+  {
+    const State s0 = initialState(sys);
+    tracked = s0.tracked;
+    limit_side = s0.limit_side;
+    drive = s0.drive;
+    t = s0.t;
+  }
+  layout(model, sys, {});
+  // rows that no motion of the tree moves (a planar loop's out-of-plane rows): left out
+  // (laid out again either way: the tests' evaluations are forgotten)
+  layout(model, sys, idleRows(model, sys));
+}
+
+// The closures' rows (every row of each closure's constraint but those idle[i] marks) and
+// everything sized by them; the evaluations' kept results are forgotten.
+void LoopClosures::layout(const TreeModel& model, const System& sys, const std::vector<std::vector<char>>& idle) {
+  row.clear(), sys_row.clear(), nrows_.clear(), sel_.assign(constraints.size(), {}), idle_sys_rows_.clear();
+  sel_mask_.assign(constraints.size(), 0u), sel_joint_.assign(constraints.size(), nullptr);
+  m = 0;
+  for (size_t i = 0; i < constraints.size(); ++i) {
+    const int c = constraints[i];
+    const int n = sys.constraints[c]->size();
+    const int r0 = c < static_cast<int>(sys.layout.size()) ? sys.layout[c].row : -1;
+    row.push_back(m);
+    for (int e = 0; e < n; ++e) {
+      if (!idle.empty() && idle[i][e]) {
+        idle_sys_rows_.push_back(r0 < 0 ? -1 : r0 + e);
+        continue;
+      }
+      sel_[i].push_back(e);
+      sys_row.push_back(r0 < 0 ? -1 : r0 + e);
+    }
+    int kept = static_cast<int>(sel_[i].size());
+    if (kept == 0) {  // (a closure no motion moves at all: kept whole, its rows dropped as round-off)
+      idle_sys_rows_.resize(idle_sys_rows_.size() - n);
+      for (int e = 0; e < n; ++e) sys_row.push_back(r0 < 0 ? -1 : r0 + e);
+      kept = n;
+    }
+    if (kept == n) sel_[i].clear();  // (every row: evaluated in place)
+    sel_mask_[i] = 0u;
+    for (int e : sel_[i]) sel_mask_[i] |= e < 32 ? 1u << e : 0u;
+    sel_joint_[i] = !sel_[i].empty() && n <= 32 ? dynamic_cast<const Joint*>(sys.constraints[c].get()) : nullptr;
+    nrows_.push_back(kept);
+    m += kept;
+  }
+  idle_ = static_cast<int>(idle_sys_rows_.size());
+  Jc.clear();
+  Phi.setZero(m), gamma.setZero(m), scale.setZero(m), gamma_q.setZero(m), nu.setZero(m), lambda.setZero(m);
+  G.setZero(m, nv), Gabs.setZero(m, nv), Gbound.setZero(m, nv), Y.setZero(nv, m);
+  vr_.setZero(m), vt_.setZero(m);
+  Jc_full_.clear();
+  for (size_t i = 0; i < constraints.size(); ++i) {
+    const Constraint& C = *sys.constraints[constraints[i]];
+    const int nb = 6 * static_cast<int>(C.bodies().size());
+    Jc.push_back(Eigen::MatrixXd::Zero(nrows_[i], nb));
+    Jc_full_.push_back(Eigen::MatrixXd::Zero(sel_[i].empty() ? 0 : C.size(), nb));
+  }
+  int full = 0;  // (the largest closure evaluated into the scratch)
+  for (size_t i = 0; i < constraints.size(); ++i) full = std::max(full, static_cast<int>(Jc_full_[i].rows()));
+  Phi_full_.setZero(full), gamma_full_.setZero(full);
+  pose_by_q_ = pose_by_x_ = cleared_ = all_zero_ = false;
+  ++g_gen_;
+  rows_of_.assign(constraints.size(), RowsOf::kUnknown);
+  Jc_mapped_ = Jc;
+  jnorm_.setZero(nrows_.empty() ? 0 : *std::max_element(nrows_.begin(), nrows_.end()), 2);
+  kin_.assign(sys.numBodies(), BodyKin());
+  pa_.assign(model.nb, Vector6d::Zero());
+  a_ = a0_ = pa_;
+  keep_.setZero(m), tau_.setZero(nv), qdd_cut_.setZero(nv), pose_q_.setZero(model.nq);
+  zero_v_.setZero(nv), qdd_v_.setZero(nv), dv_v_.setZero(nv), ref_v_.setZero(nv), r_m_.setZero(m), x_m_.setZero(m);
+  A_.setZero(m, m);
+  least_norm_ = ScaledLeastNorm(m);
+  info = ClosureSolveInfo{};
+  info.rows = allRows();
+  // The closures' blocks for the sparse solves (closure_solver.h): each closure's rows touch
+  // the coordinates of its bodies' paths to the root (a direct row: its coordinates' links'
+  // paths), an ancestor-closed set.
+  std::vector<int> first(row);
+  first.push_back(m);
+  std::vector<std::vector<int>> cols(constraints.size());
+  auto addPath = [&](int b, std::vector<int>& out) {
+    for (int a = b; a != 0; a = model.links[a - 1].parent) {
+      const TreeLink& L = model.links[a - 1];
+      for (int k = 0; k < L.nv; ++k) out.push_back(L.iv + k);
+    }
+  };
+  std::vector<int> link_of(nv, 0);
+  for (const TreeLink& L : model.links)
+    for (int k = 0; k < L.nv; ++k) link_of[L.iv + k] = L.body;
+  for (size_t i = 0; i < constraints.size(); ++i) {
+    if (direct_[i].n > 0) {
+      for (int k = 0; k < direct_[i].n; ++k) addPath(link_of[direct_[i].col[k]], cols[i]);
+    } else {
+      for (int b : sys.constraints[constraints[i]]->bodies()) addPath(b, cols[i]);
+    }
+  }
+  mass_ = TreeMassFactor(model);
+  solver_ = ClosureSolver(model, first, cols);
+  ccols_.resize(constraints.size());
+  cl_of_.assign(m, 0);
+  for (size_t i = 0; i < constraints.size(); ++i) {
+    ccols_[i] = solver_.blockCols(static_cast<int>(i));
+    for (int e = first[i]; e < first[i + 1]; ++e) cl_of_[e] = static_cast<int>(i);
+  }
+  p_solver_ = solver_;
+  p_keep_.setZero(m);
+  p_used_.assign(constraints.size(), 0);
+}
+
+// Idle rows. A row of a closure's equations whose G = Phi_x J(q) row is zero at every q is
+// constant under every motion of the tree: G q_dot = 0 and gamma_q = 0 on it, and its
+// multiplier does no work. A planar loop (every joint on its paths turning about one
+// direction n, or sliding across it) closed by a revolute cut joint about n has three of
+// its five: the two C(n1) rows that keep the axes parallel (8.11: rotations about n keep
+// both axes along n) and the point row along n when n is a coordinate axis. The factor
+// drops such rows at every solve as round-off (roundoffRow), after mapping them at every
+// evaluation; here they are found once and left out of the rows.
+// Test: every entry of the row is round-off (kClosureZeroEntry) against the bound Gbound at
+// the neutral configuration and at three others drawn at random (angles across +-3 rad,
+// lengths across +-length_scale, the same draws every time). A row that is not
+// identically zero (its entries are analytic in q) vanishes at random points with
+// probability zero (polynomial identity testing: Schwartz 1980, Zippel 1979). Only
+// scleronomic closures that are not rows on q itself are tested (a drive's, a limit's or a
+// coupler's rows are not idle).
+std::vector<std::vector<char>> LoopClosures::idleRows(const TreeModel& model, const System& sys) {
+  std::vector<std::vector<char>> idle(constraints.size());
+  bool any = false;
+  for (size_t i = 0; i < constraints.size(); ++i) {
+    const Constraint& C = *sys.constraints[constraints[i]];
+    const bool candidate = direct_[i].n == 0 && C.limit() < 0 && !C.rheonomic();
+    idle[i].assign(C.size(), candidate ? 1 : 0);
+    any = any || candidate;
+  }
+  if (!any) return {};
+  TreeWorkspace ws(model);
+  std::mt19937 rng(20261126u);
+  std::uniform_real_distribution<double> unit(-1.0, 1.0);
+  const Eigen::VectorXd q0 = model.neutralPositions(sys);
+  Eigen::VectorXd q = q0, dv(nv);
+  for (int draw = 0; draw < 4 && any; ++draw) {
+    q = q0;
+    if (draw > 0) {
+      for (int k = 0; k < nv; ++k) dv(k) = unit(rng) * (angle_[k] ? 3.0 : sys.length_scale);
+      retract(model, q, dv);
+    }
+    try {
+      forwardKinematics(model, q, zero_v_, ws);
+      evaluate(model, sys, ws, q);
+    } catch (const std::exception&) {
+      return {};  // (an equation that cannot be evaluated there: no row is left out)
+    }
+    any = false;
+    for (size_t i = 0; i < constraints.size(); ++i)
+      for (int e = 0; e < static_cast<int>(idle[i].size()); ++e) {
+        if (!idle[i][e]) continue;
+        // (against Gbound, the norms of the row's and the column's parts: a rotation's
+        // round-off is relative to the vector rotated, not to each component, Gabs's terms)
+        const int r = row[i] + e;
+        for (int k : ccols_[i])
+          if (std::fabs(G(r, k)) > kClosureZeroEntry * Gbound(r, k)) idle[i][e] = 0;
+        any = any || idle[i][e];
+      }
+  }
+  return any ? idle : std::vector<std::vector<char>>{};
+}
+
+void LoopClosures::rowsTimes(const Eigen::MatrixXd& R, const Eigen::VectorXd& v, Eigen::VectorXd& out) const {
+  for (int e = 0; e < m; ++e) {
+    if (rows_of_[cl_of_[e]] == RowsOf::kZero && &R == &G) {  // (a free limit's row: 0)
+      out(e) = 0.0;
+      continue;
+    }
+    double s = 0.0;
+    const double* r = R.data() + e;  // (row e: stride R.rows())
+    const Eigen::Index ld = R.rows();
+    for (int k : ccols_[cl_of_[e]]) s += r[k * ld] * v(k);
+    out(e) = s;
+  }
+}
+
+bool LoopClosures::rowsTransposeTimes(const Eigen::MatrixXd& R, const Eigen::VectorXd& x, Eigen::VectorXd& out) const {
+  out.setZero();
+  bool any = false;
+  for (int e = 0; e < m; ++e) {
+    if (x(e) == 0.0) continue;
+    any = true;
+    for (int k : ccols_[cl_of_[e]]) out(k) += R(e, k) * x(e);
+  }
+  return any;
+}
+
+void LoopClosures::inverseMassRowsT(const TreeModel& model, const TreeWorkspace& ws, const Eigen::MatrixXd& R,
+                                    const Eigen::VectorXd& x, Eigen::VectorXd& out) {
+  bool any = false;
+  for (int e = 0; e < m && !any; ++e) any = x(e) != 0.0;
+  if (!any) {
+    out.setZero();
+    return;
+  }
+  const ClosureSolver* rows = &R == &G ? &solver_ : &R == &p_R_ ? &p_solver_ : nullptr;
+  if (rows && rows->inwardOfRowsT(x, out.data())) {
+    outwardInverseMass(model, ws, out.data());
+    return;
+  }
+  rowsTransposeTimes(R, x, tau_);
+  applyInverseMass(model, ws, tau_.data(), out.data());
+}
+
+void LoopClosures::inverseMassGT(const Eigen::VectorXd& x, Eigen::VectorXd& out) const {
+  if (rowsTransposeTimes(G, x, out)) mass_.solve(out.data());  // (x = 0: every row dropped, the mass perhaps not factored)
+}
+
+// The twist a unit rate of column `col` of link a gives body b (centre r_b, rotation A_b),
+// in the seed's absolute velocity coordinates [v (global), omega' (body)] (RBDA 8.2).
+static inline Vector6d columnTwist(const TreeWorkspace& ws, int a, int col, const Matrix3d& Ab, const Vector3d& rb) {
+  const Matrix3d& Aa = ws.A[a - 1];
+  const Vector3d wg = Aa * ws.S[a - 1].col(col).head<3>();
+  const Vector3d vg = Aa * ws.S[a - 1].col(col).tail<3>();
+  Vector6d u;
+  u.head<3>() = vg + wg.cross(rb - ws.r[a - 1]);
+  u.tail<3>() = Ab.transpose() * wg;
+  return u;
+}
+
+bool LoopClosures::addCutJointEfforts(const TreeModel& model, const System& sys, const TreeWorkspace& ws,
+                                      const Inputs& in, Eigen::VectorXd& tau) {
+  bool any = false;
+  const EvalContext ctx = context();
+  for (int j : model.cut_joints) {
+    if (j >= static_cast<int>(in.effort.size())) continue;
+    const Joint& J = *sys.joints[j];
+    bool nonzero = false;
+    for (int k = 0; k < J.dof(); ++k) nonzero = nonzero || in.effort[j][k] != 0.0;
+    if (!nonzero) continue;
+    if (!any) loadKin(ws);  // (the bodies' kinematics only for a cut joint that has an effort)
+    any = true;
+    Row rows[kMaxJointDofs];
+    J.coordinates(kin_[J.bodyI()], kin_[J.bodyJ()], ctx.tracked[sys.joint_constraint[j]], rows);
+    const int bodies[2] = {J.bodyI(), J.bodyJ()};
+    for (int s = 0; s < 2; ++s) {
+      const int b = bodies[s];
+      if (b == 0) continue;
+      // the joint's generalized force on b's absolute coordinates: sum_k G_k^T tau_k
+      Vector6d f = Vector6d::Zero();
+      for (int k = 0; k < J.dof(); ++k) f += rows[k].J.segment<6>(6 * s).transpose() * in.effort[j][k];
+      for (int a = b; a != 0; a = model.links[a - 1].parent) {
+        const TreeLink& L = model.links[a - 1];
+        for (int col = 0; col < L.nv; ++col) tau(L.iv + col) += f.dot(columnTwist(ws, a, col, ws.A[b - 1], ws.r[b - 1]));
+      }
+    }
+  }
+  return any;
+}
+
+int LoopClosures::activateReachedLimits(const System& sys, const TreeModel& model, const Eigen::VectorXd& qv,
+                                        const Eigen::VectorXd& qdot, TreeWorkspace& ws, signed char* limit_side) {
+  int changed = 0;
+  const EvalContext ctx = context();
+  bool kinematics = false;
+  Row rows[kMaxJointDofs];
+  for (size_t l = 0; l < sys.limits.size(); ++l) {
+    if (implied_[l]) {  // never active here (a State of the absolute formulation may have it so)
+      changed += limit_side[l] != 0;
+      limit_side[l] = 0;
+      continue;
+    }
+    if (limit_side[l]) continue;
+    const LimitSpec& L = sys.limits[l];
+    double q;
+    if (limit_col_[l] >= 0) {  // a tree coordinate: the limit's row is q's own
+      q = qv(limit_col_[l]);
+    } else {
+      if (!kinematics) forwardKinematics(model, qv, qdot, ws), loadKin(ws), kinematics = true;
+      const Joint& J = *sys.joints[L.joint];
+      J.coordinates(kin_[J.bodyI()], kin_[J.bodyJ()], ctx.tracked[sys.joint_constraint[L.joint]], rows);
+      q = rows[L.k].Phi;
+    }
+    const int side = limitSide(L, q);
+    if (!side) continue;
+    if (drivenAtLimit(sys, L, q, ctx.t)) continue;
+    limit_side[l] = static_cast<signed char>(side);
+    ++changed;
+  }
+  return changed;
+}
+
+int LoopClosures::releasePullingLimits(const System& sys, signed char* limit_side) const {
+  int changed = 0;
+  for (size_t i = 0; i < constraints.size(); ++i) {
+    const int l = sys.constraints[constraints[i]]->limit();
+    if (l < 0 || !limit_side[l]) continue;
+    const double lam = lambda(row[i]);
+    if ((limit_side[l] < 0 && lam > 0) || (limit_side[l] > 0 && lam < 0)) {
+      limit_side[l] = 0;
+      ++changed;
+    }
+  }
+  return changed;
+}
+
+void LoopClosures::loadKin(const TreeWorkspace& ws) {
+  for (int b = 1; b < static_cast<int>(kin_.size()); ++b) {
+    const int k = b - 1;
+    kin_[b].r = ws.r[k];
+    kin_[b].A_Oi = ws.A[k];
+    kin_[b].v = ws.A[k] * ws.v[k].tail<3>();
+    kin_[b].w = ws.v[k].head<3>();
+  }
+}
+
+// G = Phi_x J(q): for a closure body b, every link a on its path to the root moves it with
+// q_dot_a through S_a: in global components the twist (omega_g; v_g) of a's centre, which
+// gives b's centre v_g + omega_g x (r_b - r_a) and b's omega' = A_b^T omega_g (RBDA 8.2:
+// the loop Jacobian as the difference of the two bodies' Jacobians, here through the
+// seed's Phi_x). gamma_q = gamma - Phi_x a0 with a0 the bodies' accelerations at
+// q_ddot = 0 (the velocity-product terms J_dot q_dot).
+bool LoopClosures::allFreeLimits() const {
+  if (!only_limits_) return false;
+  const EvalContext ctx = context();
+  for (int c : constraints)
+    if (!inactiveLimit(*sys_->constraints[c], ctx)) return false;
+  return true;
+}
+
+void LoopClosures::clearRows() {
+  if (cleared_) return;
+  Phi.setZero(), gamma.setZero(), scale.setZero(), gamma_q.setZero(), nu.setZero(), lambda.setZero();
+  G.setZero(), Gabs.setZero(), Y.setZero();
+  for (Eigen::MatrixXd& J : Jc) J.setZero();
+  keep_.setZero();
+  info.rank = 0;
+  info.dependent = allRows();
+  all_zero_ = true;
+  cleared_ = true;
+  std::fill(rows_of_.begin(), rows_of_.end(), RowsOf::kUnknown);  // (G and Gabs cleared, Gbound not)
+  ++g_gen_;
+}
+
+void LoopClosures::evaluate(const TreeModel& model, const System& sys, const TreeWorkspace& ws) {
+  cleared_ = false;
+  const EvalContext ctx = context();
+  // The bodies' kinematics are read by the closures that are not rows on q itself (those
+  // give Phi from q: a limit, a drive or a coupler on tree joints, often all there is)
+  bool kinematics = false;
+  for (size_t i = 0; i < constraints.size() && !kinematics; ++i)
+    kinematics = !(q_ && direct_[i].n > 0) && !inactiveLimit(*sys.constraints[constraints[i]], ctx);
+  bool poses_same = false;
+  if (kinematics) {
+    loadKin(ws);
+    // a0: spatial accelerations at q_ddot = 0 (RBDA table 7.1's a'_i without the S q_ddot)
+    for (int b : model.order) {
+      const int k = b - 1;
+      const TreeLink& L = model.links[k];
+      a0_[k] = ws.c[k];
+      if (L.parent != 0) a0_[k] += transformMotion(ws.E[k], ws.rho[k], a0_[L.parent - 1]);
+    }
+    // A closure's rows of G, Gabs and Gbound are functions of its Phi_x (Jc) and of the
+    // links' poses and subspaces alone: where those hold the bits of the last mapping (the
+    // stepper evaluates each new q at rest for its projections, then in motion for the
+    // accelerations) the rows are kept, and g_gen_ says whether any row changed. (Without
+    // kinematics no row is mapped: the copies stay those of the last mapping.)
+    // With the tree's q given, its bits stand for the poses (forwardKinematics reads q and
+    // the model alone): nq numbers compared instead of 18 a link.
+    if (q_) {
+      poses_same = unchangedSince(*q_, pose_q_) & pose_by_q_;
+      pose_by_q_ = true, pose_by_x_ = false;
+    } else {
+      poses_same = unchangedSince(ws.A, pose_A_) & unchangedSince(ws.r, pose_r_) & unchangedSince(ws.S, pose_S_) &
+                   pose_by_x_;
+      pose_by_x_ = true, pose_by_q_ = false;
+    }
+  }
+  bool changed = false;
+  // (G, Gabs and Gbound are zero off each closure's coordinates: only those are cleared)
+  auto clear = [&](size_t i) {
+    for (int e = row[i]; e < row[i] + nrows_[i]; ++e)
+      for (int k : ccols_[i]) G(e, k) = Gabs(e, k) = Gbound(e, k) = 0.0;
+    changed = true;
+  };
+  auto directRow = [&](size_t i) {  // a coordinate row: G = its coefficients
+    if (rows_of_[i] == RowsOf::kDirect) return;
+    clear(i);
+    rows_of_[i] = RowsOf::kDirect;
+    const DirectRow& d = direct_[i];
+    for (int k = 0; k < d.n; ++k) {
+      G(row[i], d.col[k]) += d.coef[k];
+      Gabs(row[i], d.col[k]) += std::fabs(d.coef[k]);
+      Gbound(row[i], d.col[k]) += std::fabs(d.coef[k]);
+    }
+  };
+  const BodyKin* ptrs[kMaxConstraintBodies];
+  for (size_t i = 0; i < constraints.size(); ++i) {
+    const Constraint& C = *sys.constraints[constraints[i]];
+    const int n = nrows_[i], r0 = row[i];
+    if (inactiveLimit(C, ctx)) {  // a free limit: a zero row (as Constraint::evaluate gives it), no mapping
+      Phi.segment(r0, n).setZero(), gamma.segment(r0, n).setZero(), scale.segment(r0, n).setZero();
+      gamma_q.segment(r0, n).setZero();
+      Jc[i].setZero();
+      if (rows_of_[i] != RowsOf::kZero) clear(i), rows_of_[i] = RowsOf::kZero;
+      continue;
+    }
+    if (q_ && direct_[i].n > 0) {  // Phi from q itself (evaluate(..., q)); scale: the size of its terms
+      const DirectRow& d = direct_[i];
+      double phi = 0.0, sc = 0.0;
+      for (int k = 0; k < d.n; ++k) {
+        const double qk = (*q_)(d.qcol[k]);
+        phi += d.coef[k] * qk;
+        sc += std::fabs(d.coef[k]) * (std::fabs(qk) + (d.angle[k] ? 1.0 : sys.length_scale));
+      }
+      if (d.limit >= 0) {
+        const LimitSpec& spec = sys.limits[d.limit];
+        const double bound = ctx.limit_side[d.limit] < 0 ? spec.lower : spec.upper;
+        phi -= bound;
+        sc += std::fabs(bound);
+      } else {
+        phi -= d.offset;
+        sc += std::fabs(d.offset);
+      }
+      Phi(r0) = phi, gamma(r0) = gamma_q(r0) = 0.0, scale(r0) = sc;
+      directRow(i);
+      continue;
+    }
+    const auto& bodies = C.bodies();
+    for (size_t s = 0; s < bodies.size(); ++s) ptrs[s] = &kin_[bodies[s]];
+    if (sel_[i].empty()) {
+      C.evaluate(ptrs, ctx, Phi.segment(r0, n), Jc[i], gamma.segment(r0, n));
+    } else if (sel_joint_[i]) {  // the rows some motion moves (layout(): the idle ones left out): a joint
+      // computes those alone, straight into their places
+      sel_joint_[i]->evaluateSelected(ptrs, ctx, Phi.segment(r0, n), Jc[i], gamma.segment(r0, n), sel_mask_[i]);
+    } else {  // (the whole evaluation, the kept rows copied)
+      const int nc = C.size();
+      C.evaluate(ptrs, ctx, Phi_full_.head(nc), Jc_full_[i], gamma_full_.head(nc));
+      for (int e = 0; e < n; ++e) {
+        const int f = sel_[i][e];
+        Phi(r0 + e) = Phi_full_(f), gamma(r0 + e) = gamma_full_(f);
+        Jc[i].row(e) = Jc_full_[i].row(f);
+      }
+    }
+    if (C.rheonomic()) C.velocityTerm(ctx, nu.data() + r0);  // (nu stays 0 elsewhere)
+    for (size_t s = 0; s < bodies.size(); ++s) lever_[s] = kin_[bodies[s]].r.cwiseAbs().maxCoeff() + sys.length_scale;
+    for (int e = 0; e < n; ++e) {
+      double sc = 0;
+      for (size_t s = 0; s < bodies.size(); ++s)
+        sc += Jc[i].row(e).segment<3>(6 * s).cwiseAbs().sum() * lever_[s] + Jc[i].row(e).segment<3>(6 * s + 3).cwiseAbs().sum();
+      scale(r0 + e) = sc;
+    }
+    if (direct_[i].n > 0) {  // gamma_q = 0: a coordinate's rate is q_ddot's own
+      gamma_q.segment(r0, n).setZero();
+      directRow(i);
+      continue;
+    }
+    gamma_q.segment(r0, n) = gamma.segment(r0, n);
+    for (size_t s = 0; s < bodies.size(); ++s) {
+      const int b = bodies[s];
+      if (b == 0) continue;
+      // velocity-product part: absolute acceleration of b at q_ddot = 0 (bodyAccelerations)
+      const Matrix3d& Ab = ws.A[b - 1];
+      const Vector6d& a0 = a0_[b - 1];
+      Vector6d acc;
+      acc.head<3>() = Ab * (a0.tail<3>() + ws.v[b - 1].head<3>().cross(ws.v[b - 1].tail<3>()));
+      acc.tail<3>() = a0.head<3>();
+      gamma_q.segment(r0, n).noalias() -= Jc[i].middleCols<6>(6 * s).topRows(n) * acc;
+    }
+    if (poses_same && rows_of_[i] == RowsOf::kMapped && unchangedSince(Jc[i], Jc_mapped_[i])) continue;
+    std::copy_n(Jc[i].data(), Jc[i].size(), Jc_mapped_[i].data());  // (the same size: a plain copy)
+    rows_of_[i] = RowsOf::kMapped;
+    clear(i);
+    for (size_t s = 0; s < bodies.size(); ++s) {
+      const int b = bodies[s];
+      if (b == 0) continue;
+      // (the body's block and its magnitudes copied once, in fixed-capacity storage when it
+      // fits: the products below then run without dynamic-size overhead)
+      const auto Jdyn = Jc[i].middleCols<6>(6 * s);
+      if (n > kSmallRows) {
+        mapBody(model, ws, b, Jdyn, Jdyn.cwiseAbs(), r0, n);
+        continue;
+      }
+      if (n == 2) {  // (a planar loop's two rows: fixed sizes throughout, the same operations)
+        const Eigen::Matrix<double, 2, 6, Eigen::RowMajor> Jb = Jdyn, Jabs = Jdyn.cwiseAbs();
+        mapBody(model, ws, b, Jb, Jabs, r0, n);
+        continue;
+      }
+      const SmallRows Jb = Jdyn, Jabs = Jdyn.cwiseAbs();
+      mapBody(model, ws, b, Jb, Jabs, r0, n);
+    }
+  }
+  if (changed) ++g_gen_;
+}
+
+// G, Gabs and Gbound of rows r0 .. r0 + n - 1 on the columns of body b's path to the root,
+// from Jb (the rows' Phi_x on b's [delta r; delta theta']) and |Jb| (evaluate()).
+template <class JB, class JA>
+void LoopClosures::mapBody(const TreeModel& model, const TreeWorkspace& ws, int b, const JB& Jb, const JA& Jabs,
+                           int r0, int n) {
+  constexpr int N = JB::RowsAtCompileTime;  // (Eigen::Dynamic, or the rows' number)
+  if constexpr (N != Eigen::Dynamic) n = N;
+  const Matrix3d& Ab = ws.A[b - 1];
+  const Vector3d& rb = ws.r[b - 1];
+  // the rows' parts' norms for Gbound, once per body (they do not depend on the column)
+  for (int e = 0; e < n; ++e)
+    jnorm_(e, 0) = Jb.row(e).template head<3>().norm(), jnorm_(e, 1) = Jb.row(e).template tail<3>().norm();
+  for (int a = b; a != 0; a = model.links[a - 1].parent) {
+    const TreeLink& L = model.links[a - 1];
+    const Matrix3d& Aa = ws.A[a - 1];
+    const Vector3d lever = rb - ws.r[a - 1];
+    for (int col = 0; col < L.nv; ++col) {
+      const Vector3d wg = Aa * ws.S[a - 1].col(col).head<3>();
+      const Vector3d vg = Aa * ws.S[a - 1].col(col).tail<3>();
+      const Vector3d wxl = wg.cross(lever);
+      Vector6d u;
+      u.head<3>() = vg + wxl;
+      u.tail<3>() = Ab.transpose() * wg;
+      Vector6d uabs;
+      uabs.head<3>() = vg.cwiseAbs() + wxl.cwiseAbs();
+      uabs.tail<3>() = u.tail<3>().cwiseAbs();
+      if constexpr (N != Eigen::Dynamic) {
+        G.col(L.iv + col).template segment<N>(r0).noalias() += Jb * u;
+        Gabs.col(L.iv + col).template segment<N>(r0).noalias() += Jabs * uabs;
+      } else {
+        G.col(L.iv + col).segment(r0, n).noalias() += Jb * u;
+        Gabs.col(L.iv + col).segment(r0, n).noalias() += Jabs * uabs;
+      }
+      // (norms, not components: a bound that does not vanish where the geometry makes
+      // the entry vanish, for the branch passages' normalization)
+      const double sv = vg.norm() + wg.norm() * lever.norm(), sw = wg.norm();
+      for (int e = 0; e < n; ++e)
+        Gbound(r0 + e, L.iv + col) += jnorm_(e, 0) * sv + jnorm_(e, 1) * sw;
+    }
+  }
+}
+
+double LoopClosures::positionResidual() const {
+  double worst = 0;
+  for (int e = 0; e < m; ++e) worst = std::max(worst, relative(Phi(e), scale(e)));
+  return worst;
+}
+
+void LoopClosures::velocityRows(const Eigen::VectorXd& qdot, const Eigen::VectorXd* reference, Eigen::VectorXd& r,
+                                Eigen::VectorXd& t) const {
+  // A direct row's terms are its own coordinates only: a coordinate the closures lock ends
+  // at round-off, judged against the speed of the whole motion (as speeds: rates times
+  // unit_), or the loads' velocity scale, whichever is larger.
+  double V = sys_->velocity_scale;
+  for (int k = 0; k < nv; ++k)
+    V = std::max({V, std::fabs(qdot(k)) * unit_(k), reference ? std::fabs((*reference)(k)) * unit_(k) : 0.0});
+  for (size_t i = 0; i < constraints.size(); ++i) {
+    for (int e = row[i]; e < row[i] + nrows_[i]; ++e) {
+      double s = -nu(e), sc = std::fabs(nu(e));
+      // (each coordinate's rate floored at kFloor of the motion, as the absolute
+      // formulation floors each body's: a loop that locks coordinates leaves their rates
+      // at round-off, and round-off over round-off judged nothing; a free limit's row of G
+      // and Gabs is zero)
+      if (rows_of_[i] != RowsOf::kZero) {
+        for (int k : ccols_[i]) {
+          s += G(e, k) * qdot(k);
+          sc += Gabs(e, k) * (std::fabs(qdot(k)) + (reference ? std::fabs((*reference)(k)) : 0.0) + kFloor * V / unit_(k));
+        }
+      }
+      if (direct_[i].n > 0)
+        for (int k = 0; k < direct_[i].n; ++k) sc += std::fabs(direct_[i].coef[k]) * V / unit_(direct_[i].col[k]);
+      r(e) = s;
+      t(e) = sc;
+    }
+  }
+}
+
+double LoopClosures::velocityResidual(const Eigen::VectorXd& qdot, const Eigen::VectorXd* reference) const {
+  velocityRows(qdot, reference, vr_, vt_);
+  double worst = 0;
+  for (int e = 0; e < m; ++e) worst = std::max(worst, relative(vr_(e), vt_(e)));
+  return worst;
+}
+
+// M^-1 tau: the articulated-body algorithm's passes 2 and 3 (RBDA table 7.1) with v = 0
+// (c = 0) and no external force, on the factors U, D^-1 of ws: the inverse-mass
+// application of RBDA 8.3.
+void LoopClosures::applyInverseMass(const TreeModel& model, const TreeWorkspace& ws, const double* tau, double* out) {
+  for (int k = 0; k < model.nb; ++k) pa_[k].setZero();
+  if (!model.ties.empty() && tau != out) {  // (ties: in place, inverseMassInward)
+    std::copy(tau, tau + model.nv, out);
+    tau = out;
+  }
+  for (int n = model.nb - 1; n >= 0; --n) inverseMassInward(model, ws, model.order[n] - 1, tau, out, pa_);  // u kept in out
+  outwardInverseMass(model, ws, out);
+}
+
+void LoopClosures::outwardInverseMass(const TreeModel& model, const TreeWorkspace& ws, double* out) {
+  for (int b : model.order) {
+    const int k = b - 1;
+    const TreeLink& L = model.links[k];
+    Vector6d ap = Vector6d::Zero();
+    if (L.parent != 0) ap = transformMotion(ws.E[k], ws.rho[k], a_[L.parent - 1]);
+    if (L.tie >= 0) {  // a tied link: r times its master's (done: an ancestor)
+      const double qdd = L.tie_mult * out[model.links[L.tie].iv];
+      out[L.iv] = qdd;
+      a_[k] = ap + ws.S[k].col(0) * qdd;
+    } else if (L.nv == 1) {
+      const double qdd = ws.Dinv[k](0, 0) * (out[L.iv] - ws.U[k].col(0).dot(ap));
+      out[L.iv] = qdd;
+      a_[k] = ap + ws.S[k].col(0) * qdd;
+    } else if (L.nv > 0) {
+      const SmallVector u = Eigen::Map<const SmallVector>(out + L.iv, L.nv);
+      const SmallVector qdd = ws.Dinv[k] * (u - ws.U[k].transpose() * ap);
+      for (int i = 0; i < L.nv; ++i) out[L.iv + i] = qdd(i);
+      a_[k] = ap + ws.S[k] * qdd;
+    } else {
+      a_[k] = ap;
+    }
+    if (L.pivot >= 0) out[L.pivot] = ws.tie_Dinv[k] * (out[L.pivot] - ws.W[k].dot(a_[k]));  // (TreeLink::pivot)
+  }
+}
+
+long LoopClosures::massFactorsGeneration(const TreeWorkspace& ws) { return ws.generation; }
+
+void LoopClosures::factor(const TreeModel& model, const TreeWorkspace& ws) {
+  info.rows = allRows();
+  if (m == 0) {
+    info.rank = 0;
+    info.dependent = idle_;
+    return;
+  }
+  // (G, Gabs and the articulated factors as at the last factorization: it stands)
+  const long ws_gen = massFactorsGeneration(ws);
+  if (fac_at_g_ == g_gen_ && fac_at_ws_ == ws_gen && (fac_Y_ || !form_Y)) {
+    info = fac_info_;
+    return;
+  }
+  factorNow(model, ws);
+  fac_at_g_ = g_gen_, fac_at_ws_ = ws_gen, fac_Y_ = form_Y, fac_info_ = info;
+}
+
+void LoopClosures::factorNow(const TreeModel& model, const TreeWorkspace& ws) {
+  // Rows whose entries are all round-off against their terms are structurally zero (a
+  // planar loop's out-of-plane rows): dropped, with lambda 0 there.
+  int zero_rows = 0;
+  for (int e = 0; e < m; ++e) {
+    const bool zero = roundoffRow(e);
+    keep_(e) = zero ? 0.0 : 1.0;
+    zero_rows += zero;
+  }
+  if (zero_rows == m) {  // every row zero (free limits): nothing to solve, lambda = 0
+    Y.setZero();
+    info.rank = 0;
+    info.dependent = allRows();
+    all_zero_ = true;
+    return;
+  }
+  all_zero_ = false;
+  // Y = M^-1 G^T and G M^-1 G^T from the factored joint-space inertia, sparse where the
+  // closures are (closure_solver.h)
+  info.rank = solver_.factor(model, ws, G, keep_, least_norm_, A_) - zero_rows;
+  if (form_Y)
+    for (int e = 0; e < m; ++e) {
+      if (!solver_.kept(e)) {
+        Y.col(e).setZero();
+        continue;
+      }
+      for (int k = 0; k < nv; ++k) tau_(k) = G(e, k);
+      applyInverseMass(model, ws, tau_.data(), Y.col(e).data());
+    }
+  info.dependent = allRows() - info.rank;  // (idle rows count as dependent ones: no motion moves them)
+}
+
+void LoopClosures::solve(const Eigen::VectorXd& b, Eigen::VectorXd& x) const {
+  if (m == 0) return;
+  if (all_zero_) {
+    x.setZero();
+    return;
+  }
+  solver_.solve(least_norm_, b, x);
+}
+
+ScaledLeastNorm::ScaledLeastNorm(int n)
+    : d_(Eigen::VectorXd::Zero(n)), c_(Eigen::VectorXd::Zero(n)), y_(Eigen::VectorXd::Zero(n)),
+      work_(Eigen::VectorXd::Zero(std::max(n, 1))), work2_(Eigen::VectorXd::Zero(n)), sub_(Eigen::MatrixXd::Zero(n, n)),
+      cod_(n, n) {
+  cod_.setThreshold(kClosureRankThreshold);
+  compact_cod_.setThreshold(kClosureRankThreshold);
+  small_cod_.setThreshold(kClosureRankThreshold);
+  kept_all_.reserve(n);
+}
+
+int ScaledLeastNorm::factor(Eigen::MatrixXd& A, const Eigen::VectorXd* keep) {
+  const Eigen::Index n = d_.size();
+  int kept = 0;
+  kept_all_.clear();
+  for (Eigen::Index e = 0; e < n; ++e) {
+    d_(e) = ((!keep || (*keep)(e) > 0) && A(e, e) > 0) ? 1.0 / std::sqrt(A(e, e)) : 0.0;
+    if (d_(e) != 0.0) {
+      if (kept < kSmall) kept_rows_[kept] = static_cast<int>(e);
+      kept_all_.push_back(static_cast<int>(e));
+      ++kept;
+    }
+  }
+  small_ = kept <= kSmall;  // (every row kept too: fixed-capacity storage, no dynamic-size overhead)
+  compact_ = !small_ && kept < n;
+  kept_ = kept;
+  if (small_) {  // the kept rows alone (dropped ones: x_e = 0, each counted with rank 1 as below)
+    SmallMatrix S(kept, kept);
+    for (int i = 0; i < kept; ++i)
+      for (int j = 0; j < kept; ++j)
+        S(i, j) = A(kept_rows_[i], kept_rows_[j]) * d_(kept_rows_[i]) * d_(kept_rows_[j]);
+    if (kept > 0) small_cod_.compute(S);
+    return static_cast<int>(n - kept) + (kept > 0 ? static_cast<int>(small_cod_.rank()) : 0);
+  }
+  if (compact_) {  // more kept rows, still not all (a planar loop's zero rows): those alone
+    // (bench: the ten-loop four-bar in joint coordinates, 50 rows of which 20 kept)
+    for (int i = 0; i < kept; ++i)
+      for (int j = 0; j < kept; ++j)
+        sub_(i, j) = A(kept_all_[i], kept_all_[j]) * d_(kept_all_[i]) * d_(kept_all_[j]);
+    compact_cod_.compute(sub_.topLeftCorner(kept, kept));
+    return static_cast<int>(n - kept) + static_cast<int>(compact_cod_.rank());
+  }
+  for (Eigen::Index i = 0; i < n; ++i)
+    for (Eigen::Index j = 0; j < n; ++j) A(i, j) *= d_(i) * d_(j);
+  cod_.compute(A);
+  return static_cast<int>(cod_.rank());
+}
+
+// The least-norm solution of the scaled system by the complete orthogonal decomposition
+// A P = Q [T 0; 0 0] Z: x = P Z^T [T^-1 (Q^T b)_1..r; 0], written out on the decomposition's
+// factors (as Eigen's CompleteOrthogonalDecomposition::solve does, whose temporaries
+// allocate: 5 heap allocations a call) with preallocated vectors: no allocation. c (size
+// nn, overwritten) holds the scaled right-hand side, y is scratch, out gets y permuted.
+void ScaledLeastNorm::codSolve(const Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd>& cod,
+                               Eigen::Ref<Eigen::VectorXd> c, Eigen::Ref<Eigen::VectorXd> y,
+                               Eigen::Ref<Eigen::VectorXd> out) const {
+  const Eigen::Index n = c.size();
+  double* work = work_.data();
+  const Eigen::Index r = cod.rank();
+  const Eigen::MatrixXd& QTZ = cod.matrixQTZ();
+  if (r == 0) {
+    out.setZero();
+    return;
+  }
+  // c = Q^T c: the first r reflectors H_0 ... H_{r-1} (H_k = I - h_k v_k v_k^T, v_k = (1, QTZ(k+1:, k)))
+  for (Eigen::Index k = 0; k < r; ++k)
+    c.tail(n - k).applyHouseholderOnTheLeft(QTZ.col(k).tail(n - k - 1), cod.hCoeffs().coeff(k), work);
+  // T z = c(0:r)
+  y.head(r) = c.head(r);
+  QTZ.topLeftCorner(r, r).triangularView<Eigen::Upper>().solveInPlace(y.head(r));
+  if (r < n) {  // y = Z^T [z; 0]
+    y.tail(n - r).setZero();
+    for (Eigen::Index k = 0; k < r; ++k) {
+      if (k != r - 1) std::swap(y(k), y(r - 1));
+      y.segment(r - 1, n - r + 1)
+          .applyHouseholderOnTheLeft(QTZ.row(k).tail(n - r).transpose(), cod.zCoeffs().coeff(k), work);
+      if (k != r - 1) std::swap(y(k), y(r - 1));
+    }
+  }
+  const auto& P = cod.colsPermutation().indices();
+  for (Eigen::Index e = 0; e < n; ++e) out(P(e)) = y(e);
+}
+
+void ScaledLeastNorm::solve(const Eigen::VectorXd& b, Eigen::VectorXd& x) const {
+  const Eigen::Index n = d_.size();
+  if (n == 0) return;
+  if (small_) {
+    SmallVector c(kept_);
+    for (int i = 0; i < kept_; ++i) c(i) = d_(kept_rows_[i]) * b(kept_rows_[i]);
+    SmallVector y(kept_);
+    if (kept_ > 0) y = small_cod_.solve(c);
+    x.setZero();
+    for (int i = 0; i < kept_; ++i) x(kept_rows_[i]) = d_(kept_rows_[i]) * y(i);
+    return;
+  }
+  if (compact_) {
+    for (int i = 0; i < kept_; ++i) c_(i) = d_(kept_all_[i]) * b(kept_all_[i]);
+    codSolve(compact_cod_, c_.head(kept_), y_.head(kept_), work2_.head(kept_));
+    x.setZero();
+    for (int i = 0; i < kept_; ++i) x(kept_all_[i]) = d_(kept_all_[i]) * work2_(i);
+    return;
+  }
+  c_ = d_.cwiseProduct(b);
+  codSolve(cod_, c_, y_, x);
+  x = d_.cwiseProduct(x);
+}
+
+void LoopClosures::track(const TreeWorkspace& ws, const std::vector<int>& which, std::vector<Tracked>& tracked) {
+  loadKin(ws);
+  const EvalContext ctx = context();
+  const BodyKin* ptrs[kMaxConstraintBodies];
+  for (int c : which) {
+    const Constraint& C = *sys_->constraints[c];
+    for (size_t s = 0; s < C.bodies().size(); ++s) ptrs[s] = &kin_[C.bodies()[s]];
+    Tracked tr = tracked[c];
+    C.trackAngles(ptrs, ctx, tr);  // (their rates are not kept)
+    tracked[c] = tr;
+  }
+}
+
+double LoopClosures::correctionSize(const Eigen::VectorXd& dv) const {
+  double size = 0.0;
+  for (int k = 0; k < nv; ++k) size = std::max(size, std::fabs(dv(k)) * unit_(k));
+  return size;
+}
+
+// RBDA 8.3: q_ddot = q_ddot_free - M^-1 G^T lambda with (G M^-1 G^T) lambda =
+// G q_ddot_free - gamma_q (the seed's sign: M a + Phi_q^T lambda = Q).
+ClosureSolveInfo constrainedForwardDynamics(const TreeModel& model, const System& sys, LoopClosures& cl,
+                                            const Eigen::VectorXd& q, const Eigen::VectorXd& qdot,
+                                            const Eigen::VectorXd& tau, TreeWorkspace& ws, Eigen::VectorXd& qddot,
+                                            const Inputs* loads, bool evaluated) {
+  // (evaluated: ws's kinematics and the closures' evaluation are at (q, q_dot) already, as
+  // the stepper's projections leave them when they move nothing)
+  if (evaluated) forwardDynamicsAtKinematics(model, sys, tau, ws, qddot, loads);
+  else forwardDynamics(model, sys, q, qdot, tau, ws, qddot, loads);
+  // efforts on cut joints: q_ddot += M^-1 (G_k J)^T tau_k (the recursion is linear in tau)
+  if (loads && !model.cut_joints.empty()) {
+    cl.tau_.setZero();
+    if (cl.addCutJointEfforts(model, sys, ws, *loads, cl.tau_)) {
+      cl.applyInverseMass(model, ws, cl.tau_.data(), cl.qdd_cut_.data());
+      qddot += cl.qdd_cut_;
+    }
+  }
+  if (cl.m == 0) return cl.info;
+  if (cl.allFreeLimits()) {  // (zero rows: nothing acts)
+    cl.clearRows();
+    return cl.info;
+  }
+  if (!evaluated) cl.evaluate(model, sys, ws, q);
+  // (held directions across this motion: branch_passage.cpp)
+  cl.passage_rate = &qdot;
+  const bool passage = cl.passage_ref && cl.findPassage();
+  cl.passage_rate = nullptr;
+  if (!passage || cl.regular_factor) cl.factor(model, ws);
+  if (passage) {
+    // a branch passage (branch_passage.cpp): the regular directions by their equations,
+    // the held ones at passage_ref's acceleration across the branch
+    if (!cl.regular_factor) cl.info = ClosureSolveInfo{cl.allRows(), cl.p_r_, cl.allRows() - cl.p_r_};
+    cl.passageFactor(model, ws);
+    cl.passageRhs(cl.gamma_q, cl.p_g_, true);
+    cl.rowsTimes(cl.p_R_, qddot, cl.p_mu_);
+    cl.p_mu_ -= cl.p_g_;
+    cl.passageSolve(cl.p_mu_, cl.p_mu_);
+    cl.inverseMassRowsT(model, ws, cl.p_R_, cl.p_mu_, cl.qdd_cut_);
+    qddot -= cl.qdd_cut_;
+    // G^T lambda = R^T mu with R = P G: lambda = P^T mu per closure row
+    cl.passageMultipliers(cl.p_mu_);
+    cl.rowsTimes(cl.G, qddot, cl.gamma_q);
+    return cl.info;
+  }
+  cl.rowsTimes(cl.G, qddot, cl.lambda);  // (the right-hand side, solved in place)
+  cl.lambda -= cl.gamma_q;
+  cl.solve(cl.lambda, cl.lambda);
+  cl.inverseMassRowsT(model, ws, cl.G, cl.lambda, cl.qdd_cut_);
+  qddot -= cl.qdd_cut_;
+  cl.rowsTimes(cl.G, qddot, cl.gamma_q);  // G q_ddot = gamma_q for the result
+  return cl.info;
+}
+
+void retract(const TreeModel& model, Eigen::VectorXd& q, const Eigen::VectorXd& dv) {
+  for (const TreeLink& L : model.links) {
+    switch (L.kind) {
+      case TreeJointKind::kSpherical: {
+        const Eigen::Vector4d p = quatProduct(quatExp(dv.segment<3>(L.iv)), q.segment<4>(L.iq));
+        q.segment<4>(L.iq) = p.normalized();
+        break;
+      }
+      case TreeJointKind::kFree: {
+        q.segment<3>(L.iq) += dv.segment<3>(L.iv);
+        const Eigen::Vector4d p = quatProduct(q.segment<4>(L.iq + 3), quatExp(dv.segment<3>(L.iv + 3)));
+        q.segment<4>(L.iq + 3) = p.normalized();
+        break;
+      }
+      default:
+        for (int k = 0; k < L.nv; ++k) q(L.iq + k) += dv(L.iv + k);
+    }
+  }
+}
+
+ClosureProjectionReport projectClosurePositions(const TreeModel& model, const System& sys, LoopClosures& cl,
+                                                Eigen::VectorXd& q, TreeWorkspace& ws, double tol, int max_iterations,
+                                                const Eigen::VectorXd* rates) {
+  ClosureProjectionReport rep;
+  const Eigen::VectorXd& zero = cl.zero_v_;
+  const Eigen::VectorXd& qdot = rates ? *rates : zero;
+  Eigen::VectorXd &qdd = cl.qdd_v_, &dv = cl.dv_v_, &x = cl.x_m_;
+  // Near a branch passage (branch_passage.cpp) the equations' residual tolerance leaves
+  // the coordinate across the branch off by tol / s (s the passage's singular value), and
+  // the solves at the next stages see the level set through that point: there Newton goes
+  // on to round-off (while its step keeps halving) once the tolerance is met.
+  double previous_step = HUGE_VAL;
+  int extra = 0;
+  for (;;) {
+    // the kinematics the closures' equations read; the articulated factors (forwardDynamics)
+    // only for a correction: the stepper's q is usually on the closures already
+    forwardKinematics(model, q, qdot, ws);
+    cl.evaluate(model, sys, ws, q);
+    rep.at_rates = rates != nullptr;
+    // in a branch passage the held directions are the integration's: not judged, not moved
+    const bool passage = cl.passage_ref && cl.findPassage();
+    rep.residual = passage ? cl.passageResidual(cl.Phi, cl.scale) : cl.positionResidual();
+    const bool near = cl.passage_ref && cl.passageNear();
+    rep.converged = rep.residual <= tol;
+    if (rep.converged && (!near || extra >= kPassageRoundoffSteps)) break;
+    if (rep.iterations >= max_iterations) break;
+    // M's factors at the same kinematics (they do not read the rates; qdd is not used)
+    forwardDynamicsAtKinematics(model, sys, zero, ws, qdd);
+    if (passage) {
+      cl.passageFactor(model, ws);
+      cl.passageRhs(cl.Phi, cl.p_g_);
+      cl.passageSolve(cl.p_g_, cl.p_mu_);
+      cl.inverseMassRowsT(model, ws, cl.p_R_, cl.p_mu_, dv);
+      dv = -dv;
+      rep.dependent = cl.allRows() - cl.p_r_;
+    } else {
+      cl.factor(model, ws);
+      rep.dependent = cl.info.dependent;
+      cl.solve(cl.Phi, x);
+      cl.inverseMassRowsT(model, ws, cl.G, x, dv);
+      dv = -dv;
+    }
+    if (rep.converged) {  // past the tolerance, near a passage: to round-off
+      const double step = cl.correctionSize(dv);
+      // (a step that is not round-off-sized is what a nearly dependent row does to a residual
+      // that is round-off: not taken)
+      if (!(step < 0.5 * previous_step) || step == 0.0 || step > kRoundoffStepBound * sys.length_scale) break;
+      previous_step = step;
+      ++extra;
+    }
+    retract(model, q, dv);
+    ++rep.iterations;
+  }
+  return rep;
+}
+
+ClosureProjectionReport projectClosureVelocities(const TreeModel& model, const System& sys, LoopClosures& cl,
+                                                 const Eigen::VectorXd& q, Eigen::VectorXd& qdot, TreeWorkspace& ws,
+                                                 double tol, int max_iterations, bool evaluated_at_q, bool at_rates) {
+  ClosureProjectionReport rep;
+  const Eigen::VectorXd& zero = cl.zero_v_;
+  Eigen::VectorXd &qdd = cl.qdd_v_, &r = cl.r_m_, &x = cl.x_m_;
+  if (!evaluated_at_q) {
+    forwardKinematics(model, q, zero, ws);
+    cl.evaluate(model, sys, ws, q);  // G depends on q only
+  }
+  Eigen::VectorXd& reference = cl.ref_v_;
+  reference = qdot;
+  Eigen::VectorXd& dv = cl.dv_v_;
+  // in a branch passage (branch_passage.cpp) the regular directions onto their equations,
+  // the held rates as the integration carried them, and near it on to round-off (as the
+  // positions)
+  // (evaluated_at_q: the position projection's last findPassage() was at this evaluation)
+  const bool passage = cl.passage_ref && (evaluated_at_q ? cl.passageFound() : cl.findPassage());
+  // (factored at the first correction: a q_dot already on the closures, as the stepper's
+  // usually is after its stages, needs no solve)
+  bool factored = false;
+  double previous_step = HUGE_VAL;
+  int extra = 0;
+  for (;;) {
+    if (passage) {  // (judged as velocityResidual judges, without the held components)
+      cl.velocityRows(qdot, &reference, r, cl.vt_);
+      rep.residual = cl.passageResidual(r, cl.vt_);
+    } else {
+      rep.residual = cl.velocityResidual(qdot, &reference);
+    }
+    rep.converged = rep.residual <= tol;
+    if (rep.converged && (!passage || !cl.passageNear() || extra >= kPassageRoundoffSteps)) break;
+    if (rep.iterations >= max_iterations) break;
+    if (!factored) {
+      forwardDynamicsAtKinematics(model, sys, zero, ws, qdd);  // M's factors at q (the same kinematics)
+      if (passage) {
+        cl.passageFactor(model, ws);
+        rep.dependent = cl.allRows() - cl.p_r_;
+      } else {
+        cl.factor(model, ws);
+        rep.dependent = cl.info.dependent;
+      }
+      factored = true;
+    }
+    if (passage) {
+      cl.passageRhs(r, cl.p_g_);
+      cl.passageSolve(cl.p_g_, cl.p_mu_);
+      cl.inverseMassRowsT(model, ws, cl.p_R_, cl.p_mu_, dv);
+    } else {
+      cl.rowsTimes(cl.G, qdot, r);
+      r -= cl.nu;
+      cl.solve(r, x);
+      cl.inverseMassRowsT(model, ws, cl.G, x, dv);
+    }
+    if (rep.converged) {  // past the tolerance: a step only while it is round-off-sized and halving
+      const double step = cl.correctionSize(dv), V = std::max(sys.velocity_scale, cl.correctionSize(qdot));
+      if (!(step < 0.5 * previous_step) || step == 0.0 || step > kRoundoffStepBound * V) break;
+      previous_step = step;
+      ++extra;
+    }
+    qdot -= dv;
+    ++rep.iterations;
+  }
+  rep.at_rates = evaluated_at_q && at_rates && rep.iterations == 0;  // (else q_dot moved: gamma is another's)
+  if (!rep.at_rates) forwardKinematics(model, q, qdot, ws);
+  return rep;
+}
+
+}  // namespace mechanism_sim

@@ -1,0 +1,981 @@
+// Joint-space dynamics of a tree (joint_space/tree.h).
+//
+// Spatial algebra after Featherstone, "Rigid Body Dynamics Algorithms" (RBDA), Springer
+// 2008, chapter 2: motion vectors m = (omega; v_O), force vectors f = (n_O; f), both in
+// Plucker coordinates of a frame. Every body's frame here is its centre-of-mass frame with
+// the body's axes (the seed lecture's r_i and A_Oi), so a body's spatial velocity is
+// (omega'_i; A_Oi^T r_dot_i) and its spatial inertia the block-diagonal diag(J'_i, m_i 1)
+// (RBDA ch. 2, spatial inertia, with c = 0).
+#include "core/joint_space/tree.h"
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <string>
+
+#include "mechanism_sim/core/model/couplers.h"
+#include "mechanism_sim/core/model/errors.h"
+
+namespace mechanism_sim {
+namespace {
+
+// ---- spatial algebra (RBDA ch. 2: Plucker transforms, spatial cross products)
+
+// m1 x m2, the motion cross product (RBDA ch. 2, crm).
+inline Vector6d crossMotion(const Vector6d& m1, const Vector6d& m2) {
+  Vector6d out;
+  out.head<3>() = m1.head<3>().cross(m2.head<3>());
+  out.tail<3>() = m1.head<3>().cross(m2.tail<3>()) + m1.tail<3>().cross(m2.head<3>());
+  return out;
+}
+
+// m x* f, the force cross product (RBDA ch. 2, crf).
+inline Vector6d crossForce(const Vector6d& m, const Vector6d& f) {
+  Vector6d out;
+  out.head<3>() = m.head<3>().cross(f.head<3>()) + m.tail<3>().cross(f.tail<3>());
+  out.tail<3>() = m.head<3>().cross(f.tail<3>());
+  return out;
+}
+
+// X^T I X: an inertia in B coordinates back to A coordinates (table 7.1's X^T I^a X), with
+// the blocks of X = [E 0; -E rho~ E] written out: with I = [I11 I12; I12^T I22] in A-rotated
+// components (E^T I E), X^T I X = [I11 + rho~ I12^T - I12 rho~ - rho~ I22 rho~, I12 + rho~ I22;
+// .., I22] (all products 3x3: cheaper than the 6x6 product, which multiplies zeros).
+// The products with rho~ are cross products (rho~ M: rho x each column; M rho~: each row
+// crossed with rho, (m^T rho~)^T = m x rho), and the symmetric blocks' rotations fill one
+// triangle (I is symmetric: an articulated or composite inertia).
+inline Matrix3d rotateSymmetric(const Matrix3d& Et, const Matrix3d& S) {  // Et S Et^T
+  const Matrix3d T = Et * S;
+  Matrix3d out;
+  for (int i = 0; i < 3; ++i)
+    for (int j = i; j < 3; ++j) out(i, j) = out(j, i) = T.row(i).dot(Et.row(j));
+  return out;
+}
+
+inline void addTransformedInertia(const Matrix3d& E, const Vector3d& rho, const Matrix6d& I, Matrix6d& target) {
+  const Matrix3d Et = E.transpose();
+  const Matrix3d I11 = rotateSymmetric(Et, I.topLeftCorner<3, 3>());
+  const Matrix3d I12 = Et * I.topRightCorner<3, 3>() * E;
+  const Matrix3d I22 = rotateSymmetric(Et, I.bottomRightCorner<3, 3>());
+  Matrix3d B = I12;  // top-right block: I12 + rho~ I22
+  for (int c = 0; c < 3; ++c) B.col(c) += rho.cross(I22.col(c));
+  // top-left: I11 + rho~ I12^T - B rho~ (= I11 + rho~ I12^T - I12 rho~ - rho~ I22 rho~), symmetric
+  Matrix3d P, Q;  // rho~ I12^T (columns rho x row j of I12) and B rho~ (rows: row i of B x rho)
+  for (int j = 0; j < 3; ++j) {
+    P.col(j) = rho.cross(I12.row(j).transpose());
+    Q.row(j) = B.row(j).transpose().cross(rho).transpose();
+  }
+  Matrix3d T;
+  for (int i = 0; i < 3; ++i)
+    for (int j = i; j < 3; ++j) T(i, j) = T(j, i) = I11(i, j) + P(i, j) - Q(i, j);
+  target.topLeftCorner<3, 3>() += T;
+  target.topRightCorner<3, 3>() += B;
+  target.bottomLeftCorner<3, 3>() += B.transpose();
+  target.bottomRightCorner<3, 3>() += I22;
+}
+
+// Body spatial inertia at the centre of mass times a motion vector: (J' omega; m v).
+inline Vector6d inertiaTimes(const Body& B, const Vector6d& m) {
+  Vector6d out;
+  out.head<3>() = B.Jp * m.head<3>();
+  out.tail<3>() = B.m * m.tail<3>();
+  return out;
+}
+
+// Quaternion product a (x) b, (w, x, y, z) each.
+inline Eigen::Vector4d quatProduct(const Eigen::Vector4d& a, const Eigen::Vector4d& b) {
+  Eigen::Vector4d out;
+  out(0) = a(0) * b(0) - a.tail<3>().dot(b.tail<3>());
+  out.tail<3>() = a(0) * b.tail<3>() + b(0) * a.tail<3>() + a.tail<3>().cross(b.tail<3>());
+  return out;
+}
+
+inline Matrix3d rotationOf(const double* p) {
+  return Quaterniond(p[0], p[1], p[2], p[3]).normalized().toRotationMatrix();
+}
+
+bool treeJointKnown(const Joint& j) {
+  const std::string t = j.type();
+  return t == "revolute" || t == "prismatic" || t == "cylindrical" || t == "screw" || t == "universal" ||
+         t == "spherical" || t == "planar" || t == "fixed";
+}
+
+TreeJointKind kindOf(const Joint& j) {
+  const std::string t = j.type();
+  if (t == "revolute") return TreeJointKind::kRevolute;
+  if (t == "prismatic") return TreeJointKind::kPrismatic;
+  if (t == "cylindrical") return TreeJointKind::kCylindrical;
+  if (t == "screw") return TreeJointKind::kScrew;
+  if (t == "universal") return TreeJointKind::kUniversal;
+  if (t == "spherical") return TreeJointKind::kSpherical;
+  if (t == "planar") return TreeJointKind::kPlanar;
+  if (t == "fixed") return TreeJointKind::kFixed;
+  throw ModelError("joint '" + j.name() + "': the joint-space tree has no model of joint type '" + t + "'");
+}
+
+void setSizes(TreeLink& L) {
+  switch (L.kind) {
+    case TreeJointKind::kFixed: L.nq = L.nv = 0; break;
+    case TreeJointKind::kRevolute:
+    case TreeJointKind::kPrismatic:
+    case TreeJointKind::kScrew: L.nq = L.nv = 1; break;
+    case TreeJointKind::kCylindrical:
+    case TreeJointKind::kUniversal: L.nq = L.nv = 2; break;
+    case TreeJointKind::kPlanar: L.nq = L.nv = 3; break;
+    case TreeJointKind::kSpherical: L.nq = 4, L.nv = 3; break;
+    case TreeJointKind::kFree: L.nq = 7, L.nv = 6; break;
+  }
+}
+
+// S in the child's centre-of-mass coordinates (forwardKinematics' transform of
+// jointTransform's S, which for these kinds does not depend on q).
+void setConstantSubspace(TreeLink& L) {
+  L.constant_S = L.nv == 1 && (L.kind == TreeJointKind::kRevolute || L.kind == TreeJointKind::kPrismatic ||
+                               L.kind == TreeJointKind::kScrew);
+  if (!L.constant_S) return;
+  Matrix3d R;
+  Vector3d t;
+  MotionSubspace S;
+  Vector6d c;
+  const double q = L.params.phi0, qd = 0.0;
+  jointTransform(L, &q, &qd, R, t, S, c);
+  const Vector3d w = L.Rc * S.col(0).head<3>();
+  L.S0.tail<3>() = L.Rc * S.col(0).tail<3>() + L.sc.cross(w);
+  L.S0.head<3>() = w;
+  // Rp Rz(a) Rc^T = sum_j (Rp Rz).col(j) Rc.col(j)^T with (Rp Rz).col(0) = cos Rp0 + sin Rp1,
+  // (Rp Rz).col(1) = cos Rp1 - sin Rp0, (Rp Rz).col(2) = Rp2
+  const Matrix3d& P = L.Rp;
+  const Matrix3d& C = L.Rc;
+  L.Kc = P.col(0) * C.col(0).transpose() + P.col(1) * C.col(1).transpose();
+  L.Ks = P.col(1) * C.col(0).transpose() - P.col(0) * C.col(1).transpose();
+  L.K0 = P.col(2) * C.col(2).transpose();
+  L.kc = L.Kc * L.sc, L.ks = L.Ks * L.sc, L.k0 = L.sp - L.K0 * L.sc;
+}
+
+}  // namespace
+
+// ---- the tree
+
+std::string jointSpaceUnsupported(const System& sys, bool loops_as_closures) {
+  if (sys.nb != sys.numBodies() - 1 || sys.nb < 1) return "the System is not finalized or has no moving body";
+  std::vector<char> is_joint(sys.numConstraints(), 0);
+  for (int c : sys.joint_constraint)
+    if (c >= 0 && c < sys.numConstraints()) is_joint[c] = 1;
+  // Couplers, drives and limits are closures (loop_closure.h) for a caller that takes them;
+  // other constraint types are not known to the formulation.
+  for (int c = 0; c < sys.numConstraints(); ++c) {
+    if (is_joint[c]) continue;
+    const std::string type = sys.constraints[c]->type();
+    const bool closure_type = type == "coupler" || type == "drive" || type == "limit";
+    if (!closure_type)
+      return "constraint '" + sys.constraints[c]->name() + "' (" + type +
+             "): the joint-space formulation has no model of this constraint type";
+    if (!loops_as_closures)
+      return "constraint '" + sys.constraints[c]->name() + "' (" + type +
+             "): the caller does not take closures (couplers, drives and limits are closures, loop_closure.h)";
+  }
+  for (const Joint* J : sys.joints) {
+    if (!treeJointKnown(*J))
+      return "joint '" + J->name() + "': the joint-space tree has no model of joint type '" + J->type() + "'";
+    if (J->bodyI() == J->bodyJ()) return "joint '" + J->name() + "': joins a body to itself";
+  }
+  // Joints that close loops are cut joints, constraints on the tree (loop_closure.h), for
+  // a caller that integrates them as such.
+  if (!loops_as_closures) {
+    const TreeModel model(sys);
+    if (!model.cut_joints.empty())
+      return "joint '" + sys.joints[model.cut_joints[0]]->name() +
+             "' closes a loop: the caller does not take loop closures (loop_closure.h)";
+  }
+  return std::string();
+}
+
+// Couplers the recursions hold (TreeModel's embed_couplers, TreeLink::tie): links visited
+// parents first, so a master's own tie (it may have none) and the ties of the links between
+// it and a slave are settled when the slave is.
+namespace {
+void embedCouplers(const System& sys, TreeModel& model) {
+  std::vector<std::vector<int>> as_slave(model.nb);  // per link: the couplers whose slave it carries
+  auto linkOf = [&](const Joint& J) {
+    for (int j = 0; j < sys.numJoints(); ++j)
+      if (&*sys.joints[j] == &J) return model.joint_link[j];
+    return -1;
+  };
+  for (int c = 0; c < sys.numConstraints(); ++c) {
+    const auto* cc = dynamic_cast<const CoordinateCoupler*>(&*sys.constraints[c]);
+    if (!cc || cc->coordinateA() != 0 || cc->coordinateB() != 0) continue;
+    const int a = linkOf(cc->jointA()), b = linkOf(cc->jointB());
+    if (a < 0 || b < 0 || a == b) continue;
+    auto one = [](const TreeLink& L) {
+      return L.nv == 1 && (L.kind == TreeJointKind::kRevolute || L.kind == TreeJointKind::kPrismatic ||
+                           L.kind == TreeJointKind::kScrew);
+    };
+    if (!one(model.links[a]) || !one(model.links[b])) continue;
+    as_slave[a].push_back(c);
+  }
+  // the first moving link above k that is neither welded nor tied to master m
+  auto above = [&](int k, int m) {
+    k = model.links[k].parent - 1;
+    while (k >= 0 && (model.links[k].kind == TreeJointKind::kFixed || model.links[k].tie == m))
+      k = model.links[k].parent - 1;
+    return k;
+  };
+  // a link that carries no group's terms and eliminates none: free to be a group's top
+  auto unclaimed = [&](int k) {
+    const TreeLink& T = model.links[k];
+    return T.tie < 0 && !T.tie_master && T.pivot < 0;
+  };
+  for (int body : model.order) {
+    const int a = body - 1;
+    TreeLink& L = model.links[a];
+    for (int c : as_slave[a]) {
+      if (L.tie >= 0 || L.tie_master || L.pivot >= 0) break;  // (already a master's, or a top)
+      const auto& cc = static_cast<const CoordinateCoupler&>(*sys.constraints[c]);
+      const int m = linkOf(cc.jointB());
+      TreeLink& M = model.links[m];
+      if (M.tie >= 0 && M.tie != m) continue;  // (a master that is itself tied: a closure row)
+      const int k = above(a, m);
+      if (k == m && M.tie < 0 && M.pivot < 0) {  // the master's link is the slave's ancestor
+        M.tie_master = true;
+      } else {
+        // siblings: both reach their common ancestor through welded or tied links only,
+        // and it carries no other group (a master's own group eliminated at its link, or
+        // another top's: those stay rows)
+        if (k < 0 || M.tie_master || M.pivot >= 0 || above(m, m) != k) continue;  // (M a top already: a row)
+        TreeLink& T = model.links[k];
+        if (M.tie == m ? T.pivot_link != m : !unclaimed(k)) continue;
+        if (M.tie < 0) M.tie = m, M.tie_mult = 1.0, M.tie_offset = 0.0;
+        T.pivot = M.iv, T.pivot_link = m;
+      }
+      L.tie = m, L.tie_coupler = c, L.tie_mult = cc.multiplier(), L.tie_offset = cc.offset();
+      model.ties.push_back(a);
+      break;
+    }
+  }
+}
+}  // namespace
+
+TreeModel::TreeModel(const System& sys, bool embed_couplers) {
+  nb = sys.numBodies() - 1;
+  if (sys.nb != nb || nb < 1)
+    throw UsageError("TreeModel: the System must be finalized and have a moving body");
+  // Constraints other than joints (couplers, drives, limits), springs, joint damping and
+  // friction are not the recursion's business: jointSpaceUnsupported() says which of them
+  // the formulation runs, the caller applies the rest (damping as efforts, springs as
+  // loads). Joints the spanning tree does not use are cut joints (cut_joints).
+
+  // Spanning tree by breadth-first search from ground; the bodies ground does not reach
+  // are free-floating (each group rooted at its lowest-numbered body by a 6-dof link).
+  links.assign(nb, TreeLink());
+  joint_link.assign(sys.numJoints(), -1);
+  std::vector<char> reached(nb + 1, 0), used(sys.numJoints(), 0);
+  std::vector<std::vector<int>> incident(nb + 1);
+  for (int j = 0; j < sys.numJoints(); ++j) {
+    const Joint& J = *sys.joints[j];
+    if (J.bodyI() == J.bodyJ())
+      throw ModelError("joint '" + J.name() + "': joins a body to itself");
+    incident[J.bodyI()].push_back(j);
+    incident[J.bodyJ()].push_back(j);
+  }
+  order.clear();
+  order.reserve(nb);
+  reached[0] = 1;
+  auto grow = [&](int root) {  // breadth-first from root, appending to order
+    std::vector<int> queue{root};
+    for (size_t k = 0; k < queue.size(); ++k) {
+      const int b = queue[k];
+      for (int j : incident[b]) {
+        if (used[j]) continue;
+        used[j] = 1;
+        const Joint& J = *sys.joints[j];
+        const int child = J.bodyI() == b ? J.bodyJ() : J.bodyI();
+        if (reached[child]) {  // closes a loop: a cut joint, left to the closures
+          cut_joints.push_back(j);
+          continue;
+        }
+        reached[child] = 1;
+        TreeLink& L = links[child - 1];
+        L.body = child;
+        L.parent = b;
+        L.joint = j;
+        L.ptr = &J;
+        L.kind = kindOf(J);
+        L.reversed = child == J.bodyI();
+        const JointFrame& fp = L.reversed ? J.frameJ() : J.frameI();
+        const JointFrame& fc = L.reversed ? J.frameI() : J.frameJ();
+        L.Rp = fp.Rp, L.sp = fp.sp_B, L.Rc = fc.Rp, L.sc = fc.sp_B;
+        L.params = J.params();
+        setSizes(L);
+        setConstantSubspace(L);
+        joint_link[j] = child - 1;
+        order.push_back(child);
+        queue.push_back(child);
+      }
+    }
+  };
+  grow(0);
+  for (int b = 1; b <= nb; ++b) {
+    if (reached[b]) continue;
+    reached[b] = 1;
+    TreeLink& L = links[b - 1];
+    L.body = b;
+    L.parent = 0;
+    L.kind = TreeJointKind::kFree;
+    setSizes(L);
+    order.push_back(b);
+    grow(b);
+  }
+  // Coordinates: the joints' in sys.joints order, then the free bodies'.
+  nq = nv = 0;
+  std::sort(cut_joints.begin(), cut_joints.end());
+  for (int j = 0; j < sys.numJoints(); ++j) {
+    if (joint_link[j] < 0) continue;  // a cut joint
+    TreeLink& L = links[joint_link[j]];
+    L.iq = nq, L.iv = nv;
+    nq += L.nq, nv += L.nv;
+  }
+  for (TreeLink& L : links)
+    if (L.kind == TreeJointKind::kFree) {
+      L.iq = nq, L.iv = nv;
+      nq += L.nq, nv += L.nv;
+    }
+  // Welded groups (joint_space/tree.h), parents first: a fixed link's constant pose relative to
+  // its parent (forwardKinematics' Rrel and rho with the joint's identity pose) and, composed
+  // along the fixed links above it, relative to its host.
+  for (int b : order) {
+    TreeLink& L = links[b - 1];
+    const bool parent_fixed = L.parent != 0 && links[L.parent - 1].kind == TreeJointKind::kFixed;
+    if (L.kind != TreeJointKind::kFixed) {
+      L.host = b;
+      L.parent_welded = parent_fixed;
+      L.aparent = parent_fixed ? links[L.parent - 1].host : L.parent;
+      continue;
+    }
+    const Matrix3d Rrel = L.Rp * L.Rc.transpose();
+    L.E0 = Rrel.transpose();
+    L.rho0 = L.sp - Rrel * L.sc;
+    if (parent_fixed) {  // X_{L,h} = X_{L,P} X_{P,h}
+      const TreeLink& P = links[L.parent - 1];
+      L.host = P.host;
+      L.Eh = L.E0 * P.Eh;
+      L.rhoh = P.rhoh + P.Eh.transpose() * L.rho0;
+    } else {
+      L.host = L.parent;
+      L.Eh = L.E0;
+      L.rhoh = L.rho0;
+    }
+  }
+  for (TreeLink& L : links) {
+    if (L.kind == TreeJointKind::kFixed) continue;
+    const Body& B = sys.bodies[L.body];
+    L.Ic0.setZero();
+    L.Ic0.topLeftCorner<3, 3>() = B.Jp;
+    L.Ic0.bottomRightCorner<3, 3>().diagonal().setConstant(B.m);
+    L.mass = B.m;
+  }
+  for (int b : order) {
+    const TreeLink& L = links[b - 1];
+    if (L.kind != TreeJointKind::kFixed || L.host == 0) continue;  // (a body welded to ground stays)
+    TreeLink& H = links[L.host - 1];
+    const Body& B = sys.bodies[b];
+    Matrix6d I = Matrix6d::Zero();
+    I.topLeftCorner<3, 3>() = B.Jp;
+    I.bottomRightCorner<3, 3>().diagonal().setConstant(B.m);
+    addTransformedInertia(L.Eh, L.rhoh, I, H.Ic0);
+    H.composite = true;
+    H.welded.push_back(b);
+    H.mass += B.m;
+    H.mc += B.m * L.rhoh;
+  }
+  if (embed_couplers) embedCouplers(sys, *this);
+}
+
+void TreeModel::holdTies(Eigen::VectorXd& q, Eigen::VectorXd& qdot, Eigen::VectorXd* q_round,
+                         Eigen::VectorXd* qdot_round) const {
+  for (int k : ties) {
+    const TreeLink& L = links[k];
+    const TreeLink& M = links[L.tie];
+    q(L.iq) = L.tie_mult * q(M.iq) + L.tie_offset;
+    qdot(L.iv) = L.tie_mult * qdot(M.iv);
+    if (q_round && q_round->size() == nq) (*q_round)(L.iq) = L.tie_mult * (*q_round)(M.iq);
+    if (qdot_round && qdot_round->size() == nv) (*qdot_round)(L.iv) = L.tie_mult * (*qdot_round)(M.iv);
+  }
+}
+
+Eigen::VectorXd TreeModel::neutralPositions(const System& sys) const {
+  Eigen::VectorXd q = Eigen::VectorXd::Zero(nq);
+  for (const TreeLink& L : links) {
+    if (L.kind == TreeJointKind::kSpherical) q(L.iq) = 1.0;
+    if (L.kind == TreeJointKind::kFree) {
+      const Body& B = sys.bodies[L.body];
+      const Quaterniond p = B.p.normalized();
+      q.segment<3>(L.iq) = B.r;
+      q.segment<4>(L.iq + 3) << p.w(), p.x(), p.y(), p.z();
+    }
+  }
+  return q;
+}
+
+TreeWorkspace::TreeWorkspace(const TreeModel& model) {
+  const int n = model.nb;
+  A.assign(n, Matrix3d::Identity());
+  r.assign(n, Vector3d::Zero());
+  E.assign(n, Matrix3d::Identity());
+  rho.assign(n, Vector3d::Zero());
+  v.assign(n, Vector6d::Zero());
+  c = cJ = a = pA = f = v;
+  IA.assign(n, Matrix6d::Zero());
+  W.assign(n, Vector6d::Zero());
+  dd.assign(n, 0.0), beta.assign(n, 0.0);
+  tie_Dinv.assign(n, 0.0), tie_u.assign(n, 0.0);
+  S.resize(n), U.resize(n), Dinv.resize(n), u.resize(n);
+  for (int k = 0; k < n; ++k) {
+    const int nv = model.links[k].nv;
+    S[k].setZero(6, nv);
+    if (model.links[k].constant_S) S[k].col(0) = model.links[k].S0;  // forwardKinematics leaves it
+    U[k].setZero(6, nv);
+    Dinv[k].setZero(nv, nv);
+    u[k].setZero(nv);
+  }
+}
+
+// ---- joint models (RBDA ch. 4, "jcalc": X_J, S, c_J; for the types of joint.h)
+//
+// For the pose T(q) = (R, t) of frame j in frame i (JointTypeInfo::relativePose), S is the
+// motion subspace of frame j relative to frame i in frame-j Plucker coordinates, v_J = S
+// q_dot, and c = S_ring q_dot the apparent derivative of S's coordinates (RBDA ch. 4:
+// c_J, the velocity-product part of the joint acceleration). Where S is constant, c = 0.
+void jointTransform(const TreeLink& L, const double* q, const double* qd, Matrix3d& R, Vector3d& t,
+                    MotionSubspace& S, Vector6d& c) {
+  S.setZero(6, L.nv);
+  c.setZero();
+  R.setIdentity();
+  t.setZero();
+  switch (L.kind) {
+    case TreeJointKind::kFixed:
+      break;
+    case TreeJointKind::kRevolute:  // Rz(q0): S = (bz; 0)
+      R = rotZ(q[0]);
+      S(2, 0) = 1;
+      break;
+    case TreeJointKind::kPrismatic:  // along bz: S = (0; bz)
+      t.z() = q[0];
+      S(5, 0) = 1;
+      break;
+    case TreeJointKind::kCylindrical:  // Rz(q0), q1 along bz; R^T bz = bz
+      R = rotZ(q[0]);
+      t.z() = q[1];
+      S(2, 0) = 1;
+      S(5, 1) = 1;
+      break;
+    case TreeJointKind::kScrew:  // Rz(phi), alpha (phi - phi0) along bz (A8.8): S = (bz; alpha bz)
+      R = rotZ(q[0]);
+      t.z() = L.params.alpha * (q[0] - L.params.phi0);
+      S(2, 0) = 1;
+      S(5, 0) = L.params.alpha;
+      break;
+    case TreeJointKind::kUniversal: {
+      // R = Rx(q0) Ry(q1): omega in frame j = q0_dot Ry(q1)^T ex + q1_dot ey; the first
+      // column turns with q1: c = q0_dot q1_dot d(Ry^T ex)/dq1 = q0_dot q1_dot (-s1, 0, c1).
+      const double c1 = std::cos(q[1]), s1 = std::sin(q[1]);
+      R = Eigen::AngleAxisd(q[0], Vector3d::UnitX()).toRotationMatrix() *
+          Eigen::AngleAxisd(q[1], Vector3d::UnitY()).toRotationMatrix();
+      S(0, 0) = c1, S(2, 0) = s1;
+      S(1, 1) = 1;
+      c(0) = -qd[0] * qd[1] * s1;
+      c(2) = qd[0] * qd[1] * c1;
+      break;
+    }
+    case TreeJointKind::kSpherical: {
+      // q_dot is omega in frame i (spherical.cpp): in frame j R^T q_dot. With R_dot =
+      // R omega_j~, d(R^T)/dt q_dot = -omega_j x (R^T q_dot) = -omega_j x omega_j = 0: no bias.
+      R = rotationOf(q);
+      S.topLeftCorner<3, 3>() = R.transpose();
+      break;
+    }
+    case TreeJointKind::kPlanar: {
+      // Rz(q2), (q0, q1, 0): the origin's velocity in frame j is Rz^T (q0_dot, q1_dot, 0),
+      // turning with q2: c = -q2_dot bz x (Rz^T (q0_dot, q1_dot, 0)).
+      const double c2 = std::cos(q[2]), s2 = std::sin(q[2]);
+      R = rotZ(q[2]);
+      t << q[0], q[1], 0;
+      S(3, 0) = c2, S(4, 0) = -s2;
+      S(3, 1) = s2, S(4, 1) = c2;
+      S(2, 2) = 1;
+      const double vx = c2 * qd[0] + s2 * qd[1], vy = -s2 * qd[0] + c2 * qd[1];
+      c(3) = qd[2] * vy;
+      c(4) = -qd[2] * vx;
+      break;
+    }
+    case TreeJointKind::kFree: {
+      // q = (r, p), q_dot = (v global, omega' body): the body's spatial velocity is
+      // (omega'; A^T v), so S = [0 1; A^T 0] and c = (0; d(A^T)/dt v) = (0; -omega' x A^T v).
+      R = rotationOf(q + 3);
+      t = Vector3d(q[0], q[1], q[2]);
+      S.bottomLeftCorner<3, 3>() = R.transpose();
+      S.topRightCorner<3, 3>().setIdentity();
+      const Vector3d w(qd[3], qd[4], qd[5]);
+      c.tail<3>() = -w.cross(R.transpose() * Vector3d(qd[0], qd[1], qd[2]));
+      break;
+    }
+  }
+  if (L.reversed) {
+    // The child carries frame i: its motion relative to frame j is minus that of j
+    // relative to i, in frame-i coordinates S' = -(i_X_j) S. The bias is c' = -(i_X_j) c:
+    // the extra term -(d/dt i_X_j) S q_dot = -(i_X_j v_J) x (i_X_j v_J) vanishes (a vector
+    // fixed in j seen from i changes at v_J x: RBDA ch. 2, differentiation in moving
+    // frames). The pose is the inverse, (R^T, -R^T t).
+    const Matrix3d Et = R;                 // i_X_j: E = R (j -> i components)
+    const Vector3d rho = -R.transpose() * t;  // i's origin relative to j's, j components
+    for (int k = 0; k < L.nv; ++k) S.col(k) = -transformMotion(Et, rho, S.col(k));
+    c = -transformMotion(Et, rho, c);
+    t = -R.transpose() * t;
+    R.transposeInPlace();
+  }
+}
+
+// ---- kinematics (RBDA 7.3, table 7.1 first loop, without the dynamics)
+
+long nextWorkspaceGeneration() {
+  static std::atomic<long> last{0};
+  return ++last;
+}
+
+void forwardKinematics(const TreeModel& model, const Eigen::VectorXd& q, const Eigen::VectorXd& qdot,
+                       TreeWorkspace& ws) {
+  ws.generation = nextWorkspaceGeneration();
+  Matrix3d R;
+  Vector3d t;
+  for (int b : model.order) {
+    const int k = b - 1;
+    const TreeLink& L = model.links[k];
+    Vector6d vJ, cJ;
+    // Child body axes in parent body axes (Rrel = Rp R Rc^T), and the child's centre
+    // relative to the parent's (rho = sp + Rp t - Rrel sc).
+    Matrix3d Rrel;
+    if (L.kind == TreeJointKind::kFixed) {  // the constant pose (TreeModel); no joint motion
+      Rrel = L.E0.transpose();
+      ws.rho[k] = L.rho0;
+      cJ.setZero();
+      vJ.setZero();
+    } else if (L.constant_S) {  // the common case: S constant in the child's frame (set once in ws), c_J = 0
+      // R = Rz(+-q) (revolute, screw) or 1 (prismatic), t along z (jointTransform; reversed,
+      // the inverse pose):
+      // Rp Rz mixes two columns of Rp, the product's first factor done in 12 products
+      // (TreeLink::Kc, Ks, K0: the pose's constant parts)
+      const double qk = q(L.iq);
+      double tz = 0.0;
+      if (L.kind == TreeJointKind::kPrismatic) {
+        Rrel = L.Kc + L.K0;
+        tz = L.reversed ? -qk : qk;  // (the inverse pose: -R^T t, and R^T z = z)
+        ws.rho[k] = L.k0 - L.kc + tz * L.Rp.col(2);
+      } else {
+        const double angle = L.reversed ? -qk : qk, ca = std::cos(angle), sa = std::sin(angle);
+        Rrel = ca * L.Kc + sa * L.Ks + L.K0;
+        ws.rho[k] = L.k0 - ca * L.kc - sa * L.ks;
+        if (L.kind == TreeJointKind::kScrew) {
+          tz = L.params.alpha * (qk - L.params.phi0);
+          ws.rho[k] += (L.reversed ? -tz : tz) * L.Rp.col(2);
+        }
+      }
+      cJ.setZero();
+      vJ = L.S0 * qdot(L.iv);
+    } else {
+      MotionSubspace& S = ws.S[k];
+      jointTransform(L, q.data() + L.iq, qdot.data() + L.iv, R, t, S, cJ);
+      // From the child's joint frame to its centre of mass: E = Rc, rho = -Rc^T sc, i.e.
+      // (omega; v) -> (Rc omega; Rc v + sc x Rc omega).
+      for (int col = 0; col < L.nv; ++col) {
+        const Vector3d w = L.Rc * S.col(col).head<3>();
+        S.col(col).tail<3>() = L.Rc * S.col(col).tail<3>() + L.sc.cross(w);
+        S.col(col).head<3>() = w;
+      }
+      const Vector3d w = L.Rc * cJ.head<3>();
+      cJ.tail<3>() = L.Rc * cJ.tail<3>() + L.sc.cross(w);
+      cJ.head<3>() = w;
+      vJ = S * qdot.segment(L.iv, L.nv);
+      Rrel.noalias() = L.Rp * R * L.Rc.transpose();
+      ws.rho[k] = L.sp + L.Rp * t - Rrel * L.sc;
+    }
+    ws.cJ[k] = cJ;
+    ws.E[k] = Rrel.transpose();
+    if (L.parent == 0) {
+      ws.A[k] = Rrel;
+      ws.r[k] = ws.rho[k];
+      ws.v[k] = vJ;
+    } else {
+      const int p = L.parent - 1;
+      ws.A[k].noalias() = ws.A[p] * Rrel;
+      ws.r[k].noalias() = ws.r[p] + ws.A[p] * ws.rho[k];
+      ws.v[k] = transformMotion(ws.E[k], ws.rho[k], ws.v[p]) + vJ;
+    }
+    // c_i = c_J + v_i x v_J (RBDA table 7.1)
+    ws.c[k] = cJ + crossMotion(ws.v[k], vJ);
+  }
+}
+
+void absoluteState(const TreeModel& model, const TreeWorkspace& ws, Eigen::VectorXd& x, Eigen::VectorXd& u) {
+  x.resize(7 * model.nb);
+  u.resize(6 * model.nb);
+  for (int k = 0; k < model.nb; ++k) {
+    const Quaterniond p(ws.A[k]);
+    x.segment<3>(7 * k) = ws.r[k];
+    x.segment<4>(7 * k + 3) << p.w(), p.x(), p.y(), p.z();
+    u.segment<3>(6 * k) = ws.A[k] * ws.v[k].tail<3>();  // v = A_Oi (A_Oi^T v)
+    u.segment<3>(6 * k + 3) = ws.v[k].head<3>();        // omega' (body components)
+  }
+}
+
+// ---- dynamics
+
+namespace {
+
+// The external force on body k in its own coordinates: gravity m g at the centre of mass
+// (no moment there) and the Inputs' force (global) and torque (body components).
+inline Vector6d externalForce(const System& sys, const TreeWorkspace& ws, int b, const Inputs* loads) {
+  const Body& B = sys.bodies[b];
+  const Matrix3d& A = ws.A[b - 1];
+  Vector6d f;
+  f.head<3>().setZero();
+  Vector3d F = B.m * sys.gravity;
+  if (loads) {
+    F += loads->force[b];
+    f.head<3>() = loads->torque[b];
+  }
+  f.tail<3>() = A.transpose() * F;
+  return f;
+}
+
+// The external force on a moving body and the bodies welded to it, in its coordinates:
+// gravity on the group, (mc x g'; m g') with g' = A^T g (joint_space/tree.h), and the Inputs'
+// forces and torques on each member moved to it by X_{member,h}^T.
+inline Vector6d groupExternalForce(const System& sys, const TreeLink& L, const TreeWorkspace& ws,
+                                   const TreeModel& model, const Inputs* loads) {
+  if (!L.composite) return externalForce(sys, ws, L.body, loads);
+  const Vector3d gh = ws.A[L.body - 1].transpose() * sys.gravity;
+  Vector6d f;
+  f.head<3>() = L.mc.cross(gh);
+  f.tail<3>() = L.mass * gh;
+  if (loads) {
+    f.head<3>() += loads->torque[L.body];
+    f.tail<3>() += ws.A[L.body - 1].transpose() * loads->force[L.body];
+    for (int m : L.welded) {
+      const TreeLink& W = model.links[m - 1];
+      Vector6d fm;
+      fm.head<3>() = loads->torque[m];
+      fm.tail<3>() = ws.A[m - 1].transpose() * loads->force[m];
+      f += transformForceBack(W.Eh, W.rhoh, fm);
+    }
+  }
+  return f;
+}
+
+// The Plucker transform X_{k, aparent} from a moving link's articulated parent (its parent,
+// or the host its parent is welded to) to the link: X_k X_{parent,h} when welded.
+inline void articulatedTransform(const TreeModel& model, const TreeWorkspace& ws, int k, Matrix3d& E,
+                                 Vector3d& rho) {
+  const TreeLink& L = model.links[k];
+  if (!L.parent_welded) {
+    E = ws.E[k], rho = ws.rho[k];
+    return;
+  }
+  const TreeLink& P = model.links[L.parent - 1];
+  E.noalias() = ws.E[k] * P.Eh;
+  rho.noalias() = P.rhoh + P.Eh.transpose() * ws.rho[k];
+}
+
+// A joint's articulated inertia S^T I^A S that is not positive definite: a subtree without
+// inertia along the joint, or a state that is no longer finite (an explicit step taken
+// beyond its stability: a whipping chain's rates grow by orders of magnitude a step).
+[[noreturn]] void notPositive(const System& sys, const TreeLink& L, double D) {
+  if (!std::isfinite(D))
+    throw SimulationError("joint-space dynamics: the state is no longer finite at body '" + sys.bodies[L.body].name +
+                          "' (the integration diverged: try a smaller step)");
+  throw SimulationError("joint-space dynamics: the subtree at body '" + sys.bodies[L.body].name +
+                        "' has no inertia along its joint");
+}
+
+// Pass 2 of forwardDynamicsAtKinematics at a tied link (TreeLink::tie): its motion is
+// X v_parent + s q_dot_m with s = r S, so nothing is eliminated here; with
+// [a; q_ddot_m] -> [f; (m's equation)] through [I^A W; W^T dd] and the bias (p^A; beta),
+// the parent receives (T = [X s; 0 1])
+//   I^A_p += X^T I^A X,  W_p += X^T (I^A s + W),  dd_p += s^T (I^A s + W) + s^T W + dd,
+//   p^A_p += X^T (p^A + I^A c),  beta_p += (I^A s + W)^T c + s^T p^A + beta - r tau_s.
+// (Jain, "Robot and Multibody Dynamics" ch. 11: constraint embedding.)
+[[gnu::noinline]] void tiedLinkInward(const TreeModel& model, TreeWorkspace& ws, int k, double tau_s, Vector6d pa) {
+  const TreeLink& L = model.links[k];
+  const Matrix6d& IA = ws.IA[k];
+  const Vector6d s = L.tie_mult * ws.S[k].col(0);
+  const Vector6d Us = IA * s + ws.W[k];
+  ws.Dinv[k](0, 0) = 0.0;
+  ws.U[k].col(0) = Us;
+  const int p = L.aparent - 1;
+  Matrix3d E;
+  Vector3d rho;
+  articulatedTransform(model, ws, k, E, rho);
+  ws.W[p] += transformForceBack(E, rho, Us);
+  ws.dd[p] += s.dot(Us) + s.dot(ws.W[k]) + ws.dd[k];
+  ws.beta[p] += Us.dot(ws.c[k]) + s.dot(pa) + ws.beta[k] - L.tie_mult * tau_s;
+  pa += IA * ws.c[k];
+  addTransformedInertia(E, rho, IA, ws.IA[p]);
+  ws.pA[p] += transformForceBack(E, rho, pa);
+}
+
+// Pass 2 at the common ancestor of a master's link and its sibling slaves (TreeLink::pivot),
+// before its own joint: the tied coordinate is eliminated first, as a child's joint with
+// U = W, D = dd, u = -beta would be: I^A -= W D^-1 W^T, p^A += W D^-1 u (no c_J of its own).
+[[gnu::noinline]] void pivotInward(const System& sys, const TreeLink& L, int k, TreeWorkspace& ws, Vector6d& pa) {
+  const double D = ws.dd[k];
+  if (!(D > 0.0)) notPositive(sys, L, D);
+  ws.tie_Dinv[k] = 1.0 / D, ws.tie_u[k] = -ws.beta[k];
+  const Vector6d WD = ws.W[k] * ws.tie_Dinv[k];
+  ws.IA[k].noalias() -= WD * ws.W[k].transpose();
+  pa += WD * ws.tie_u[k];
+}
+
+}  // namespace
+
+// Articulated-body algorithm, RBDA 7.3, table 7.1, in body coordinates: gravity enters as
+// a force on each body (not as the base acceleration -a_g of the table), so the spatial
+// accelerations a_i left in ws are the bodies' true ones.
+void forwardDynamics(const TreeModel& model, const System& sys, const Eigen::VectorXd& q,
+                     const Eigen::VectorXd& qdot, const Eigen::VectorXd& tau, TreeWorkspace& ws,
+                     Eigen::VectorXd& qddot, const Inputs* loads) {
+  // Pass 1 (outward): velocities and the bias c_i (forwardKinematics), then the rest
+  forwardKinematics(model, q, qdot, ws);
+  forwardDynamicsAtKinematics(model, sys, tau, ws, qddot, loads);
+}
+
+void forwardDynamicsAtKinematics(const TreeModel& model, const System& sys, const Eigen::VectorXd& tau,
+                                 TreeWorkspace& ws, Eigen::VectorXd& qddot, const Inputs* loads) {
+  ws.generation = nextWorkspaceGeneration();
+  // Pass 1 (continued): I^A_i = I_i, p^A_i = v_i x* I_i v_i - f^x_i (as table 7.1 starts
+  // them). Welded bodies are in their hosts' I_i and f^x_i (joint_space/tree.h): the passes skip them.
+  for (int b : model.order) {
+    const int k = b - 1;
+    const TreeLink& L = model.links[k];
+    if (L.kind == TreeJointKind::kFixed) continue;
+    if (L.tie >= 0 || L.tie_master || L.pivot >= 0) ws.W[k].setZero(), ws.dd[k] = 0.0, ws.beta[k] = 0.0;
+    if (L.composite) {
+      ws.IA[k] = L.Ic0;
+      ws.pA[k] = crossForce(ws.v[k], L.Ic0 * ws.v[k]) - groupExternalForce(sys, L, ws, model, loads);
+      continue;
+    }
+    const Body& B = sys.bodies[b];
+    ws.IA[k].setZero();
+    ws.IA[k].topLeftCorner<3, 3>() = B.Jp;
+    ws.IA[k].bottomRightCorner<3, 3>().diagonal().setConstant(B.m);
+    ws.pA[k] = crossForce(ws.v[k], inertiaTimes(B, ws.v[k])) - externalForce(sys, ws, b, loads);
+  }
+  // Pass 2 (inward): U_i = I^A_i S_i, D_i = S_i^T U_i, u_i = tau_i - S_i^T p^A_i, and the
+  // articulated inertia and bias the parent sees through the joint (RBDA 7.2-7.3, table
+  // 7.1): I^a = I^A - U D^-1 U^T, p^a = p^A + I^a c + U D^-1 u.
+  for (int n = model.nb - 1; n >= 0; --n) {
+    const int k = model.order[n] - 1;
+    const TreeLink& L = model.links[k];
+    if (L.kind == TreeJointKind::kFixed) continue;
+    Matrix6d& IA = ws.IA[k];
+    Vector6d pa = ws.pA[k];
+    if (L.tie >= 0) {  // (out of line: the common loop stays as it was)
+      tiedLinkInward(model, ws, k, tau(L.iv), pa);
+      continue;
+    }
+    if (L.pivot >= 0) pivotInward(sys, L, k, ws, pa);
+    if (L.nv == 1) {  // the common case without the small-matrix machinery
+      Vector6d U = IA * ws.S[k].col(0);
+      double D = ws.S[k].col(0).dot(U), u = tau(L.iv) - ws.S[k].col(0).dot(pa);
+      if (L.tie_master) {  // the tied links' terms (above): U = I^A S + W, D, u
+        U += ws.W[k];
+        D = ws.S[k].col(0).dot(U) + ws.S[k].col(0).dot(ws.W[k]) + ws.dd[k];
+        u -= ws.beta[k];
+      }
+      if (!(D > 0.0)) notPositive(sys, L, D);
+      const double Dinv = 1.0 / D;
+      ws.U[k].col(0) = U;
+      ws.Dinv[k](0, 0) = Dinv;
+      ws.u[k](0) = u;
+      if (L.aparent == 0) continue;
+      IA.noalias() -= (U * Dinv) * U.transpose();
+      pa += IA * ws.c[k] + U * (Dinv * u);
+    } else {
+      MotionSubspace& U = ws.U[k];
+      U.noalias() = IA * ws.S[k];
+      if (L.nv > 0) {
+        const SmallMatrix D = ws.S[k].transpose() * U;
+        // D is symmetric positive definite when the subtree has mass along every joint
+        // direction; LLT on at most 6 x 6 in place (no heap).
+        Eigen::LLT<SmallMatrix> llt(D);
+        if (llt.info() != Eigen::Success) notPositive(sys, L, D.sum());
+        ws.Dinv[k] = llt.solve(SmallMatrix::Identity(L.nv, L.nv));
+        // (element by element: the expression with tau.segment() would evaluate through a
+        // heap temporary)
+        for (int i = 0; i < L.nv; ++i) ws.u[k](i) = tau(L.iv + i) - ws.S[k].col(i).dot(pa);
+      }
+      if (L.aparent == 0) continue;
+      if (L.nv > 0) {
+        const MotionSubspace UD = U * ws.Dinv[k];
+        IA.noalias() -= UD * U.transpose();
+        pa += IA * ws.c[k] + UD * ws.u[k];
+      } else {
+        pa += IA * ws.c[k];
+      }
+    }
+    // The parent accumulates X^T I^a X and X^T p^a (table 7.1, with X = i_X_lambda(i)).
+    const int p = L.aparent - 1;
+    Matrix3d E;
+    Vector3d rho;
+    articulatedTransform(model, ws, k, E, rho);
+    addTransformedInertia(E, rho, IA, ws.IA[p]);
+    ws.pA[p] += transformForceBack(E, rho, pa);
+  }
+  // Pass 3 (outward): a'_i = X a_parent + c_i, q_ddot_i = D^-1 (u_i - U_i^T a'_i),
+  // a_i = a'_i + S_i q_ddot_i (ground does not accelerate: gravity is a force here).
+  qddot.resize(model.nv);
+  for (int b : model.order) {
+    const int k = b - 1;
+    const TreeLink& L = model.links[k];
+    Vector6d ap = ws.c[k];
+    if (L.parent != 0) ap += transformMotion(ws.E[k], ws.rho[k], ws.a[L.parent - 1]);
+    if (L.tie >= 0) {  // (its master, an ancestor, is done)
+      const double qdd = L.tie_mult * qddot(model.links[L.tie].iv);
+      qddot(L.iv) = qdd;
+      ws.a[k] = ap + ws.S[k].col(0) * qdd;
+    } else if (L.nv == 1) {
+      const double qdd = ws.Dinv[k](0, 0) * (ws.u[k](0) - ws.U[k].col(0).dot(ap));
+      qddot(L.iv) = qdd;
+      ws.a[k] = ap + ws.S[k].col(0) * qdd;
+    } else if (L.nv > 0) {
+      const SmallVector qdd = ws.Dinv[k] * (ws.u[k] - ws.U[k].transpose() * ap);
+      qddot.segment(L.iv, L.nv) = qdd;
+      ws.a[k] = ap + ws.S[k] * qdd;
+    } else {
+      ws.a[k] = ap;
+    }
+    if (L.pivot >= 0)  // the tied coordinate (inward above): q_ddot_m = D^-1 (u - W^T a)
+      qddot(L.pivot) = ws.tie_Dinv[k] * (ws.tie_u[k] - ws.W[k].dot(ws.a[k]));
+  }
+}
+
+// Recursive Newton-Euler, RBDA 5.3, table 5.1 (gravity as a body force as above):
+// a_i = X a_parent + S_i q_ddot_i + c_i, f_i = I_i a_i + v_i x* I_i v_i - f^x_i outward;
+// tau_i = S_i^T f_i, f_parent += X^T f_i inward.
+void inverseDynamics(const TreeModel& model, const System& sys, const Eigen::VectorXd& q,
+                     const Eigen::VectorXd& qdot, const Eigen::VectorXd& qddot, TreeWorkspace& ws,
+                     Eigen::VectorXd& tau, const Inputs* loads) {
+  forwardKinematics(model, q, qdot, ws);
+  for (int b : model.order) {
+    const int k = b - 1;
+    const TreeLink& L = model.links[k];
+    const Body& B = sys.bodies[b];
+    Vector6d a = ws.c[k] + ws.S[k] * qddot.segment(L.iv, L.nv);
+    if (L.parent != 0) a += transformMotion(ws.E[k], ws.rho[k], ws.a[L.parent - 1]);
+    ws.a[k] = a;
+    ws.f[k] = inertiaTimes(B, a) + crossForce(ws.v[k], inertiaTimes(B, ws.v[k])) - externalForce(sys, ws, b, loads);
+  }
+  tau.resize(model.nv);
+  for (int n = model.nb - 1; n >= 0; --n) {
+    const int k = model.order[n] - 1;
+    const TreeLink& L = model.links[k];
+    tau.segment(L.iv, L.nv) = ws.S[k].transpose() * ws.f[k];
+    if (L.parent != 0) ws.f[L.parent - 1] += transformForceBack(ws.E[k], ws.rho[k], ws.f[k]);
+  }
+}
+
+// Composite-rigid-body algorithm, RBDA 6.2, table 6.2, in body coordinates: I^c_i = I_i +
+// sum over children X^T I^c X; F = I^c_i S_i, H_ii = S_i^T F, then F moves to each ancestor
+// j (F = X^T F) for H_ij = F^T S_j.
+void jointSpaceInertia(const TreeModel& model, const TreeWorkspace& ws, AlignedVector<Matrix6d>& Ic,
+                       Eigen::MatrixXd& H) {
+  // (welded bodies are in their hosts' Ic0: the composites skip them, joint_space/tree.h; F
+  // still moves through their transforms on the way to an ancestor)
+  Ic.resize(model.nb);
+  for (int b : model.order)
+    if (model.links[b - 1].kind != TreeJointKind::kFixed) Ic[b - 1] = model.links[b - 1].Ic0;
+  for (int n = model.nb - 1; n >= 0; --n) {
+    const int k = model.order[n] - 1;
+    const TreeLink& L = model.links[k];
+    if (L.kind == TreeJointKind::kFixed || L.aparent == 0) continue;
+    Matrix3d E;
+    Vector3d rho;
+    articulatedTransform(model, ws, k, E, rho);
+    addTransformedInertia(E, rho, Ic[k], Ic[L.aparent - 1]);
+  }
+  for (int n = 0; n < model.nb; ++n) {
+    const int k = model.order[n] - 1;
+    const TreeLink& L = model.links[k];
+    if (L.nv == 0) continue;
+    MotionSubspace F = Ic[k] * ws.S[k];
+    H.block(L.iv, L.iv, L.nv, L.nv).noalias() = ws.S[k].transpose() * F;
+    for (int j = k; model.links[j].parent != 0;) {
+      for (int c = 0; c < L.nv; ++c) F.col(c) = transformForceBack(ws.E[j], ws.rho[j], F.col(c));
+      j = model.links[j].parent - 1;
+      const TreeLink& P = model.links[j];
+      for (int a = 0; a < L.nv; ++a)
+        for (int c = 0; c < P.nv; ++c) H(L.iv + a, P.iv + c) = H(P.iv + c, L.iv + a) = F.col(a).dot(ws.S[j].col(c));
+    }
+  }
+}
+
+void jointEfforts(const TreeModel& model, const Inputs& in, Eigen::VectorXd& tau) {
+  tau.setZero(model.nv);
+  for (size_t j = 0; j < model.joint_link.size(); ++j) {
+    if (model.joint_link[j] < 0) continue;  // a cut joint: its effort acts through the closure
+    const TreeLink& L = model.links[model.joint_link[j]];
+    for (int k = 0; k < L.nv; ++k) tau(L.iv + k) = in.effort[j][k];
+  }
+}
+
+// The seed's absolute accelerations from the spatial ones: omega'_dot is the angular part
+// (omega_dot = A_Oi omega'_dot, the omega' x omega' term vanishing); the centre of mass
+// accelerates by v_O_dot + omega x v_O in body components (the spatial acceleration is
+// not the classical one: RBDA ch. 2, spatial acceleration), rotated to global.
+void bodyAccelerations(const TreeModel& model, TreeWorkspace& ws, const Eigen::VectorXd& qddot,
+                       Eigen::VectorXd& acc) {
+  acc.resize(6 * model.nb);
+  for (int b : model.order) {
+    const int k = b - 1;
+    const TreeLink& L = model.links[k];
+    Vector6d a = ws.c[k] + ws.S[k] * qddot.segment(L.iv, L.nv);
+    if (L.parent != 0) a += transformMotion(ws.E[k], ws.rho[k], ws.a[L.parent - 1]);
+    ws.a[k] = a;
+    acc.segment<3>(6 * k) = ws.A[k] * (a.tail<3>() + ws.v[k].head<3>().cross(ws.v[k].tail<3>()));
+    acc.segment<3>(6 * k + 3) = a.head<3>();
+  }
+}
+
+void positionRates(const TreeModel& model, const Eigen::VectorXd& q, const Eigen::VectorXd& qdot,
+                   Eigen::VectorXd& qrate) {
+  if (model.nq == model.nv) {  // (no quaternion: q_dot itself)
+    qrate = qdot;
+    return;
+  }
+  qrate.resize(model.nq);
+  for (const TreeLink& L : model.links) {
+    switch (L.kind) {
+      case TreeJointKind::kSpherical: {
+        // omega in frame i: d/dt q = 1/2 (0, omega) (x) q
+        Eigen::Vector4d w(0, qdot(L.iv), qdot(L.iv + 1), qdot(L.iv + 2));
+        qrate.segment<4>(L.iq) = 0.5 * quatProduct(w, q.segment<4>(L.iq));
+        break;
+      }
+      case TreeJointKind::kFree: {
+        // r_dot = v; omega' in body components: p_dot = 1/2 p (x) (0, omega')
+        qrate.segment<3>(L.iq) = qdot.segment<3>(L.iv);
+        Eigen::Vector4d w(0, qdot(L.iv + 3), qdot(L.iv + 4), qdot(L.iv + 5));
+        qrate.segment<4>(L.iq + 3) = 0.5 * quatProduct(q.segment<4>(L.iq + 3), w);
+        break;
+      }
+      default:
+        qrate.segment(L.iq, L.nq) = qdot.segment(L.iv, L.nv);
+    }
+  }
+}
+
+void normalizeQuaternions(const TreeModel& model, Eigen::VectorXd& q) {
+  for (const TreeLink& L : model.links) {
+    if (L.kind == TreeJointKind::kSpherical) q.segment<4>(L.iq).normalize();
+    if (L.kind == TreeJointKind::kFree) q.segment<4>(L.iq + 3).normalize();
+  }
+}
+
+}  // namespace mechanism_sim

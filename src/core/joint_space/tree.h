@@ -1,0 +1,308 @@
+// Joint-space (relative-coordinate) dynamics of a tree: the first piece of a formulation in
+// which the spanning tree moves in joint coordinates and only loop closures stay algebraic.
+// Free-standing for now: it reads a finalized System and does not touch the Stepper.
+//
+//   TreeModel          the tree of a System whose joints form a forest: per moving body its
+//                      parent (or ground) and the joint to it; bodies that no joint reaches
+//                      float freely (6 dof, unit quaternion)
+//   forwardKinematics  joint state (q, q_dot) -> each body's absolute pose and velocity,
+//                      i.e. the absolute State x, u (r, p; v global, omega' body)
+//   forwardDynamics    q_ddot by the articulated-body algorithm (Featherstone, "Rigid Body
+//                      Dynamics Algorithms" (RBDA), 2008, section 7.3, table 7.1): O(n), no
+//                      mass matrix, no allocation after the workspace is built
+//   inverseDynamics    the efforts for a given q_ddot (recursive Newton-Euler, RBDA 5.3,
+//                      table 5.1): a second, independent recursion to check the first
+//   bodyAccelerations  q_ddot -> absolute accelerations as State::acc has them
+//
+// Coordinates (per joint, in sys.joints order; a free body's after all joints'):
+//   the joint's own coordinates, q_k = Row::Phi and q_dot_k = Row::Phi_dot of
+//   Joint::coordinates(), with the pose of frame j in frame i from
+//   JointTypeInfo::relativePose:
+//     revolute     1/1  angle about bz_i             prismatic  1/1  travel along bz_i
+//     cylindrical  2/2  angle, travel                screw      1/1  angle phi (travel
+//                                                                     alpha (phi - phi0))
+//     universal    2/2  Rx(q0) Ry(q1)                planar     3/3  x, y, angle
+//     fixed        0/0
+//     spherical    4/3  q: unit quaternion (w x y z) of frame j in frame i (its rotation
+//                       vector is what Joint::coordinates() reports); q_dot: the relative
+//                       angular velocity in frame-i components (as spherical.cpp), so
+//                       dq/dt = 1/2 (0, q_dot) (x) q
+//     free body    7/6  q: r (3, global), p (4, w x y z), as State::x; q_dot: v (3,
+//                       global), omega' (3, body), as State::u
+//   (nq/nv: position/velocity coordinates). A generalized effort tau_k is what the
+//   absolute solver takes as Inputs::effort (it acts as G_k^T tau_k); on a free body tau is
+//   (force global, torque in body components) at the centre of mass.
+// Fixed joints are merged: a body welded by fixed joints to a moving body (its host) adds
+// its constant spatial inertia to the host's (TreeLink::Ic0) and its external forces to the
+// host's, and the articulated-body and composite-rigid-body passes skip it; its pose and
+// velocity are still computed (closures, tf and reactions read them) and the recursive
+// Newton-Euler pass still runs over every body, so the reaction at a fixed joint and the
+// merged dynamics check each other (RBDA 6.2/7.3 for one rigid composite body).
+// What the formulation runs is jointSpaceUnsupported()'s answer; the TreeModel itself only
+// refuses what the recursion cannot represent (an unknown joint type on the tree, a joint
+// from a body to itself). It leaves out everything that is not a tree joint: couplers,
+// drives, limits, springs, joint damping and friction are the caller's (a stepper applies
+// damping as tau -= c q_dot and springs as body loads), and joints the spanning tree does
+// not use are cut joints (TreeModel::cut_joints), for the loop closures.
+#pragma once
+#include <string>
+#include <vector>
+
+#include <Eigen/Cholesky>
+#include <Eigen/Core>
+#include <Eigen/StdVector>
+
+#include "mechanism_sim/core/model/system.h"
+
+namespace mechanism_sim {
+
+using Vector6d = Eigen::Matrix<double, 6, 1>;
+using Matrix6d = Eigen::Matrix<double, 6, 6>;
+
+// The Plucker transform X = B_X_A of motion vectors from frame A to frame B, given by E (A
+// components -> B components) and rho (B's origin relative to A's, A components):
+// X = [E 0; -E rho~ E] (RBDA ch. 2, with r = rho).
+inline Vector6d transformMotion(const Matrix3d& E, const Vector3d& rho, const Vector6d& m) {
+  Vector6d out;
+  out.head<3>() = E * m.head<3>();
+  out.tail<3>() = E * (m.tail<3>() - rho.cross(m.head<3>()));
+  return out;
+}
+
+// X^T f: a force in B coordinates back to A coordinates (B_X_A^* inverse = X^T).
+inline Vector6d transformForceBack(const Matrix3d& E, const Vector3d& rho, const Vector6d& f) {
+  Vector6d out;
+  out.tail<3>() = E.transpose() * f.tail<3>();
+  out.head<3>() = E.transpose() * f.head<3>() + rho.cross(out.tail<3>());
+  return out;
+}
+
+// At most 6 columns (a free body), stored in place: no heap.
+using MotionSubspace = Eigen::Matrix<double, 6, Eigen::Dynamic, 0, 6, 6>;
+using SmallMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 6, 6>;
+using SmallVector = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 6, 1>;
+// Vectors of the 16-byte-aligned fixed-size types.
+template <class T>
+using AlignedVector = std::vector<T, Eigen::aligned_allocator<T>>;
+
+enum class TreeJointKind { kFixed, kRevolute, kPrismatic, kCylindrical, kScrew, kUniversal, kSpherical, kPlanar, kFree };
+
+// The link from a moving body to its parent.
+struct TreeLink {
+  int body = 0;          // the moving body (1..nb)
+  int parent = 0;        // its parent (0: ground)
+  int joint = -1;        // index in sys.joints; -1: a free body (no joint)
+  const Joint* ptr = nullptr;
+  TreeJointKind kind = TreeJointKind::kFree;
+  // The child is the joint's body i (the joint was written parent-last): frame j then sits
+  // on the parent, and the child's frame is frame i.
+  bool reversed = false;
+  int nq = 0, nv = 0;    // coordinates of this link
+  int iq = 0, iv = 0;    // where they start in q and q_dot
+  JointParams params;    // screw: alpha, phi0
+  // The joint frame on the parent (F_p) and on the child (F_c), body components relative to
+  // that body's centre of mass; ground's in global components.
+  Matrix3d Rp = Matrix3d::Identity(), Rc = Matrix3d::Identity();
+  Vector3d sp = Vector3d::Zero(), sc = Vector3d::Zero();
+  // One coordinate whose motion subspace is constant in the child's centre-of-mass
+  // coordinates (revolute, prismatic, screw; either direction): S0, and c_J = 0.
+  // forwardKinematics then computes only the pose (RBDA ch. 4: S constant for these).
+  bool constant_S = false;
+  Vector6d S0 = Vector6d::Zero();
+  // For those, the pose as constant parts (forwardKinematics): with R = Rz(angle),
+  // Rrel = Rp R Rc^T = cos K_c + sin K_s + K_0 and the child's centre
+  // rho = sp + t_z Rp z - Rrel sc = k_0 + t_z Rp z - cos k_c - sin k_s (k_c = K_c sc,
+  // k_s = K_s sc, k_0 = sp - K_0 sc); a prismatic joint's Rrel is K_0 + K_c (angle 0).
+  Matrix3d Kc = Matrix3d::Zero(), Ks = Matrix3d::Zero(), K0 = Matrix3d::Zero();
+  Vector3d kc = Vector3d::Zero(), ks = Vector3d::Zero(), k0 = Vector3d::Zero();
+  // Fixed links: the constant pose of the child relative to the parent (E0: parent -> child
+  // components, rho0: the child's centre relative to the parent's, parent components), and
+  // relative to the host (Eh, rhoh), the moving body (0: ground) the welded group moves with.
+  Matrix3d E0 = Matrix3d::Identity(), Eh = Matrix3d::Identity();
+  Vector3d rho0 = Vector3d::Zero(), rhoh = Vector3d::Zero();
+  int host = 0;  // a fixed link's host; any other link's own body
+  // Moving links: the articulated parent (the parent's host: 0 for ground or a body welded
+  // to ground), and whether the parent is a welded body (the transform to the articulated
+  // parent is then X_k X_parent,h, composed at each pass).
+  int aparent = 0;
+  bool parent_welded = false;
+  // Moving links with welded bodies: the composite spatial inertia at this body's centre in
+  // its axes (its own and theirs, X^T I X), the bodies welded to it, their total mass with
+  // its own and sum m_i rhoh_i (gravity on the group is (mc x g'; m g'), g' in its axes).
+  bool composite = false;
+  Matrix6d Ic0 = Matrix6d::Zero();
+  std::vector<int> welded;
+  double mass = 0.0;
+  Vector3d mc = Vector3d::Zero();
+  // An embedded coupler (TreeModel's embed_couplers; Jain, "Robot and Multibody Dynamics"
+  // ch. 11, constraint embedding, for a linear coupling): this link's one coordinate is
+  // tie_mult q_master + tie_offset, its master the link `tie`, tie_coupler the coupler's
+  // constraint. The articulated passes carry the master's coordinate up from every link
+  // tied to it and eliminate it at one link:
+  // - the master's own link when it is an ancestor of its slaves (the links between them
+  //   welded or tied to the same master): tie_master;
+  // - else (siblings: a parallel gripper's fingers) the links' nearest common moving
+  //   ancestor T, whose `pivot` is the master's coordinate (its index in q_dot; pivot_link
+  //   the master's link); the master's link is then tied to itself (tie its own index,
+  //   tie_mult 1, tie_coupler -1) and eliminates nothing.
+  int tie = -1, tie_coupler = -1;
+  double tie_mult = 0.0, tie_offset = 0.0;
+  bool tie_master = false;
+  int pivot = -1, pivot_link = -1;
+};
+
+// Empty when the joint-space formulation can run the System; otherwise a sentence naming
+// the first thing it cannot run (a joint type without a tree model, a constraint type
+// that is neither a joint, a coupler, a drive nor a limit, a joint from a body to itself;
+// and, by default, closures). Springs, joint damping and Coulomb friction pass: the caller
+// applies them as loads and efforts. Closures (the joints that close loops, couplers,
+// drives, limits: loop_closure.h) pass only with loops_as_closures: a caller that
+// integrates them as closures says so; the default refuses them, because a stepper that
+// ignored them would run a different mechanism.
+std::string jointSpaceUnsupported(const System& sys, bool loops_as_closures = false);
+
+struct TreeModel {
+  // Throws UsageError for a System that is not finalized, ModelError for a tree joint of a
+  // type the recursion has no model of, or a joint from a body to itself.
+  // embed_couplers: a coupler (URDF mimic) q_s = r q_m + o between one-coordinate tree
+  // joints is held by the recursions themselves (TreeLink::tie) instead of as a closure row
+  // when m's coordinate can be eliminated at one link: m's own, an ancestor of s with only
+  // welded links or links tied to the same master between them, or the nearest common
+  // moving ancestor of both reached the same way (TreeLink::pivot), a link no other group
+  // uses; `ties` lists those slave links, parents first.
+  explicit TreeModel(const System& sys, bool embed_couplers = false);
+
+  int nb = 0;                   // moving bodies
+  int nq = 0, nv = 0;           // position and velocity coordinates
+  std::vector<TreeLink> links;  // per moving body b at links[b - 1]
+  std::vector<int> order;       // moving bodies, each after its parent (b, 1..nb)
+  std::vector<int> joint_link;  // per sys joint: its link (body - 1); -1 for a cut joint
+  std::vector<int> cut_joints;  // sys joints that close loops (not on the tree), ascending
+  std::vector<int> ties;        // links tied to a master's coordinate (embed_couplers), parents first
+  // q_s = r q_m + o and q_dot_s = r q_dot_m of every tie (their round-off in q_round and
+  // qdot_round likewise, when given): what the integration holds up to round-off, exactly.
+  void holdTies(Eigen::VectorXd& q, Eigen::VectorXd& qdot, Eigen::VectorXd* q_round = nullptr,
+                Eigen::VectorXd* qdot_round = nullptr) const;
+
+  const TreeLink& link(int b) const { return links[b - 1]; }
+  // A neutral joint state: zero coordinates, identity quaternions, free bodies where the
+  // System's bodies start.
+  Eigen::VectorXd neutralPositions(const System& sys) const;
+};
+
+// Scratch space of the recursions, one per model; sized once (no allocation after that).
+struct TreeWorkspace {
+  explicit TreeWorkspace(const TreeModel& model);
+  // per moving body (index b - 1), all spatial quantities (omega; v) in body coordinates at
+  // the centre of mass (the body's reference point): Featherstone's Plucker coordinates.
+  AlignedVector<Matrix3d> A;        // A_Oi: body -> global (seed lecture A^{Oi})
+  AlignedVector<Vector3d> r;        // centre of mass, global
+  AlignedVector<Matrix3d> E;        // X_{b <- parent}: rotation parent -> body components
+  AlignedVector<Vector3d> rho;      // X_{b <- parent}: b's centre relative to the parent's, parent components
+  AlignedVector<MotionSubspace> S;  // motion subspace in body coordinates
+  AlignedVector<Vector6d> v, c, cJ; // velocity, velocity-product acceleration, joint bias S_dot q_dot
+  AlignedVector<Vector6d> a;        // spatial acceleration
+  AlignedVector<Matrix6d> IA;       // articulated inertia
+  AlignedVector<Vector6d> pA;       // articulated bias force
+  AlignedVector<MotionSubspace> U;  // IA S
+  AlignedVector<SmallMatrix> Dinv;  // (S^T IA S)^-1
+  AlignedVector<SmallVector> u;     // tau - S^T pA
+  AlignedVector<Vector6d> f;        // RNEA: force transmitted by the joint
+  // Ties (TreeLink::tie): per link, the articulated quantities that couple it to the tied
+  // coordinate it carries up, W (6) and its own inertia dd, and the bias beta (pass 2)
+  AlignedVector<Vector6d> W;
+  std::vector<double> dd, beta;
+  std::vector<double> tie_Dinv, tie_u;  // at a link with a pivot: 1 / dd and -beta there
+  // A number no other write has had (across workspaces), taken each time forwardKinematics
+  // or the articulated passes rewrite the poses, subspaces or factors (E, rho, S, U, Dinv):
+  // what a cache of results computed from them keys on (LoopClosures' factorization).
+  long generation = 0;
+};
+// The next such number (thread-safe).
+long nextWorkspaceGeneration();
+
+// One link k of the inverse-mass inward pass (the articulated-body algorithm with zero
+// velocity and no external force, RBDA table 7.1, passes on the factors U, D^-1 in ws):
+// u_k = tau_k - S_k^T p_k into out (tau and out may be the same array), and the parent's
+// p += X^T (p_k + U_k D_k^-1 u_k). The caller visits children before parents with p zeroed
+// first: LoopClosures::applyInverseMass over every link, ClosureSolver over one row's paths.
+// With ties (TreeLink::tie) tau and out must be the same array: a tied link adds
+// r (tau_s - S_s^T p_s) to its master's entry, which the master's own step (or the pivot's,
+// at the common ancestor) then reads as its u, and leaves 0 at its own (its coordinate is
+// not eliminated there; the master's own link, tied to itself, leaves the sum).
+inline void inverseMassInward(const TreeModel& model, const TreeWorkspace& ws, int k, const double* tau, double* out,
+                              AlignedVector<Vector6d>& p) {
+  const TreeLink& L = model.links[k];
+  Vector6d pa = p[k];
+  if (L.tie >= 0) {  // a tied link (TreeLink::tie): its effort and S^T p go to the master's u
+    const double r = L.tie_mult, ts = tau[L.iv];
+    out[L.iv] = 0.0;  // (before: the master's own link adds to its own entry)
+    out[model.links[L.tie].iv] += r * ts - r * ws.S[k].col(0).dot(pa);
+    p[L.parent - 1] += transformForceBack(ws.E[k], ws.rho[k], pa);
+    return;
+  }
+  if (L.pivot >= 0) pa += ws.W[k] * (ws.tie_Dinv[k] * out[L.pivot]);  // (the tied coordinate eliminated here first)
+  for (int i = 0; i < L.nv; ++i) out[L.iv + i] = tau[L.iv + i] - ws.S[k].col(i).dot(pa);
+  if (L.parent == 0) return;
+  if (L.nv == 1) {
+    pa += ws.U[k].col(0) * (ws.Dinv[k](0, 0) * out[L.iv]);
+  } else if (L.nv > 0) {
+    const SmallVector u = Eigen::Map<const SmallVector>(out + L.iv, L.nv);
+    pa += ws.U[k] * (ws.Dinv[k] * u);
+  }
+  p[L.parent - 1] += transformForceBack(ws.E[k], ws.rho[k], pa);
+}
+
+// Poses and velocities of the bodies for (q, q_dot) into ws (A, r, v and the per-link
+// transforms, subspaces and bias terms the dynamics reuse).
+void forwardKinematics(const TreeModel& model, const Eigen::VectorXd& q, const Eigen::VectorXd& qdot,
+                       TreeWorkspace& ws);
+// The absolute State that ws's kinematics describe: x (7 nb: r, p) and u (6 nb: v global,
+// omega' body), as State::x and State::u.
+void absoluteState(const TreeModel& model, const TreeWorkspace& ws, Eigen::VectorXd& x, Eigen::VectorXd& u);
+
+// q_ddot under gravity (sys.gravity), the generalized efforts tau (nv) and, when `loads` is
+// given, its body forces (global, at the centre of mass) and torques (body components) (its
+// efforts are not read: pass them in tau, jointEfforts()). Runs forwardKinematics itself.
+// Articulated-body algorithm; allocation-free once qddot has size nv.
+void forwardDynamics(const TreeModel& model, const System& sys, const Eigen::VectorXd& q,
+                     const Eigen::VectorXd& qdot, const Eigen::VectorXd& tau, TreeWorkspace& ws,
+                     Eigen::VectorXd& qddot, const Inputs* loads = nullptr);
+// The same at the kinematics ws holds (forwardKinematics at these q, q_dot ran last and
+// nothing has changed ws's poses and rates since): the articulated passes alone.
+void forwardDynamicsAtKinematics(const TreeModel& model, const System& sys, const Eigen::VectorXd& tau,
+                                 TreeWorkspace& ws, Eigen::VectorXd& qddot, const Inputs* loads = nullptr);
+// The efforts that give q_ddot (the inverse of forwardDynamics): recursive Newton-Euler.
+void inverseDynamics(const TreeModel& model, const System& sys, const Eigen::VectorXd& q,
+                     const Eigen::VectorXd& qdot, const Eigen::VectorXd& qddot, TreeWorkspace& ws,
+                     Eigen::VectorXd& tau, const Inputs* loads = nullptr);
+// The joint-space inertia matrix H (nv x nv, M of M q_ddot + h = tau) at ws's kinematics, by
+// the composite-rigid-body algorithm (RBDA 6.2, table 6.2) in body coordinates: only the
+// entries H(i, j) of coordinates on one branch (j an ancestor's or the same link's) are
+// written, both triangles; the others are left as they are (zero: branch-induced sparsity,
+// RBDA 6.5). The bodies' inertias are the model's (TreeLink::Ic0, welded bodies in their hosts'). Ic:
+// scratch, per moving body (the composite inertias on return).
+void jointSpaceInertia(const TreeModel& model, const TreeWorkspace& ws, AlignedVector<Matrix6d>& Ic,
+                       Eigen::MatrixXd& H);
+// Inputs::effort as a vector tau over q_dot (a free body's entries zero).
+void jointEfforts(const TreeModel& model, const Inputs& in, Eigen::VectorXd& tau);
+
+// Absolute accelerations for q_ddot at the kinematics in ws (forwardKinematics or
+// forwardDynamics at the same q, q_dot), as State::acc: per body a (3, global, of the centre
+// of mass) and omega'_dot (3, body components).
+void bodyAccelerations(const TreeModel& model, TreeWorkspace& ws, const Eigen::VectorXd& qddot,
+                       Eigen::VectorXd& acc);
+
+// dq/dt for (q, q_dot) (nq): q_dot itself except at the quaternions.
+void positionRates(const TreeModel& model, const Eigen::VectorXd& q, const Eigen::VectorXd& qdot,
+                   Eigen::VectorXd& qrate);
+// Scales every quaternion in q to unit length.
+void normalizeQuaternions(const TreeModel& model, Eigen::VectorXd& q);
+
+// The pose of the child's joint frame in the parent's, the motion subspace in the child's
+// joint-frame components and the bias S_dot q_dot there (RBDA ch. 4, "jcalc"), of one link:
+// exposed for the tests.
+void jointTransform(const TreeLink& link, const double* q, const double* qdot, Matrix3d& R, Vector3d& t,
+                    MotionSubspace& S, Vector6d& c);
+
+}  // namespace mechanism_sim

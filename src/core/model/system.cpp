@@ -1,0 +1,246 @@
+// System: validation and layout, done once.
+#include "mechanism_sim/core/model/system.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <set>
+#include <sstream>
+
+#include <Eigen/Eigenvalues>
+
+#include "mechanism_sim/core/model/couplers.h"
+#include "mechanism_sim/core/model/errors.h"
+#include "core/absolute/evaluation.h"
+#include "mechanism_sim/core/model/tableau.h"
+
+namespace mechanism_sim {
+namespace {
+
+void validateBody(const Body& b) {
+  const std::string who = "body '" + b.name + "': ";
+  if (!std::isfinite(b.m) || b.m < 0) throw ModelError(who + "mass must be finite and >= 0");
+  if (!b.Jp.allFinite()) throw ModelError(who + "inertia must be finite");
+  const double scale = std::max(1e-300, b.Jp.cwiseAbs().maxCoeff());
+  if ((b.Jp - b.Jp.transpose()).cwiseAbs().maxCoeff() > 1e-9 * scale)
+    throw ModelError(who + "inertia must be symmetric");
+  const Eigen::Vector3d ev = Eigen::SelfAdjointEigenSolver<Matrix3d>(b.Jp).eigenvalues();
+  const double tol = 1e-9 * scale;
+  if (ev.minCoeff() < -tol) throw ModelError(who + "inertia has a negative principal moment");
+  if (ev(2) > ev(0) + ev(1) + tol)
+    throw ModelError(who + "inertia violates the triangle inequality (largest principal "
+                     "moment exceeds the sum of the other two)");
+  if (!b.r.allFinite() || !b.p.coeffs().allFinite() || b.p.norm() < 1e-9 || !b.v.allFinite() ||
+      !b.w.allFinite())
+    throw ModelError(who + "initial state must be finite with a non-zero orientation");
+}
+
+}  // namespace
+
+Method parseMethod(const std::string& name) {
+  for (Method m : {Method::kRk4, Method::kRk3, Method::kRk2})
+    if (name == tableau(m).name) return m;
+  throw ModelError("unknown integrator '" + name + "' (known: rk4, rk3, rk2)");
+}
+
+Formulation parseFormulation(const std::string& name) {
+  for (Formulation f : {Formulation::kAuto, Formulation::kJoint, Formulation::kAbsolute})
+    if (name == formulationName(f)) return f;
+  throw ModelError("unknown formulation '" + name + "' (known: auto, joint, absolute)");
+}
+
+const char* formulationName(Formulation f) {
+  switch (f) {
+    case Formulation::kJoint: return "joint";
+    case Formulation::kAbsolute: return "absolute";
+    default: return "auto";
+  }
+}
+
+void IntegratorOptions::validate() const {
+  parseMethod(method);
+  parseFormulation(formulation);
+  if (!(position_tol > 0) || !(velocity_tol > 0) || !(solve_tol > 0))
+    throw ModelError("integrator tolerances must be positive");
+}
+
+void System::finalize() {
+  nb = numBodies() - 1;
+  if (nb < 1) throw ModelError("the mechanism has no moving body");
+  for (int b = 1; b <= nb; ++b) validateBody(bodies[b]);
+  if (!gravity.allFinite()) throw ModelError("gravity must be finite");
+  options.validate();
+
+  // Drives become constraints after joints and couplers, limits after all others (free
+  // until reached).
+  constraints.erase(std::remove_if(constraints.begin(), constraints.end(),
+                                   [](const std::shared_ptr<Constraint>& c) {
+                                     return c->limit() >= 0 || c->drive() >= 0;
+                                   }),
+                    constraints.end());
+  for (size_t d = 0; d < drives.size(); ++d) {
+    DriveSpec& D = drives[d];
+    if (D.joint < 0 || D.joint >= numJoints() || D.k < 0 || D.k >= joints[D.joint]->dof())
+      throw ModelError("drive " + std::to_string(d) + ": no such joint coordinate");
+    const Joint& j = *joints[D.joint];
+    if (!j.holonomicCoordinates())
+      throw ModelError("joint '" + j.name() + "': a drive needs a position coordinate (this joint's rates are not the derivatives of its coordinates)");
+    for (size_t e = 0; e < d; ++e)
+      if (drives[e].joint == D.joint && drives[e].k == D.k)
+        throw ModelError("joint '" + j.name() + "': the coordinate is already driven");
+    if (!std::isfinite(D.q0)) throw ModelError("joint '" + j.name() + "': drive start position not finite");
+    D.constraint = numConstraints();
+    constraints.push_back(std::make_shared<DriveConstraint>(j, D.k, static_cast<int>(d), D.profile));
+  }
+  m_eq = 0;
+  for (const auto& c : constraints) m_eq += c->size();
+  for (size_t l = 0; l < limits.size(); ++l) {
+    LimitSpec& L = limits[l];
+    L.constraint = numConstraints();
+    constraints.push_back(std::make_shared<LimitConstraint>(*joints[L.joint], L.k,
+                                                            static_cast<int>(l), L.lower, L.upper));
+  }
+  rheonomic.clear();
+  for (int c = 0; c < numConstraints(); ++c) {
+    constraints[c]->setId(c);
+    if (constraints[c]->rheonomic()) rheonomic.push_back(c);
+    if (static_cast<int>(constraints[c]->bodies().size()) > kMaxConstraintBodies)
+      throw ModelError("constraint '" + constraints[c]->name() + "' couples more than " +
+                       std::to_string(kMaxConstraintBodies) + " bodies");
+  }
+  n = 6 * nb;
+
+  // Body graph of H = M + Phi_q^T W Phi_q and the factorization's schedule.
+  block_edges.clear();
+  for (const auto& c : constraints)
+    for (int b1 : c->bodies())
+      for (int b2 : c->bodies())
+        if (b1 > 0 && b2 > 0 && b1 < b2) block_edges.push_back({b1 - 1, b2 - 1});
+  BlockCholesky pattern;
+  pattern.analyze(nb, block_edges);
+
+  layout.assign(constraints.size(), ConstraintLayout());
+  int row = 0;
+  for (size_t ci = 0; ci < constraints.size(); ++ci) {
+    const Constraint& c = *constraints[ci];
+    ConstraintLayout& L = layout[ci];
+    L.row = row;
+    L.size = c.size();
+    row += L.size;
+    const int k = static_cast<int>(c.bodies().size());
+    L.bodies.clear();
+    for (int b : c.bodies()) L.bodies.push_back(b - 1);
+    L.address.assign(k * k, -1);
+    L.transposed.assign(k * k, 0);
+    for (int k1 = 0; k1 < k; ++k1)
+      for (int k2 = k1; k2 < k; ++k2) {
+        const int b1 = L.bodies[k1], b2 = L.bodies[k2];
+        if (b1 < 0 || b2 < 0) continue;
+        bool t = false;
+        L.address[k1 * k + k2] = pattern.address(b1, b2, &t);
+        L.transposed[k1 * k + k2] = t;
+      }
+  }
+  m = row;
+
+  // Scales of the problem.
+  double msum = 0, isum = 0;
+  int mcount = 0, icount = 0;
+  for (int b = 1; b <= nb; ++b) {
+    if (bodies[b].m > 0) msum += bodies[b].m, ++mcount;
+    const double tr = bodies[b].Jp.trace() / 3.0;
+    if (tr > 0) isum += tr, ++icount;
+  }
+  double L = 0;
+  for (const Joint* j : joints) L = std::max({L, j->frameI().sp_B.norm(), j->frameJ().sp_B.norm()});
+  for (const SpringDamper& s : springs) L = std::max({L, s.sp_i.norm(), s.sp_j.norm(), s.L0});
+  // the extent of the bodies' initial positions (translation-invariant)
+  Vector3d lo = bodies[1].r, hi = bodies[1].r;
+  for (int b = 1; b <= nb; ++b) lo = lo.cwiseMin(bodies[b].r), hi = hi.cwiseMax(bodies[b].r);
+  L = std::max(L, (hi - lo).norm());
+  length_scale = L > 0 ? L : 1.0;
+  mass_scale = mcount ? msum / mcount : 1.0;
+  updateLoadScales();
+  inertia_scale = icount ? isum / icount : mass_scale * length_scale * length_scale;
+  damping.resize(joints.size(), {0, 0, 0});
+  friction.resize(joints.size(), {0, 0, 0});
+  // Inverse masses with stand-ins: a massless body weighs the mean mass, a body without
+  // moments the mean moment, and every moment is raised by 1e-3 of the body's mean
+  // moment, so a zero principal moment (a thin rod's) does not make the weights of the
+  // equations that hold that rotation vanish. They only scale W (the refinement solves the
+  // exact KKT system); with 1e-9 instead of 1e-3 a 7 kg ram with ixx = 0 fell short on
+  // nearly every solve (test FuzzFindings.ZeroPrincipalMoment...).
+  Minv.assign(nb, Eigen::Matrix<double, 6, 6>::Zero());
+  for (int b = 1; b <= nb; ++b) {
+    const Body& B = bodies[b];
+    const double m = B.m > 0 ? B.m : mass_scale;
+    const double tr = B.Jp.trace() / 3.0;
+    const Matrix3d Jp = B.Jp + (tr > 0 ? 1e-3 * tr : inertia_scale) * Matrix3d::Identity();
+    Minv[b - 1].topLeftCorner<3, 3>() = Matrix3d::Identity() / m;
+    Minv[b - 1].bottomRightCorner<3, 3>() = Jp.inverse();
+  }
+  buildTreeTopology(*this);
+}
+
+void System::updateLoadScales() {
+  acceleration_scale = gravity.norm();
+  for (const SpringDamper& s : springs)
+    acceleration_scale = std::max(acceleration_scale, (s.k * std::max(s.L0, length_scale) + std::fabs(s.f_act)) / mass_scale);
+  velocity_scale = std::sqrt(acceleration_scale * length_scale);
+}
+
+State initialState(const System& sys) {
+  State s;
+  s.x = Eigen::VectorXd::Zero(BodyCoordinates::positions(sys));
+  s.u = Eigen::VectorXd::Zero(sys.n);
+  for (int b = 1; b <= sys.nb; ++b) {
+    const Body& B = sys.bodies[b];
+    s.x.segment<3>(BodyCoordinates::x(b - 1)) = B.r;
+    const Quaterniond p = B.p.normalized();
+    s.x.segment<4>(BodyCoordinates::x(b - 1) + 3) << p.w(), p.x(), p.y(), p.z();
+    s.u.segment<3>(BodyCoordinates::u(b - 1)) = B.v;
+    s.u.segment<3>(BodyCoordinates::u(b - 1) + 3) = B.w;
+  }
+  for (const auto& c : sys.constraints) s.tracked.push_back(c->initialTracked());
+  s.limit_side.assign(sys.limits.size(), 0);
+  s.dropped.assign(sys.m, 0);
+  s.lambda = Eigen::VectorXd::Zero(sys.m);
+  s.acc = Eigen::VectorXd::Zero(sys.n);
+  s.friction.assign(sys.joints.size(), {0, 0, 0});
+  for (const DriveSpec& D : sys.drives) {
+    const double v = D.profile.kind() == DriveProfile::Kind::kVelocity ? D.profile.velocity() : 0.0;
+    s.drive.push_back(DriveRamp{0.0, D.q0, v, v, 0.0});
+  }
+  return s;
+}
+
+Inputs zeroInputs(const System& sys) {
+  Inputs in;
+  in.effort.assign(sys.joints.size(), {0, 0, 0});
+  in.force.assign(sys.bodies.size(), Vector3d::Zero());
+  in.torque.assign(sys.bodies.size(), Vector3d::Zero());
+  in.spring_actuation.assign(sys.springs.size(), 0.0);
+  return in;
+}
+
+int limitSide(const LimitSpec& L, double q) {
+  const double slack = 8 * std::numeric_limits<double>::epsilon() * std::max(std::fabs(L.lower), std::fabs(L.upper));
+  return q < L.lower - slack ? -1 : q > L.upper + slack ? 1 : 0;
+}
+
+bool drivenAtLimit(const System& sys, const LimitSpec& L, double q, double t) {
+  for (const DriveSpec& D : sys.drives)
+    if (D.joint == L.joint && D.k == L.k) {
+      // within the assembly's slack of the bound (a gripper's finger held at its stop, off by
+      // round-off): the drive holds it there, no limit to activate
+      const double slack = 1e-9 * (std::fabs(L.lower) + std::fabs(L.upper) + sys.length_scale);
+      if (q >= L.lower - slack && q <= L.upper + slack) return true;
+      std::ostringstream os;
+      os << "at t = " << t << " s: the drive of joint '" << sys.joints[L.joint]->name() << "' moves it to " << fmt(q)
+         << ", past its limits [" << fmt(L.lower) << ", " << fmt(L.upper) << "]; change the drive or the limits";
+      throw SimulationError(os.str());
+    }
+  return false;
+}
+
+}  // namespace mechanism_sim
