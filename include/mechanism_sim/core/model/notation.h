@@ -31,4 +31,53 @@
 // Each quantity carries its "centripetal" part: for a body-fixed vector a = A_Oi a',
 //   a_dot = A_Oi (w x a'),  a_ddot = A_Oi (w_dot x a') + A_Oi (w x (w x a')),
 // and the second term (a_cen) is what enters gamma.
+//
+// Joint coordinates, in both formulations (Joint::coordinates, joint.h):
+//
+// | code        | meaning                                                                    |
+// |-------------|----------------------------------------------------------------------------|
+// | x, u        | absolute coordinates of the moving bodies: x = (r_i, p_i), u = (v_i, w_i)  |
+// |             | (State::x, State::u): the seed's q, so named where q is joint coordinates  |
+// | Phi_x       | Phi_q, written so where q means joint coordinates (Jacobian on x)          |
+// | q_k         | joint coordinate k of a joint: an angle, a slide (a spherical joint's      |
+// |             | rates are its relative angular velocity in frame i)                        |
+// | q_x,k       | coordinate k's row on the bodies' velocities (Row::J, 12 wide):            |
+// |             | q_dot_k = q_x,k u, q_ddot_k = q_x,k a - gamma_k; an effort tau_k along it  |
+// |             | acts on the bodies as q_x,k^T tau_k                                        |
+// | tau         | generalized efforts along joint coordinates (applied, damping -c q_dot,    |
+// |             | friction)                                                                  |
+// | P           | constrained inverse mass: the accelerations a force causes with every      |
+// |             | constraint held (the factored KKT matrix applied to it)                    |
+//
+// The joint formulation (joint_space/; Featherstone, "Rigid Body Dynamics Algorithms"
+// (RBDA), 2008): the spanning tree moves in joint coordinates, the rest are closures.
+//
+// | code        | meaning                                                                    |
+// |-------------|----------------------------------------------------------------------------|
+// | q, q_dot,   | the tree's coordinates (every link's, a free body's r and p), their rates  |
+// |   q_ddot    | and accelerations (State::q, qdot, qddot; nq and nv of them)               |
+// | X, E, rho   | Plucker transform parent -> link, X = [E 0; -E rho~ E] (RBDA ch. 2)        |
+// | S_k         | motion subspace of link k's joint (6 x nv): the joint's spatial velocity   |
+// |             | is S_k q_dot_k, in the link's centre-of-mass coordinates (RBDA ch. 4)      |
+// | v, a, f     | a link's spatial velocity, acceleration, and the force its joint transmits |
+// | c, c_J      | velocity-product acceleration; the joint's bias S_dot q_dot                |
+// | IA, pA      | articulated inertia and articulated bias force (RBDA 7.3)                  |
+// | U, D, u     | U = IA S, D = S^T IA S, u = tau - S^T pA (RBDA table 7.1)                  |
+// | Ic          | composite rigid-body inertia (CRBA, RBDA 6.2)                              |
+// | M, h        | joint-space mass matrix and bias forces: M q_ddot + h = tau (never formed: |
+// |             | the articulated passes apply M^-1)                                         |
+// | J(q)        | the tree's Jacobian: the bodies' velocities u = J(q) q_dot                 |
+// | G           | the closures' Jacobian on q, G = Phi_x J(q) (m x nv): one row per closure  |
+// |             | row (cut joints, couplers, drives, limits the tree does not hold). G means |
+// |             | this and nothing else in the core                                          |
+// | gamma_q     | the closures' acceleration right-hand side: G q_ddot = gamma_q, gamma_q =  |
+// |             | gamma - Phi_x (J_dot q_dot)                                                |
+// | nu          | their velocity right-hand side: G q_dot = nu (drives: f_dot)               |
+// | lambda      | closure multipliers, the absolute formulation's for the same rows:         |
+// |             | M q_ddot + h = tau - G^T lambda                                            |
+// | q_ddot_free | the tree's accelerations without the closures' forces                      |
+// | A = G M^-1 G^T | the closure matrix: A lambda = G q_ddot_free - gamma_q (RBDA 8.3)       |
+// | Z           | M^-1 G^T (or a factor's columns L^-T G^T), from inverse-mass passes        |
+// | R           | a branch passage's reduced rows: the closure rows with the directions      |
+// |             | held by the motion taken out (branch_passage.cpp)                          |
 #pragma once
