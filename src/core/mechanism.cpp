@@ -257,7 +257,7 @@ void Mechanism::setJointEffort(int joint, int k, double tau) {
   if (!std::isfinite(tau)) throw UsageError("effort must be finite");
   if (!built_) throw UsageError("Mechanism::setJointEffort before build()");
   // (an unchanged input keeps the joint stepper's first stage: MechanismModel::step and the
-  // node set every effort before every step, and recomputing it cost a fifth RK4 stage)
+  // node set every effort before every step, and recomputing it costs a fifth RK4 stage)
   if (sameBits(inputs_.effort[joint][k], tau)) return;
   inputs_.effort[joint][k] = tau;
   if (joint_) joint_->invalidate();
@@ -444,7 +444,7 @@ std::vector<Reaction> Mechanism::jointReactions() const {
     out[j].force += f;
     out[j].torque += kb.A_Oi * gen.tail<3>() - (kb.A_Oi * jt.frameJ().sp_B).cross(f);
   };
-  // an effort tau along coordinate k of joint j acts on its body j as G_k,j^T tau
+  // an effort tau along coordinate k of joint j acts on its body j as q_x,k,j^T tau
   Row rows[kMaxJointDofs];
   auto along = [&](int j, int k, double tau) {
     if (tau == 0.0) return;

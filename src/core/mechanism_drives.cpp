@@ -73,8 +73,8 @@ std::vector<int> Mechanism::replaceDrives(std::vector<DriveSpec> drives, const s
   // Assembly finds the dependent equations at this pose (it moves nothing that already
   // satisfies the equations: the new drives start where their coordinates are); then the
   // accelerations and multipliers are solved with the new equations.
-  // the formulation asked for must run the new System (the joint formulation has no drives
-  // yet: "joint" refuses it here, the mechanism unchanged; "auto" turns to absolute)
+  // the formulation asked for must run the new System ("joint" refuses one it cannot run
+  // here, the mechanism unchanged; "auto" turns to absolute)
   chooseFormulation(*sys, parseFormulation(sys->options.formulation), nullptr);
   auto stepper = std::make_unique<Stepper>(*sys);
   DependencyReport deps;
@@ -109,7 +109,7 @@ void Mechanism::commandDrivePath(int drive, std::shared_ptr<const DrivePath> pat
   stepper_->settle(*sys_, state_, inputs_);
 }
 
-// q_ddot_k = G_k a - gamma_k: the coordinate's row (joint.h) on the bodies' accelerations
+// q_ddot_k = q_x,k a - gamma_k: the coordinate's row (joint.h) on the bodies' accelerations
 // (State::acc: per moving body r_ddot, w_dot').
 double Mechanism::jointAcceleration(int joint, int k) const {
   checkCoordinate(joint, k);

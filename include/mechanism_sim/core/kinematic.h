@@ -9,7 +9,7 @@
 
 namespace mechanism_sim {
 
-// For each candidate coordinate (joint, k), in order: whether its row G_k is independent of
+// For each candidate coordinate (joint, k), in order: whether its row q_x,k is independent of
 // the equality equations (joints, couplers, drives; not the limits) and of the candidates
 // taken before it, at the bodies' initial poses. sys: described, not yet finalized (a copy
 // is laid out here). Rows in velocity coordinates with the rotations scaled by the length

@@ -140,7 +140,7 @@ class Mechanism {
   double jointPosition(int joint, int k) const;
   double jointVelocity(int joint, int k) const;
   double jointEffort(int joint, int k) const;
-  // Its acceleration in the current state: G_k a - gamma_k (joint.h).
+  // Its acceleration in the current state: q_x,k a - gamma_k (joint.h).
   double jointAcceleration(int joint, int k) const;
   // Where a tree joint's coordinates start in State::q (rate: in q_dot and q_ddot) in the
   // joint formulation; -1 for a loop's cut joint, a spherical joint, or in the absolute

@@ -7,12 +7,11 @@
 // make at l, the largest distance of a joint point from its body's centroid
 // (delta theta' = delta phi / l, one l for all bodies, so that rows between two bodies'
 // rotations keep their balance). Rows taken at the centre of mass carry the lever arm from
-// it: a rod whose centre of mass lay 425 km from its joints 0.35 m apart made a
-// slider-crank's loop look dependent at 1e-9 and lose all five equations of its wrist pin
-// (the fuzzer's find), and a double pendulum whose second link's centre of mass lay 100 km
-// off lost two of its joint's five. In the joints' geometry the loop keeps the three
-// dependent equations of a planar loop and the pendulum none, in metres or in millimetres
-// alike.
+// it: with a rod's centre of mass 425 km from its joints 0.35 m apart, a slider-crank's loop
+// looks dependent at 1e-9 and loses all five equations of its wrist pin, and a double
+// pendulum whose second link's centre of mass lies 100 km off loses two of its joint's five.
+// In the joints' geometry the loop keeps the three dependent equations of a planar loop and
+// the pendulum none, in metres or in millimetres alike.
 #include "core/absolute/dependencies.h"
 
 #include <algorithm>

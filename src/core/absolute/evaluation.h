@@ -98,7 +98,7 @@ inline double appliedEffort(double tau, double c, double q_dot, double friction)
 // Coulomb friction of one joint for the step h about to be taken: the one rule of both
 // formulations (Stepper::frictionFor, JointStepper::frictionFor), which differ only in how
 // they get its inputs. f: the joint's friction per coordinate (0: none); rate_k = q_dot_k / h
-// + q_ddot_k with q_ddot the accelerations without friction; gPg: G_k P G_l^T, P the
+// + q_ddot_k with q_ddot the accelerations without friction; gPg: q_x,k P q_x,l^T, P the
 // constrained inverse mass (the inverse effective inertia of the coordinates with friction).
 // The effort that stops coordinate k within the step, needed_k = rate_k / gPg_kk, is
 // supplied up to f_k; a planar joint's two in-plane translations (planar) are taken
@@ -134,7 +134,8 @@ inline Vec6 padded(const double* y, int size) {
 void mulJ(const System& sys, const Evaluation& ev, const std::vector<int>& cs, const double* v, double* out);
 void addJt(const System& sys, const Evaluation& ev, const std::vector<int>& cs, const double* y, double* out);
 void mulM(const System& sys, const double* v, double* out);  // out = M v
-// A coordinate row G (12 columns: body i, body j of joint j): out += G^T x, and G v.
+// A coordinate row q_x,k (12 columns: body i, body j of joint j): out += q_x,k^T x, and
+// q_x,k v.
 void scatterRow(const System& sys, int joint, const Row& row, double x, double* out);
 double rowDot(const System& sys, int joint, const Row& row, const double* v);
 

@@ -102,24 +102,20 @@ bool projectPositions(const System& sys, State& s, Evaluation& ev, ConstraintSol
 // solveKKT): what is left lies along equations that are nearly dependent at this
 // configuration (a parallelogram passing flat), where each further pass moves the
 // velocities by about residual / sigma_min^2 along the dependent direction and gains
-// little (measured: 8 passes of 0.98 each moved them by 1.2e-7 m/s to gain 10%). A pass
-// that made it worse is undone; the residual left is counted. The gain is measured against
-// the scales of the velocities the projection started from: the residual relative to the
-// current velocities does not fall when the projection stops most of the motion (a limit
-// that just engaged: relative 1 before and after a pass that cut the velocity into it by
-// a factor 270). It is measured twice: against each body's starting scale (a slow part's
-// equations judged on its own motion) and against the mechanism's (every body at the
-// largest starting motion). A pass gains when it gains on either and does harm only when
-// it does on both: its remainder, about 1 / (kappa sigma) of the residual it was given,
-// spreads over the bodies the equations couple, and on a body that was at rest it is
-// judged on that body's floor (kFloor of the motion). The five-bar in a vertical plane
-// (five_bar_ball.urdf): while one motor sat on its stop, the first pass of every step read
-// worse on that motor's rows and was undone (each of the 406 steps from t = 1.354 s to
-// 1.76 s short, |Phi_q v| up to 3.1e-11); on the second stop the first pass took out the
-// 5.5 rad/s into it and left 1.8e-5 in the rows, 0.90 of their floored scale on the
-// resting motor's rows against 1.0 before (the stop's row), and the projection ended 0.81
-// off: the step failed (StepFailure at t = 1.77 s). On the mechanism's scale that pass
-// gained 4e5, and four more met the tolerance.
+// little. A pass that made it worse is undone; the residual left is counted. The gain is
+// measured against the scales of the velocities the projection started from: the residual
+// relative to the current velocities does not fall when the projection stops most of the
+// motion (a limit that just engaged reads relative 1 before and after a pass that cuts the
+// velocity into it by orders of magnitude). It is measured twice: against each body's
+// starting scale (a slow part's equations judged on its own motion) and against the
+// mechanism's (every body at the largest starting motion). A pass gains when it gains on
+// either and does harm only when it does on both: its remainder, about 1 / (kappa sigma) of
+// the residual it was given, spreads over the bodies the equations couple, and on a body
+// that was at rest it is judged on that body's floor (kFloor of the motion). A five-bar in
+// a vertical plane with one motor resting on its stop shows both: on that motor's own
+// floored scale the first pass of a step reads no better, or worse, while on the
+// mechanism's scale it gains by orders of magnitude; judged on the body's scale alone, the
+// pass would be undone and the step fail.
 bool projectVelocities(const System& sys, State& s, Evaluation& ev, ConstraintSolver& solver, Projection& w,
                        SolverStats& stats, bool to_roundoff) {
   const double tol = sys.options.velocity_tol;

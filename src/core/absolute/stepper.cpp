@@ -82,7 +82,7 @@ void Stepper::rates(const System& sys, const State& s, const Inputs& in,
   load(sys, x, u);
   evaluate(sys, s);
   // H at the stage's own Jacobian: with kappa = 1e7 even the O(h^2) difference between
-  // RK4's two midpoint stages makes refinement on the other's H diverge (measured)
+  // RK4's two midpoint stages makes refinement on the other's H diverge
   solver_->factor(sys, ev_, "stage", s.t, reweight);
   forces(sys, s, in, friction);
   // the residual scales of the step's first solve (stages differ from it by O(h))
@@ -92,10 +92,11 @@ void Stepper::rates(const System& sys, const State& s, const Inputs& in,
 }
 
 // Friction for the step h about to be taken, from the state with H factored there.
-// The effective inertia along coordinate k is I = 1 / (G P G^T), P the constrained inverse
-// mass (the factored matrix applied to G^T: exactly on a tree's KKT matrix, up to 1/kappa
-// with H); the effort that leaves q_dot = 0 after the step is I (q_dot / h + q_ddot_free)
-// with q_ddot_free = G a_free - gamma_G (the coordinate's own velocity term), and friction
+// The effective inertia along coordinate k is I = 1 / (q_x,k P q_x,k^T), q_x,k the
+// coordinate's row (notation.h) and P the constrained inverse mass (the factored matrix
+// applied to q_x,k^T: exactly on a tree's KKT matrix, up to 1/kappa with H); the effort that
+// leaves q_dot = 0 after the step is I (q_dot / h + q_ddot_free) with q_ddot_free =
+// q_x,k a_free - gamma_k (the coordinate's own velocity term), and friction
 // supplies it up to f; a planar joint's in-plane pair is clamped to a disc (coulombFriction,
 // the rule the joint formulation shares).
 void Stepper::frictionFor(const System& sys, State& s, const Inputs& in, double h) {
@@ -113,11 +114,11 @@ void Stepper::frictionFor(const System& sys, State& s, const Inputs& in, double 
     for (int k = 0; k < dof; ++k) has = has || f[k] > 0.0;
     if (!has) continue;
     jointRows(sys, ev_, s, j, rows);
-    // the coupled effective inertia (G P G^T)^-1 of the coordinates that have friction,
+    // the coupled effective inertia (q_x P q_x^T)^-1 of the coordinates that have friction,
     // and q_dot / h + q_ddot_free (with the coordinate's own gamma): coulombFriction's inputs
     double gHg[3][3] = {{0}};
     Eigen::VectorXd& Pg = solver_->dn();
-    auto solveRow = [&](int k) {  // Pg = P G_k^T
+    auto solveRow = [&](int k) {  // Pg = P q_x,k^T
       Pg.setZero();
       scatterRow(sys, j, rows[k], 1.0, Pg.data());
       solver_->applyInverseMass(sys, ev_);
@@ -306,8 +307,8 @@ void Stepper::finishStep(const System& sys, State& s, const Inputs& in, bool aft
   bool moved = projectPositions(sys, s, ev_, *solver_, projection_, stats_, frozen, near_dependent);
   // A projection that stops one joint on its limit moves the joints around it: in a chain
   // it can carry another joint past its own stop (a three-rod chain swinging onto its
-  // stops ended 3.4e-4 rad past one this way). Such limits become active and the
-  // positions are projected again, at most once per limit.
+  // stops). Such limits become active and the positions are projected again, at most once
+  // per limit.
   for (size_t pass = 0; pass < sys.limits.size() && updateLimits(sys, s); ++pass) {
     frozen = false;
     if (watch_dependencies_) refreshDependencies(sys, s);

@@ -1,42 +1,43 @@
-// Joint damping the explicit stages cannot follow (issue 18): which damped coordinates
+// Joint damping the explicit stages cannot follow: which damped coordinates
 // are stiff at this step, and the implicit Euler step that integrates them.
 //
-// Viscous damping tau_k = -c_k q_dot_k, q_dot_k = G_k u (G_k the coordinate's row), decays
-// on its own with the rates of P G^T C G (P the constrained inverse mass), the eigenvalues
-// of S = C^1/2 G P G^T C^1/2. RK4's interval of stability on the negative real axis ends at
+// Viscous damping tau_k = -c_k q_dot_k, q_dot_k = q_x,k u (q_x,k the coordinate's row,
+// notation.h; q_x the damped coordinates' rows), decays on its own with the rates of
+// P q_x^T C q_x (P the constrained inverse mass), the eigenvalues of
+// S = C^1/2 q_x P q_x^T C^1/2. RK4's interval of stability on the negative real axis ends at
 // h rate = 2.785 (rk3: 2.513, Heun: 2): a 1 g frame link of 1e-7 kg m^2 damped at
 // 0.1 N m s/rad has h rate = 1000 at h = 1 ms, and the step explodes.
 //
 //  1. A bound (classifyDamping). P <= M^-1 as quadratic forms (constraints only add
-//     effective mass), so lambda_max(h S) <= lambda_max(h C^1/2 G M^-1 G^T C^1/2), and by
+//     effective mass), so lambda_max(h S) <= lambda_max(h C^1/2 q_x M^-1 q_x^T C^1/2), and by
 //     Gershgorin that is at most max_k s_k with
-//        s_k = h sum_l sqrt(c_k c_l) sum_b |G_k,b M_b^-1 G_l,b^T|,
+//        s_k = h sum_l sqrt(c_k c_l) sum_b |q_x,k,b M_b^-1 q_x,l,b^T|,
 //     l over the damped coordinates on a body b of k's joint (k included), M_b^-1 the
 //     block-diagonal inverse masses with the stand-ins of the row weights (System::Minv). A ratio of
 //     like quantities: metres or millimetres give the same s_k. Where it exceeds the
 //     threshold, s_k is taken again with P itself (1b.), one solve per such coordinate: a
 //     light link that carries a heavy one is not stiff, its joint moves the heavy one.
-//  2. Coordinates with s_k <= s* stay in the stages exactly as before; any set of them has
+//  2. Coordinates with s_k <= s* stay in the stages; any set of them has
 //     h S within s* too (the rows of a principal submatrix are shorter). s* is where
 //     implicit Euler, 1 / (1 + s) a step, becomes as accurate on the damped mode as the
 //     explicit method's amplification R(-s) (against exp(-s)): RK4 (R = 1 - s + s^2/2 -
 //     s^3/6 + s^4/24) at s = 2 (both 1/3), rk3 near 1.6, Heun (1 - s + s^2/2) at 1 (both
 //     1/2). Below s* the stages are the better of the two, and stable (s* is under each
 //     method's limit, 2.785, 2.513, 2); above it implicit Euler is, and stays stable where
-//     the stages would explode. (A first choice of 0.5 for every method sent arm7's wrist
-//     joint, s about 1.7, to implicit Euler each step: 36 % off exp(-1) where RK4 is 2 %
-//     off, at 1.5 times the cost a step.)
+//     the stages would explode. (A lower threshold costs accuracy and time: at s = 1
+//     implicit Euler is 36 % off exp(-1) where RK4 is 2 % off, and each coordinate sent to
+//     it adds a solve a step.)
 //  3. The others leave the stages (forces() reads stage_damping_) and are integrated by
 //     implicit Euler after them (Lie splitting of the stiff linear part, Hairer & Wanner,
 //     "Solving ODEs II", IV.3 and IV.15; MuJoCo integrates joint damping implicitly the
 //     same way, in the metric M + h D: documentation "Computation / Numerical
 //     integration"). L-stable: their modes relax in I / c << h, so first order costs
 //     nothing that shows. The velocities after the stages, u, become
-//        u' = argmin 1/2 (u' - u)^T M (u' - u) + 1/2 h sum_k c_k (G_k u')^2,  Phi_q u' = nu,
-//     i.e.  (M + h G^T C G) u' + Phi_q^T mu = M u,  Phi_q u' = nu,  the velocity projection
-//     in the metric M + h G^T C G, solved as solveKKT solves (H in penalty form with the
-//     extra weighted rows, refined on the exact residual). It never adds energy: with
-//     nu = 0, u'^T (M + h C) u' = u'^T M u <= |u'|_M |u|_M, so |u'|_M <= |u|_M.
+//        u' = argmin 1/2 (u' - u)^T M (u' - u) + 1/2 h sum_k c_k (q_x,k u')^2,  Phi_q u' = nu,
+//     i.e.  (M + h q_x^T C q_x) u' + Phi_q^T mu = M u,  Phi_q u' = nu,  the velocity
+//     projection in the metric M + h q_x^T C q_x, solved as solveKKT solves (H in penalty
+//     form with the extra weighted rows, refined on the exact residual). It never adds
+//     energy: with nu = 0, u'^T (M + h C) u' = u'^T M u <= |u'|_M |u|_M, so |u'|_M <= |u|_M.
 //  4. The impulse M (u' - u) is the damping force of implicit Euler (with its reaction)
 //     held over the step; held over the step it also moves the positions, by h (u' - u) / 2.
 //     Without that a light link would move with its undamped stage velocity (a load tau
@@ -105,7 +106,7 @@ bool Stepper::classifyDamping(const System& sys, const State& s, double h) {
       const double c = sys.damping[j][k];
       damping_bound_[j][k] = 0.0;
       if (!(c > 0)) continue;
-      double sum = 0;  // sum_l sqrt(c_k c_l) sum_b |G_k,b M_b^-1 G_l,b^T|  (1.)
+      double sum = 0;  // sum_l sqrt(c_k c_l) sum_b |q_x,k,b M_b^-1 q_x,l,b^T|  (1.)
       for (int slot = 0; slot < 2; ++slot) {
         const int b = slot == 0 ? jt.bodyI() : jt.bodyJ();
         if (b == System::kGround) continue;
@@ -128,14 +129,14 @@ bool Stepper::classifyDamping(const System& sys, const State& s, double h) {
   if (stiff_.empty()) return false;
   // (1b.) The block-diagonal bound ignores what the joints carry: a 1 g link that carries a
   // 2 kg arm has a slow damped mode. For the coordinates it flags, the rows of S with the
-  // constrained inverse mass itself, P G_k^T from the factored matrix (exactly on a tree's
+  // constrained inverse mass itself, P q_x,k^T from the factored matrix (exactly on a tree's
   // KKT matrix, to 1/kappa with H; H factored at these or nearby positions: a bound needs no
   // more), Gershgorin over every damped coordinate.
   if (!solver_->factored()) solver_->factor(sys, ev_, "stage 1", s.t);
   size_t kept = 0;
   for (size_t i = 0; i < stiff_.size(); ++i) {
     const StiffRow r = stiff_[i];
-    Eigen::VectorXd& Pg = solver_->dn();  // P G_k^T
+    Eigen::VectorXd& Pg = solver_->dn();  // P q_x,k^T
     Pg.setZero();
     scatterRow(sys, r.joint, damp_rows_[r.joint][r.k], 1.0, Pg.data());
     solver_->applyInverseMass(sys, ev_);
@@ -163,8 +164,8 @@ bool Stepper::classifyDamping(const System& sys, const State& s, double h) {
 
 // (3.) and (4.) at the positions after the stages (kin_ loaded and J_ evaluated there).
 void Stepper::implicitDamping(const System& sys, State& s, double h) {
-  // The stiff coordinates' rows G_k at these positions (damp_rows_ held those of the
-  // step's start), then H + h sum_k c_k G_k^T G_k over the bodies of each one's joint.
+  // The stiff coordinates' rows q_x,k at these positions (damp_rows_ holds those of the
+  // step's start), then H + h sum_k c_k q_x,k^T q_x,k over the bodies of each one's joint.
   for (const StiffRow& r : stiff_) jointRows(sys, ev_, s, r.joint, damp_rows_[r.joint].data());
   rowWeights(sys, ev_, sys.all_constraints);
   PenaltyForm& H = solver_->penalty();

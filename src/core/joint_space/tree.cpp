@@ -776,7 +776,7 @@ void forwardDynamicsAtKinematics(const TreeModel& model, const System& sys, cons
     if (L.kind == TreeJointKind::kFixed) continue;
     Matrix6d& IA = ws.IA[k];
     Vector6d pa = ws.pA[k];
-    if (L.tie >= 0) {  // (out of line: the common loop stays as it was)
+    if (L.tie >= 0) {  // (out of line, so that the common loop stays short)
       tiedLinkInward(model, ws, k, tau(L.iv), pa);
       continue;
     }

@@ -1,6 +1,7 @@
-// Joint-space (relative-coordinate) dynamics of a tree: the first piece of a formulation in
-// which the spanning tree moves in joint coordinates and only loop closures stay algebraic.
-// Free-standing for now: it reads a finalized System and does not touch the Stepper.
+// Joint-space (relative-coordinate) dynamics of a tree: the recursions of the joint
+// formulation, in which the spanning tree moves in joint coordinates and only the closures
+// stay algebraic. Free-standing: it reads a finalized System and does not touch the
+// absolute Stepper.
 //
 //   TreeModel          the tree of a System whose joints form a forest: per moving body its
 //                      parent (or ground) and the joint to it; bodies that no joint reaches
@@ -30,7 +31,7 @@
 //     free body    7/6  q: r (3, global), p (4, w x y z), as State::x; q_dot: v (3,
 //                       global), omega' (3, body), as State::u
 //   (nq/nv: position/velocity coordinates). A generalized effort tau_k is what the
-//   absolute solver takes as Inputs::effort (it acts as G_k^T tau_k); on a free body tau is
+//   absolute solver takes as Inputs::effort (it acts as q_x,k^T tau_k); on a free body tau is
 //   (force global, torque in body components) at the centre of mass.
 // Fixed joints are merged: a body welded by fixed joints to a moving body (its host) adds
 // its constant spatial inertia to the host's (TreeLink::Ic0) and its external forces to the
@@ -236,7 +237,7 @@ inline void inverseMassInward(const TreeModel& model, const TreeWorkspace& ws, i
   Vector6d pa = p[k];
   if (L.tie >= 0) {  // a tied link (TreeLink::tie): its effort and S^T p go to the master's u
     const double r = L.tie_mult, ts = tau[L.iv];
-    out[L.iv] = 0.0;  // (before: the master's own link adds to its own entry)
+    out[L.iv] = 0.0;  // (zeroed first: the master's own link then adds to its own entry)
     out[model.links[L.tie].iv] += r * ts - r * ws.S[k].col(0).dot(pa);
     p[L.parent - 1] += transformForceBack(ws.E[k], ws.rho[k], pa);
     return;

@@ -76,12 +76,12 @@ void treeJointMultipliers(const System& sys, const TreeModel& model, const State
       lp.tail<3>() -= kp.A_Oi.transpose() * n_p;
     }
     if (link.joint < 0) continue;  // a free body: nothing transmits (F is round-off)
-    // 4. F_b = -Phi_x,b^T lambda + G_b^T tau on the joint's slot of b (body i when the
+    // 4. F_b = -Phi_x,b^T lambda + q_x,b^T tau on the joint's slot of b (body i when the
     //    link runs from the joint's body j: reversed), solved for (lambda, tau): the
     //    columns span every wrench (constraint forces and the coordinates' efforts are
     //    complementary), so the solve is exact. Torque rows over the length scale, so the
     //    pivoting weighs forces and torques alike (then partial pivoting suffices: full
-    //    pivoting gave the same figures in test_tree_reactions.cpp, its factorization
+    //    pivoting gives the same reactions in test_tree_reactions.cpp for a factorization
     //    about twice as long).
     const Joint& J = *link.ptr;
     const int slot = link.reversed ? 0 : 1;

@@ -1,4 +1,4 @@
-// Reactions of the spanning tree's joints in the joint formulation (issue 20): the
+// Reactions of the spanning tree's joints in the joint formulation: the
 // multipliers of the tree joints' rows of State::lambda, which the joint stepper does not
 // solve (its tree joints have no equations), from the recursive Newton-Euler pass over the
 // accelerations the State holds (Featherstone, "Rigid Body Dynamics Algorithms" (RBDA),
@@ -9,7 +9,7 @@
 // multipliers as the stepper solved them).
 //
 // What is left at a body is the wrench its tree joint transmits to it. In the absolute
-// formulation that is -Phi_x,c^T lambda + G_c^T tau (the joint's constraint rows and
+// formulation that is -Phi_x,c^T lambda + q_x,c^T tau (the joint's constraint rows and
 // coordinate rows on that body, c), size + dof = 6 columns of full rank: one 6 x 6 solve
 // per joint gives lambda (State::lambda's rows and sign, doc/method.md) and tau, the effort
 // transmitted along the coordinates besides the applied ones already in Q. On a tree the

@@ -41,8 +41,9 @@ void SparseLDLT::analyze(int n, const std::vector<int>& Ap, const std::vector<in
   // Per row k of L, what factorize() reads of the pattern, found here once (it depends on
   // the pattern alone): the entries of A's column P_k on or above the diagonal (their
   // places in Ax and their rows), and the nonzero pattern of row k of L in the order the
-  // sparse triangular solve takes it (ldl_numeric's reach along the elimination tree, the
-  // same walk from the same entries: every operation on the values as before).
+  // sparse triangular solve takes it (ldl_numeric's reach along the elimination tree: the
+  // same walk from the same entries, so factorize() does ldl_numeric's operations on the
+  // values in ldl_numeric's order).
   Sp_.assign(n + 1, 0), Sx_.clear(), Si_.clear();
   Rp_.assign(n + 1, 0), Ri_.assign(Lp_[n], 0);
   std::fill(flag_.begin(), flag_.end(), -1);

@@ -228,7 +228,8 @@ void DriveConstraint::velocityTerm(const EvalContext& ctx, double* nu) const {
   nu[0] = f_dot;  // nu = -Phi_t
 }
 
-// Phi = q_k - f(t); Phi_q = G_k; gamma = gamma_k + f_ddot (from q_ddot_k = G_k a - gamma_k).
+// Phi = q_k - f(t); Phi_q = q_x,k; gamma = gamma_k + f_ddot (from
+// q_ddot_k = q_x,k a - gamma_k).
 void DriveConstraint::evaluate(const BodyKin* const* kin, const EvalContext& ctx,
                                Eigen::Ref<Eigen::VectorXd> Phi, Eigen::Ref<Eigen::MatrixXd> J,
                                Eigen::Ref<Eigen::VectorXd> gamma) const {

@@ -69,10 +69,9 @@ void buildTreeTopology(System& sys) {
   // couple the body pair of a tree joint), not loop closures or couplers. Near
   // a configuration where a loop's equations become dependent (a parallelogram passing
   // flat) the exact tree rows push all of the inconsistency into the loop's penalized
-  // rows: the four-bar at h = 1/64 ms left 38 solves short by up to 1.6e-4 (relative)
-  // this way, against 69 by at most 7.6e-8 in penalty form, which spreads it over every
-  // equation by its weight. A loop's passes stay in either form, so mechanisms with
-  // loops keep H.
+  // rows, and its solves fall short by orders of magnitude more than in penalty form,
+  // which spreads it over every equation by its weight. A loop's passes stay in either
+  // form, so mechanisms with loops keep H.
   std::vector<char> allowed(nc, 0);
   for (const DriveSpec& D : sys.drives) allowed[D.constraint] = T.node[sys.joint_constraint[D.joint]] >= 0;
   for (const LimitSpec& L : sys.limits) allowed[L.constraint] = T.node[sys.joint_constraint[L.joint]] >= 0;

@@ -8,7 +8,7 @@
 namespace mechanism_sim {
 
 // q_a = multiplier * q_b + offset: Phi = q_a - multiplier q_b - offset, with
-// Phi_q = G_a - multiplier G_b and gamma = gamma_a - multiplier gamma_b from the joints'
+// Phi_q = q_x,a - multiplier q_x,b and gamma = gamma_a - multiplier gamma_b from the joints'
 // coordinate rows (Joint::coordinates).
 class CoordinateCoupler : public Constraint {
  public:

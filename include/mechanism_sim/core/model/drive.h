@@ -1,9 +1,9 @@
 // Prescribed motion of one joint coordinate (a drive, ADAMS' "motion"): the rheonomic
 // equation  Phi(q, t) = q_k(q) - f(t) = 0  among the other constraints. Its multiplier is
 // the effort the drive must supply along q_k (tau = -lambda, as for a limit).
-//   velocity:  Phi_q v = G_k v = f_dot(t)        (the velocity equation's right-hand side
+//   velocity:  Phi_q v = q_x,k v = f_dot(t)      (the velocity equation's right-hand side
 //                                                  nu = -Phi_t = f_dot)
-//   accel.:    Phi_q a = gamma_k + f_ddot(t)     (q_ddot = G_k a - gamma_k, joint.h)
+//   accel.:    Phi_q a = gamma_k + f_ddot(t)     (q_ddot = q_x,k a - gamma_k, joint.h)
 #pragma once
 #include <array>
 #include <memory>

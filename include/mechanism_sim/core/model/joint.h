@@ -61,7 +61,7 @@ class Joint : public Constraint {
   // also meet turned by pi: assembly rejects those mirrored closures.
   virtual bool holdsAxesParallel() const { return false; }
   virtual bool locksTwist() const { return false; }
-  // Whether q_dot = G v is the time derivative of q (false for a spherical joint,
+  // Whether q_dot = q_x v is the time derivative of q (false for a spherical joint,
   // whose rates are the relative angular velocity in frame i).
   virtual bool holonomicCoordinates() const { return true; }
   // The tracked-angle slot (Constraint::tracked) behind coordinate k, or -1: assembly seeds
@@ -72,9 +72,9 @@ class Joint : public Constraint {
   virtual bool planarTranslation() const { return false; }
   // The type's parameters beyond its frames (a screw's alpha and phi0; the defaults else).
   virtual JointParams params() const { return {}; }
-  // Joint coordinates: out[k] (k < dof) holds q_k (Phi), its rate (Phi_dot), the row G_k
-  // (J) with q_dot_k = G_k v, and gamma_k. A generalized effort tau_k along coordinate k
-  // acts on the bodies as G_k^T tau_k.
+  // Joint coordinates: out[k] (k < dof) holds q_k (Phi), its rate (Phi_dot), the row q_x,k
+  // (J) with q_dot_k = q_x,k v, and gamma_k. A generalized effort tau_k along coordinate k
+  // acts on the bodies as q_x,k^T tau_k.
   // The tracked angles t are the branch references (State).
   virtual void coordinates(const BodyKin& ki, const BodyKin& kj, const Tracked& t, Row* out) const = 0;
   // Their values alone, q[k] = out[k].Phi of coordinates() bit for bit (a joint type that

@@ -55,7 +55,7 @@ struct IntegratorOptions {
   double velocity_tol = 1e-14;
   double solve_tol = 1e-13;
   // "absolute" (default), "joint" or "auto" (Formulation; joint_stepper.h says what the
-  // joint formulation runs so far).
+  // joint formulation runs).
   std::string formulation = "absolute";
   // Throws ModelError naming what is wrong (an unknown method, a tolerance not positive).
   void validate() const;

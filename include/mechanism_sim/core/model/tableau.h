@@ -4,8 +4,8 @@
 //   the step ends at              y0 + h sum_j b_j k_j.
 // Each row of a, and b, is written as weights over a common denominator (a_kj =
 // a[k][j] / a_den[k], b_j = b[j] / b_den), and the stage loop forms (h / den) (sum_j w_j k_j)
-// with the sum in order of j, skipping zero weights: the grouping the methods had when
-// they were written out by hand, so the results are the same to the last bit.
+// with the sum in order of j, skipping zero weights: the grouping of each method written
+// out by hand (k_1 + 2 k_2 + 2 k_3 + k_4 for RK4), so that it gives those sums' bits.
 #pragma once
 #include <string>
 

@@ -19,9 +19,9 @@ void SphericalJoint::equations(const JointGeometry& g, const BodyKin&, const Bod
 }
 
 // Rates: omega_rel = F_i^T (A_Oj w_j - A_Oi w_i), F_i = A_Oi Rp_i the frame-i axes, so
-// G = [0, -Rp_i^T, 0, F_i^T A_Oj]. Positions: rotation vector of F_i^T F_j.
-// gamma: the rates' own velocity term, d/dt rate = G a - gamma (joint.h). With F_i_dot =
-// omega_i~ F_i, d/dt F_i^T = -F_i^T omega_i~, so d/dt rate = G a - (F_i^T omega_i) x rate:
+// q_x = [0, -Rp_i^T, 0, F_i^T A_Oj]. Positions: rotation vector of F_i^T F_j.
+// gamma: the rates' own velocity term, d/dt rate = q_x a - gamma (joint.h). With F_i_dot =
+// omega_i~ F_i, d/dt F_i^T = -F_i^T omega_i~, so d/dt rate = q_x a - (F_i^T omega_i) x rate:
 // gamma = (Rp_i^T w'_i) x rate, zero on a joint to ground. (The rates are not derivatives
 // of the positions; gamma is that of the rates: friction sizes its stopping effort with it,
 // and jointAcceleration reports d/dt rate, as the joint formulation's q_ddot.)
