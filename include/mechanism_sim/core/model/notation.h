@@ -64,8 +64,8 @@
 // | IA, pA      | articulated inertia and articulated bias force (RBDA 7.3)                  |
 // | U, D, u     | U = IA S, D = S^T IA S, u = tau - S^T pA (RBDA table 7.1)                  |
 // | Ic          | composite rigid-body inertia (CRBA, RBDA 6.2)                              |
-// | M, h        | joint-space mass matrix and bias forces: M q_ddot + h = tau (never formed: |
-// |             | the articulated passes apply M^-1)                                         |
+// | M, h        | joint-space mass matrix and bias forces: M q_ddot + h = tau (RBDA's H and  |
+// |             | C; formed only by jointSpaceInertia, the articulated passes apply M^-1)    |
 // | J(q)        | the tree's Jacobian: the bodies' velocities u = J(q) q_dot                 |
 // | G           | the closures' Jacobian on q, G = Phi_x J(q) (m x nv): one row per closure  |
 // |             | row (cut joints, couplers, drives, limits the tree does not hold). G means |
