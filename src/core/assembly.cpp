@@ -12,6 +12,8 @@
 
 #include "core/joint_space/tree.h"
 #include "core/assembly.h"
+#include "core/absolute/projection.h"
+#include "core/absolute/stepper.h"
 #include "core/numerics.h"
 #include "core/linalg/sparse_ldlt.h"
 

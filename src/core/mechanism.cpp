@@ -10,21 +10,14 @@
 #include "core/absolute/solver.h"
 #include "core/absolute/stepper.h"
 #include "core/assembly.h"
+#include "core/formulation.h"
 #include "core/joint_space/joint_stepper.h"
 #include "core/joint_space/tree_reactions.h"
+#include "core/reaction_solve.h"
 #include "mechanism_sim/core/model/couplers.h"
 
 namespace mechanism_sim {
 
-// The reactions' solves, with their own evaluations and scratch (queries leave stepping
-// alone): the least-norm one (absolute formulation, dependent equations), the tree pass
-// (joint formulation).
-struct Mechanism::ReactionSolve {
-  SolverStats stats;
-  Evaluation ev;
-  std::unique_ptr<ConstraintSolver> solver;
-  std::unique_ptr<TreeReactionWorkspace> tree;
-};
 namespace {
 
 // An input set again to the same bits (signed zeros apart): nothing to recompute.
@@ -56,8 +49,8 @@ void Mechanism::requireUnbuilt(const char* what) const {
 System& Mechanism::editable() {
   stateChanged();
   if (built_) sys_ = std::make_shared<System>(*sys_);
-  if (joint_) joint_->invalidate();  // (the State's accelerations were of the old System)
-  state_.damping_hold.left = 0;      // (its damping classification too)
+  if (running_) running_->invalidate();  // (the State's accelerations were of the old System)
+  state_.damping_hold.left = 0;          // (its damping classification too)
   return *sys_;
 }
 
@@ -68,12 +61,14 @@ void Mechanism::useFormulation(bool settle) {
     if (!joint_) joint_ = std::make_unique<JointStepper>(*sys_);
     joint_->setMethod(parseMethod(sys_->options.method));
     if (settle) joint_->settle(*sys_, state_, inputs_);
+    running_ = joint_.get();
   } else {
     const bool was_joint = joint_ != nullptr;
     joint_.reset();
-    state_.q.resize(0), state_.qdot.resize(0), state_.qddot.resize(0);
+    stepper_->adopt(*sys_, state_, inputs_);
     // the absolute stepper's accelerations and multipliers of this state
     if (settle && was_joint) stepper_->settle(*sys_, state_, inputs_);
+    running_ = stepper_.get();
   }
   formulation_ = f;
 }
@@ -244,12 +239,7 @@ void Mechanism::step(double h) {
   stateChanged();
   // (a step that fails leaves the State at the last accepted step: the queries compute
   // from it, not from the stepper's evaluation, which the failed step left elsewhere)
-  if (joint_) {
-    if (state_.q.size() == 0) joint_->settle(*sys_, state_, inputs_);
-    joint_->step(*sys_, state_, inputs_, h);
-  } else {
-    stepper_->step(*sys_, state_, inputs_, h);
-  }
+  running_->step(*sys_, state_, inputs_, h);
 }
 
 void Mechanism::setJointEffort(int joint, int k, double tau) {
@@ -260,7 +250,7 @@ void Mechanism::setJointEffort(int joint, int k, double tau) {
   // node set every effort before every step, and recomputing it costs a fifth RK4 stage)
   if (sameBits(inputs_.effort[joint][k], tau)) return;
   inputs_.effort[joint][k] = tau;
-  if (joint_) joint_->invalidate();
+  running_->invalidate();
 }
 
 void Mechanism::setBodyWrench(int body, const Vector3d& force, const Vector3d& torque_body) {
@@ -269,7 +259,7 @@ void Mechanism::setBodyWrench(int body, const Vector3d& force, const Vector3d& t
   if (sameBits(inputs_.force.at(body), force) && sameBits(inputs_.torque.at(body), torque_body)) return;
   inputs_.force.at(body) = force;
   inputs_.torque.at(body) = torque_body;
-  if (joint_) joint_->invalidate();
+  running_->invalidate();
 }
 
 void Mechanism::setSpringActuation(int spring, double f_act) {
@@ -278,7 +268,7 @@ void Mechanism::setSpringActuation(int spring, double f_act) {
   const double value = f_act - sys_->springs.at(spring).f_act;
   if (sameBits(inputs_.spring_actuation.at(spring), value)) return;
   inputs_.spring_actuation.at(spring) = value;
-  if (joint_) joint_->invalidate();
+  running_->invalidate();
 }
 
 void Mechanism::restore(const Snapshot& s) {
@@ -286,12 +276,8 @@ void Mechanism::restore(const Snapshot& s) {
     throw UsageError("Mechanism::restore: the snapshot is of another mechanism");
   stateChanged();
   state_ = s;  // (queries compute from it; stepping goes on from it bit for bit)
-  if (joint_) {
-    joint_->invalidate();  // (recomputed at the next step: the same bits)
-    if (state_.q.size() == 0) joint_->settle(*sys_, state_, inputs_);  // a snapshot of the absolute formulation
-  } else {
-    state_.q.resize(0), state_.qdot.resize(0), state_.qddot.resize(0);
-  }
+  running_->invalidate();  // (recomputed at the next step: the same bits)
+  running_->adopt(*sys_, state_, inputs_);  // (a snapshot of the other formulation)
 }
 
 const Evaluation& Mechanism::evaluated() const {
@@ -489,11 +475,11 @@ double Mechanism::positionViolation() const { return mechanism_sim::positionViol
 double Mechanism::velocityViolation() const { return mechanism_sim::velocityViolation(*sys_, evaluated(), state_.u); }
 double Mechanism::stepPositionViolation() const {
   double p = 0.0, v = 0.0;
-  return joint_ && joint_->closureViolation(state_, p, v) ? p : positionViolation();
+  return running_ && running_->stepViolation(state_, p, v) ? p : positionViolation();
 }
 double Mechanism::stepVelocityViolation() const {
   double p = 0.0, v = 0.0;
-  return joint_ && joint_->closureViolation(state_, p, v) ? v : velocityViolation();
+  return running_ && running_->stepViolation(state_, p, v) ? v : velocityViolation();
 }
 double Mechanism::relativePositionViolation() const { return positionResidual(*sys_, evaluated()); }
 double Mechanism::relativeVelocityViolation() const {

@@ -8,6 +8,8 @@
 #include "mechanism_sim/core/mechanism.h"
 #include "core/absolute/stepper.h"
 #include "core/assembly.h"
+#include "core/formulation.h"
+#include "core/reaction_solve.h"
 #include "core/joint_space/joint_stepper.h"
 
 namespace mechanism_sim {
@@ -92,6 +94,7 @@ std::vector<int> Mechanism::replaceDrives(std::vector<DriveSpec> drives, const s
   query_eval_.reset();
   dependencies_ = deps;
   joint_.reset();  // (a JointStepper is of one System)
+  running_ = nullptr;
   useFormulation(true);
   return {};
 }

@@ -1,5 +1,5 @@
 // A pendulum with a known motion, for the core tests (test_solver.cpp,
-// test_joint_formulation.cpp).
+// joint_space/test_joint_stepper.cpp).
 #pragma once
 #include <cmath>
 #include <string>

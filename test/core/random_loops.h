@@ -1,5 +1,5 @@
-// Random trees closed by random joints, for the core tests (test_joint_space_loops.cpp,
-// test_random_loop_runs.cpp; the Builder also for test_joint_space_closures.cpp): bodies at random poses, joints of random types at random
+// Random trees closed by random joints, for the core tests (joint_space/test_loop_closure.cpp,
+// test_random_loop_runs.cpp; the Builder also for joint_space/test_loop_closure_rows.cpp): bodies at random poses, joints of random types at random
 // points with random axes, each built where its two frames coincide (joint coordinates
 // zero), so the initial pose is assembled.
 #pragma once

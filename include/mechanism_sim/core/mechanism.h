@@ -17,6 +17,7 @@
 
 namespace mechanism_sim {
 
+class FormulationStepper;  // src/core/formulation.h
 class Stepper;       // absolute formulation (src/core/absolute/stepper.h)
 class JointStepper;  // joint formulation (src/core/joint_space/joint_stepper.h)
 struct Evaluation;   // src/core/absolute/evaluation.h
@@ -214,6 +215,7 @@ class Mechanism {
   Inputs inputs_;
   std::unique_ptr<Stepper> stepper_;     // absolute formulation (and assembly)
   std::unique_ptr<JointStepper> joint_;  // joint formulation, when it runs
+  FormulationStepper* running_ = nullptr;  // the one of the two that steps
   Formulation formulation_ = Formulation::kAbsolute;
   std::string formulation_why_;
   mutable std::unique_ptr<Evaluation> query_eval_;  // the queries' own evaluation

@@ -25,34 +25,36 @@
 #include "core/absolute/evaluation.h"
 #include "core/absolute/projection.h"
 #include "core/absolute/solver.h"
+#include "core/formulation.h"
 #include "mechanism_sim/core/model/system.h"
 #include "mechanism_sim/core/model/tableau.h"
 
 namespace mechanism_sim {
 
-class Stepper {
+class Stepper final : public FormulationStepper {
  public:
   static constexpr double kKappa = ConstraintSolver::kKappa;
   explicit Stepper(const System& sys);  // integrates with sys.options.method
 
   // The integrator from here on (Mechanism::setIntegrator: the System's options changed).
-  void setMethod(Method m) { tableau_ = &tableau(m); }
+  void setMethod(Method m) override { tableau_ = &tableau(m); }
   const Tableau& method() const { return *tableau_; }
 
   // Advances s by h under the inputs. Throws StepFailure (naming the constraint) when the
   // step leaves the constraints beyond repair, SimulationError when the run cannot go on,
   // UsageError for an h that is not positive and finite; s is then as it was.
-  void step(const System& sys, State& s, const Inputs& in, double h);
+  void step(const System& sys, State& s, const Inputs& in, double h) override;
   // Evaluates at s and solves accelerations and multipliers (s.acc, s.lambda) with the
   // friction efforts in s; after it evaluation() describes s.
-  void settle(const System& sys, State& s, const Inputs& in);
+  void settle(const System& sys, State& s, const Inputs& in) override;
+  void adopt(const System&, State& s, const Inputs&) override { s.q.resize(0), s.qdot.resize(0), s.qddot.resize(0); }
 
   // The last evaluation (after step() or settle(): of the state reached; its stamp says
   // which) and the solver.
   const Evaluation& evaluation() const { return ev_; }
   Evaluation& evaluation() { return ev_; }
   ConstraintSolver& solver() { return *solver_; }
-  const SolverStats& stats() const { return stats_; }
+  const SolverStats& stats() const override { return stats_; }
 
   // Finds the dependent rows at s (equalities and active limits; dependencies.h), writes
   // s.dropped and leaves s evaluated with them dropped. Allocates on its first call.

@@ -70,75 +70,6 @@ std::string jointFormulationUnsupported(const System& sys) {
   return why;
 }
 
-Formulation chooseFormulation(const System& sys, Formulation asked, std::string* why) {
-  if (asked == Formulation::kAbsolute) {
-    if (why) *why = "absolute coordinates, as asked";
-    return Formulation::kAbsolute;
-  }
-  const std::string unsupported = jointFormulationUnsupported(sys);
-  if (asked == Formulation::kJoint) {
-    if (!unsupported.empty())
-      throw ModelError("the joint formulation cannot run this mechanism: " + unsupported + "; use formulation 'absolute'");
-    if (why) *why = "joint coordinates, as asked";
-    return Formulation::kJoint;
-  }
-  // The cost model (bench/RESULTS.md, "2026-11-26 (2)"). On a tree with no equations
-  // besides its joints' the joint formulation costs 2 to 5 times less a step (pendulum
-  // 0.84 against 3.41 us, the 50-link chain 68 against 203). Limits and couplers on tree
-  // coordinates are rows on q itself, solved sparsely (closure_solver.h: O(depth) a row),
-  // or held by the recursions (TreeLink::tie: a master that is an ancestor, or siblings
-  // eliminated at their common ancestor): the humanoid's 13 mimic couplers cost 154
-  // against 358 us a step as rows, the panda-like arm's gripper 28 against 58. Drives (and couplers on spherical joints or cut joints) go
-  // through their absolute equations: with one on every coordinate (arm7 driven at all 7
-  // joints) the joint formulation cost 1.2 times the absolute one; auto takes it while they
-  // are at most one per 2 coordinates. Loops run in joint coordinates too: their closures
-  // cost it 0.45 to 0.75 times the absolute formulation a step ("2026-11-26 (4)": the
-  // four-bars 1/10/50 4.7 / 38.5 / 173 against 12 / 82 / 377 us, the zoo's loop robots 0.5
-  // to 0.75), and it converges through their branches' flat passages, where the absolute one does not (the ten-loop
-  // four-bar 2.7e-11 against 5.5e-8 m at 1 ms, bench/RESULTS.md).
-  int mapped = 0;  // always-on rows through the absolute equations
-  int nv = 0;
-  std::string loop;  // a joint that closes a loop, if any
-  if (unsupported.empty()) {
-    const TreeModel tree(sys);
-    nv = tree.nv;
-    if (!tree.cut_joints.empty()) loop = sys.joints[tree.cut_joints[0]]->name();
-    auto onTree = [&](const Joint& J) {
-      for (int j = 0; j < sys.numJoints(); ++j)
-        if (&*sys.joints[j] == &J) {
-          const int link = tree.joint_link[j];
-          return link >= 0 && tree.links[link].kind != TreeJointKind::kSpherical &&
-                 tree.links[link].kind != TreeJointKind::kFree;
-        }
-      return false;
-    };
-    std::vector<char> tree_joint(sys.numConstraints(), 0);
-    for (int c : sys.joint_constraint) tree_joint[c] = 1;
-    for (int c = 0; c < sys.numConstraints(); ++c) {
-      const Constraint& C = *sys.constraints[c];
-      if (tree_joint[c] || C.limit() >= 0) continue;
-      if (const auto* cc = dynamic_cast<const CoordinateCoupler*>(&C))
-        if (onTree(cc->jointA()) && onTree(cc->jointB())) continue;
-      mapped += C.size();
-    }
-  }
-  if (unsupported.empty() && 2 * mapped <= nv) {
-    if (why)
-      *why = !loop.empty()
-                 ? "joint coordinates (auto: joint '" + loop +
-                       "' closes a loop, a closure on the tree; drives at most one per 2 coordinates)"
-             : mapped == 0 ? "joint coordinates (auto: a tree whose other equations are limits and couplers at most)"
-                           : "joint coordinates (auto: a tree with few drives, at most one per 2 coordinates)";
-    return Formulation::kJoint;
-  }
-  if (unsupported.empty()) {
-    if (why) *why = "absolute coordinates (auto: more than one drive per 2 coordinates cost more as joint-space closures)";
-    return Formulation::kAbsolute;
-  }
-  if (why) *why = "absolute coordinates (auto: " + unsupported + ")";
-  return Formulation::kAbsolute;
-}
-
 JointStepper::JointStepper(const System& sys, bool embed_couplers)
     : model_(sys, embed_couplers), ws_(model_), closures_(model_, sys) {
   const std::string unsupported = jointFormulationUnsupported(sys);
@@ -335,7 +266,7 @@ void JointStepper::writeAbsolute(const System& sys, State& s) {
     closures_.setContext(s.context());
     closures_.track(ws_, cut_constraints_, s.tracked);
   }
-  // the closures' violations at this state (closureViolation()): |Phi| and |G q_dot - nu|
+  // the closures' violations at this state (stepViolation()): |Phi| and |G q_dot - nu|
   // of their rows, evaluated at (s.q, s.qdot) by the accelerations above
   end_violation_ = {0.0, 0.0};
   if (closures_.m > 0) {
@@ -349,7 +280,7 @@ void JointStepper::writeAbsolute(const System& sys, State& s) {
   fresh_ = true;
 }
 
-bool JointStepper::closureViolation(const State& s, double& position, double& velocity) const {
+bool JointStepper::stepViolation(const State& s, double& position, double& velocity) const {
   if (!fresh_ || q_end_.size() != s.q.size() || v_end_.size() != s.qdot.size() || q_end_ != s.q || v_end_ != s.qdot)
     return false;
   position = end_violation_[0], velocity = end_violation_[1];
@@ -480,8 +411,9 @@ void compensatedUpdate(double w, const Eigen::VectorXd& y0, const Eigen::VectorX
 void JointStepper::step(const System& sys, State& s, const Inputs& in, double h) {
   closures_.rebind(sys);  // (a Mechanism's System is copied on write)
   if (!(h > 0) || !std::isfinite(h)) throw UsageError("step must be positive and finite");
+  adopt(sys, s, in);
   if (s.q.size() != model_.nq || s.qdot.size() != model_.nv)
-    throw UsageError("JointStepper::step: the State has no joint state (settle() first)");
+    throw UsageError("JointStepper::step: the State's joint state is of another mechanism");
   const Tableau& T = *tableau_;
   q0_ = s.q;
   v0_ = s.qdot;

@@ -28,6 +28,7 @@
 
 #include <Eigen/Core>
 
+#include "core/formulation.h"
 #include "core/joint_space/tree.h"
 #include "core/joint_space/loop_closure.h"
 #include "core/absolute/solver.h"
@@ -38,14 +39,6 @@ namespace mechanism_sim {
 
 // Empty when the joint formulation runs sys, else a sentence naming what it cannot run.
 std::string jointFormulationUnsupported(const System& sys);
-
-// The formulation that runs sys when `asked` is requested, and why (one sentence). kJoint
-// for a System the joint formulation cannot run throws ModelError with the reason; kAuto
-// takes the joint formulation for a tree whose couplers and drives are at most one per 8
-// coordinates (limits free: O(n) a stage, 3 to 5 times cheaper than the absolute KKT form,
-// bench/RESULTS.md; each coupler or drive is a dense closure in joint space today), else
-// absolute.
-Formulation chooseFormulation(const System& sys, Formulation asked, std::string* why);
 
 // 1 / m and J'^-1 of a body (its mass and central inertia): inv_m +inf without mass, has_J
 // false where J' is not positive definite.
@@ -66,31 +59,35 @@ BodyInverse bodyInverse(const Body& B);
 double coordinateInverseMassBound(const System& sys, const Joint& J, const Row& row);
 double coordinateInverseMassBound(const Joint& J, const Row& row, const BodyInverse& bi, const BodyInverse& bj);
 
-class JointStepper {
+class JointStepper final : public FormulationStepper {
  public:
   // Throws ModelError when the joint formulation cannot run sys (jointSpaceUnsupported).
   // embed_couplers: the couplers the tree can hold (TreeModel's embed_couplers) are held by
   // its recursions, not solved as closure rows (false: every coupler a row, as the tests'
   // cross-check runs it).
   explicit JointStepper(const System& sys, bool embed_couplers = true);
-  void setMethod(Method m) { tableau_ = &tableau(m); }
+  void setMethod(Method m) override { tableau_ = &tableau(m); }
 
   // The joint state of s from its absolute state (an assembled or restored State: joint
   // coordinates from Joint::coordinates, quaternions from the relative rotations), then the
   // absolute state again from it (exactly on the tree) with accelerations.
-  void settle(const System& sys, State& s, const Inputs& in);
-  // Advances s by h; s.q, s.qdot must be set (settle()). Throws UsageError for an h that
-  // is not positive and finite; s is then as it was.
-  void step(const System& sys, State& s, const Inputs& in, double h);
-  const SolverStats& stats() const { return stats_; }
+  void settle(const System& sys, State& s, const Inputs& in) override;
+  void adopt(const System& sys, State& s, const Inputs& in) override {
+    if (s.q.size() == 0) settle(sys, s, in);
+  }
+  // Advances s by h; a State without joint state (an absolute formulation's snapshot) is
+  // settled first. Throws UsageError for an h that is not positive and finite; s is then
+  // as it was.
+  void step(const System& sys, State& s, const Inputs& in, double h) override;
+  const SolverStats& stats() const override { return stats_; }
   // The largest |Phi| and |G q_dot - nu| of the closures' rows (loop closures, couplers,
   // limits, drives: the equations on the tree's coordinates, the same numbers as their
   // absolute equations') at s, when s is the state this stepper's last step or settle()
   // left (else false): the tree joints' own equations hold by construction in joint
   // coordinates, so these are what a step can leave violated.
-  bool closureViolation(const State& s, double& position, double& velocity) const;
+  bool stepViolation(const State& s, double& position, double& velocity) const override;
   // The inputs or the System changed: the accelerations a State holds are not reused.
-  void invalidate() { fresh_ = false; }
+  void invalidate() override { fresh_ = false; }
   // The System's joint damping changed (Mechanism::setJointDamping): which coordinates are
   // damped, and by how much, again (the constructor read them).
   void setDamping(const System& sys);
@@ -190,7 +187,7 @@ class JointStepper {
   // s.qddot is q_ddot at (q_end_, v_end_) under the current inputs: stage 1 of the next step
   bool fresh_ = false;
   Eigen::VectorXd q_end_, v_end_;
-  std::array<double, 2> end_violation_{{0.0, 0.0}};  // closureViolation() at (q_end_, v_end_)
+  std::array<double, 2> end_violation_{{0.0, 0.0}};  // stepViolation() at (q_end_, v_end_)
   Eigen::VectorXd end_rate_;                         // G q_dot there
   // State::q_round and qdot_round at the step's start (restored when the step fails)
   Eigen::VectorXd comp_q_, comp_v_;

@@ -22,12 +22,6 @@
 namespace mechanism_sim {
 namespace {
 
-inline Eigen::Vector4d quatProduct(const Eigen::Vector4d& a, const Eigen::Vector4d& b) {
-  Eigen::Vector4d out;
-  out(0) = a(0) * b(0) - a.tail<3>().dot(b.tail<3>());
-  out.tail<3>() = a(0) * b.tail<3>() + b(0) * a.tail<3>() + a.tail<3>().cross(b.tail<3>());
-  return out;
-}
 // exp of a rotation vector as a quaternion (w x y z).
 inline Eigen::Vector4d quatExp(const Vector3d& phi) {
   const double a = phi.norm();

@@ -82,14 +82,6 @@ inline Vector6d inertiaTimes(const Body& B, const Vector6d& m) {
   return out;
 }
 
-// Quaternion product a (x) b, (w, x, y, z) each.
-inline Eigen::Vector4d quatProduct(const Eigen::Vector4d& a, const Eigen::Vector4d& b) {
-  Eigen::Vector4d out;
-  out(0) = a(0) * b(0) - a.tail<3>().dot(b.tail<3>());
-  out.tail<3>() = a(0) * b.tail<3>() + b(0) * a.tail<3>() + a.tail<3>().cross(b.tail<3>());
-  return out;
-}
-
 inline Matrix3d rotationOf(const double* p) {
   return Quaterniond(p[0], p[1], p[2], p[3]).normalized().toRotationMatrix();
 }

@@ -12,6 +12,7 @@
 #include "mechanism_sim/core/model/couplers.h"
 #include "mechanism_sim/core/model/errors.h"
 #include "core/absolute/evaluation.h"
+#include "core/linalg/block_cholesky.h"
 #include "mechanism_sim/core/model/tableau.h"
 
 namespace mechanism_sim {

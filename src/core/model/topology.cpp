@@ -6,6 +6,7 @@
 #include <Eigen/Eigenvalues>
 
 #include "mechanism_sim/core/model/system.h"
+#include "core/linalg/block_cholesky.h"
 
 namespace mechanism_sim {
 

@@ -48,6 +48,15 @@ inline Vector3d logRotation(Quaterniond q) {
   return 2.0 * std::atan2(s, q.w()) * q.vec() / s;
 }
 
+// Quaternion product a (x) b of Euler parameters stored (w, x, y, z), as the joint
+// formulation's q keeps them.
+inline Eigen::Vector4d quatProduct(const Eigen::Vector4d& a, const Eigen::Vector4d& b) {
+  Eigen::Vector4d out;
+  out(0) = a(0) * b(0) - a.tail<3>().dot(b.tail<3>());
+  out.tail<3>() = a(0) * b.tail<3>() + b(0) * a.tail<3>() + a.tail<3>().cross(b.tail<3>());
+  return out;
+}
+
 // Rigid transform with rotation R and translation t.
 inline Eigen::Isometry3d pose(const Matrix3d& R, const Vector3d& t) {
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();

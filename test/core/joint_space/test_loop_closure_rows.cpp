@@ -58,7 +58,7 @@ Builder chain(double L) {
   return b;
 }
 
-// The planar four-bar in x-z (axes along y), as test_joint_space_loops.cpp; the closing
+// The planar four-bar in x-z (axes along y), as joint_space/test_loop_closure.cpp; the closing
 // joint (coupler-rocker at C) is the last one.
 Builder fourBar(double L) {
   Builder b(L, L);

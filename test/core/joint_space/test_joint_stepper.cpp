@@ -452,7 +452,7 @@ TEST(JointFormulation, TheChoiceIsExplainedAndRefusalsAreClear) {
 
   // friction on a joint-formulation mechanism, set while running: an effort along the
   // joint coordinates like damping; "joint" and "auto" keep joint coordinates and go on
-  // (test_joint_friction.cpp: the model against known answers and the absolute formulation)
+  // (joint_space/test_joint_stepper_friction.cpp: the model against known answers and the absolute formulation)
   for (const char* asked : {"joint", "auto"}) {
     Mechanism a;
     models::pendulumChain(a, 2);

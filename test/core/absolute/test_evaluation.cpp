@@ -18,7 +18,7 @@ namespace {
 
 bool sameBits(double a, double b) { return a == b && std::signbit(a) == std::signbit(b); }
 
-// The chain of test_joint_formulation's LimitsDrivesAndCouplersMoveAsInAbsoluteCoordinates.
+// The chain of joint_space/test_joint_stepper's LimitsDrivesAndCouplersMoveAsInAbsoluteCoordinates.
 void chain(Mechanism& m, const char* formulation) {
   models::pendulumChain(m, 4, 0.5, 1.0, 0.4);
   m.setJointLimits(1, 0, -0.3, 0.3);

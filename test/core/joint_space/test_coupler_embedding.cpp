@@ -189,7 +189,7 @@ TEST(CouplerEmbeddingRun, HeldCouplersMoveAsClosureRowsAndInAbsoluteCoordinates)
     }
     // against the absolute formulation until the tip's stop: an inelastic impact each
     // formulation takes by its own projection (their difference after it is the impact's,
-    // with or without held couplers: test_joint_formulation.cpp's limits)
+    // with or without held couplers: joint_space/test_joint_stepper.cpp's limits)
     if (t_stop == 0.0 && (j.state().limit_side[0] != 0 || a.state().limit_side[0] != 0)) t_stop = j.time();
     if (t_stop == 0.0) {
       abs_diff = 0.0;

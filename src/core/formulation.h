@@ -1,0 +1,48 @@
+// The two formulations as the facade sees them: one stepper interface, and the choice of
+// which one runs a System.
+#pragma once
+#include <string>
+
+#include "mechanism_sim/core/model/system.h"
+#include "mechanism_sim/core/model/tableau.h"
+#include "mechanism_sim/core/reports.h"
+
+namespace mechanism_sim {
+
+// What the Mechanism asks of the formulation that runs: the absolute one
+// (absolute/stepper.h, the seed's method on every body) or the joint one
+// (joint_space/joint_stepper.h, the tree in joint coordinates, its loops closed by the same
+// equations).
+class FormulationStepper {
+ public:
+  virtual ~FormulationStepper() = default;
+  // The integrator from here on.
+  virtual void setMethod(Method m) = 0;
+  // Brings the formulation's own state in s to s's absolute state (an assembled or restored
+  // State) and solves the accelerations there.
+  virtual void settle(const System& sys, State& s, const Inputs& in) = 0;
+  // Advances s by h under the inputs. Throws StepFailure or SimulationError when the run
+  // cannot go on, UsageError for an h that is not positive and finite; s is then as it was.
+  virtual void step(const System& sys, State& s, const Inputs& in, double h) = 0;
+  virtual const SolverStats& stats() const = 0;
+  // Makes a State of either formulation (a snapshot restored) this one's: the joint
+  // formulation settles its joint state from the absolute one where it has none; the
+  // absolute one drops the joint state.
+  virtual void adopt(const System& sys, State& s, const Inputs& in) = 0;
+  // The inputs or the System changed: what the stepper keeps of s is not reused.
+  virtual void invalidate() {}
+  // The largest |Phi| and |Phi_q v| of the equations a step can leave violated at s, when
+  // the stepper knows them cheaply for s (else false: the caller evaluates every equation).
+  virtual bool stepViolation(const State& s, double& position, double& velocity) const {
+    (void)s, (void)position, (void)velocity;
+    return false;
+  }
+};
+
+// The formulation that runs sys when `asked` is requested, and why (one sentence). kJoint
+// for a System the joint formulation cannot run throws ModelError with the reason; kAuto
+// takes the joint formulation where it runs and its drives are at most one per 2 tree
+// coordinates (each is a closure row through its absolute equations), else absolute.
+Formulation chooseFormulation(const System& sys, Formulation asked, std::string* why);
+
+}  // namespace mechanism_sim
