@@ -1,0 +1,368 @@
+// Dynamics of the joint-space tree (joint_space/tree.h): the articulated-body algorithm
+// (forward dynamics), the recursive Newton-Euler pass (inverse dynamics), the composite
+// rigid-body inertia and the body accelerations of given joint accelerations.
+//
+// Spatial algebra after Featherstone, "Rigid Body Dynamics Algorithms" (RBDA), Springer
+// 2008, chapter 2 (joint_space/spatial.h).
+#include <cmath>
+
+#include "core/joint_space/spatial.h"
+#include "core/joint_space/tree.h"
+#include "mechanism_sim/core/model/couplers.h"
+#include "mechanism_sim/core/model/errors.h"
+
+namespace mechanism_sim {
+
+// ---- dynamics
+
+namespace {
+
+// The external force on body k in its own coordinates: gravity m g at the centre of mass
+// (no moment there) and the Inputs' force (global) and torque (body components).
+inline Vector6d externalForce(const System& sys, const TreeWorkspace& ws, int b, const Inputs* loads) {
+  const Body& B = sys.bodies[b];
+  const Matrix3d& A = ws.A[b - 1];
+  Vector6d f;
+  f.head<3>().setZero();
+  Vector3d F = B.m * sys.gravity;
+  if (loads) {
+    F += loads->force[b];
+    f.head<3>() = loads->torque[b];
+  }
+  f.tail<3>() = A.transpose() * F;
+  return f;
+}
+
+// The external force on a moving body and the bodies welded to it, in its coordinates:
+// gravity on the group, (mc x g'; m g') with g' = A^T g (joint_space/tree.h), and the Inputs'
+// forces and torques on each member moved to it by X_{member,h}^T.
+inline Vector6d groupExternalForce(const System& sys, const TreeLink& L, const TreeWorkspace& ws,
+                                   const TreeModel& model, const Inputs* loads) {
+  if (!L.composite) return externalForce(sys, ws, L.body, loads);
+  const Vector3d gh = ws.A[L.body - 1].transpose() * sys.gravity;
+  Vector6d f;
+  f.head<3>() = L.mc.cross(gh);
+  f.tail<3>() = L.mass * gh;
+  if (loads) {
+    f.head<3>() += loads->torque[L.body];
+    f.tail<3>() += ws.A[L.body - 1].transpose() * loads->force[L.body];
+    for (int m : L.welded) {
+      const TreeLink& W = model.links[m - 1];
+      Vector6d fm;
+      fm.head<3>() = loads->torque[m];
+      fm.tail<3>() = ws.A[m - 1].transpose() * loads->force[m];
+      f += transformForceBack(W.Eh, W.rhoh, fm);
+    }
+  }
+  return f;
+}
+
+// The Plucker transform X_{k, aparent} from a moving link's articulated parent (its parent,
+// or the host its parent is welded to) to the link: X_k X_{parent,h} when welded.
+inline void articulatedTransform(const TreeModel& model, const TreeWorkspace& ws, int k, Matrix3d& E,
+                                 Vector3d& rho) {
+  const TreeLink& L = model.links[k];
+  if (!L.parent_welded) {
+    E = ws.E[k], rho = ws.rho[k];
+    return;
+  }
+  const TreeLink& P = model.links[L.parent - 1];
+  E.noalias() = ws.E[k] * P.Eh;
+  rho.noalias() = P.rhoh + P.Eh.transpose() * ws.rho[k];
+}
+
+// A joint's articulated inertia S^T I^A S that is not positive definite: a subtree without
+// inertia along the joint, or a state that is no longer finite (an explicit step taken
+// beyond its stability: a whipping chain's rates grow by orders of magnitude a step).
+[[noreturn]] void notPositive(const System& sys, const TreeLink& L, double D) {
+  if (!std::isfinite(D))
+    throw SimulationError("joint-space dynamics: the state is no longer finite at body '" + sys.bodies[L.body].name +
+                          "' (the integration diverged: try a smaller step)");
+  throw SimulationError("joint-space dynamics: the subtree at body '" + sys.bodies[L.body].name +
+                        "' has no inertia along its joint");
+}
+
+// Pass 2 of forwardDynamicsAtKinematics at a tied link (TreeLink::tie): its motion is
+// X v_parent + s q_dot_m with s = r S, so nothing is eliminated here; with
+// [a; q_ddot_m] -> [f; (m's equation)] through [I^A W; W^T dd] and the bias (p^A; beta),
+// the parent receives (T = [X s; 0 1])
+//   I^A_p += X^T I^A X,  W_p += X^T (I^A s + W),  dd_p += s^T (I^A s + W) + s^T W + dd,
+//   p^A_p += X^T (p^A + I^A c),  beta_p += (I^A s + W)^T c + s^T p^A + beta - r tau_s.
+// (Jain, "Robot and Multibody Dynamics" ch. 11: constraint embedding.)
+[[gnu::noinline]] void tiedLinkInward(const TreeModel& model, TreeWorkspace& ws, int k, double tau_s, Vector6d pa) {
+  const TreeLink& L = model.links[k];
+  const Matrix6d& IA = ws.IA[k];
+  const Vector6d s = L.tie_mult * ws.S[k].col(0);
+  const Vector6d Us = IA * s + ws.W[k];
+  ws.Dinv[k](0, 0) = 0.0;
+  ws.U[k].col(0) = Us;
+  const int p = L.aparent - 1;
+  Matrix3d E;
+  Vector3d rho;
+  articulatedTransform(model, ws, k, E, rho);
+  ws.W[p] += transformForceBack(E, rho, Us);
+  ws.dd[p] += s.dot(Us) + s.dot(ws.W[k]) + ws.dd[k];
+  ws.beta[p] += Us.dot(ws.c[k]) + s.dot(pa) + ws.beta[k] - L.tie_mult * tau_s;
+  pa += IA * ws.c[k];
+  addTransformedInertia(E, rho, IA, ws.IA[p]);
+  ws.pA[p] += transformForceBack(E, rho, pa);
+}
+
+// Pass 2 at the common ancestor of a master's link and its sibling slaves (TreeLink::pivot),
+// before its own joint: the tied coordinate is eliminated first, as a child's joint with
+// U = W, D = dd, u = -beta would be: I^A -= W D^-1 W^T, p^A += W D^-1 u (no c_J of its own).
+[[gnu::noinline]] void pivotInward(const System& sys, const TreeLink& L, int k, TreeWorkspace& ws, Vector6d& pa) {
+  const double D = ws.dd[k];
+  if (!(D > 0.0)) notPositive(sys, L, D);
+  ws.tie_Dinv[k] = 1.0 / D, ws.tie_u[k] = -ws.beta[k];
+  const Vector6d WD = ws.W[k] * ws.tie_Dinv[k];
+  ws.IA[k].noalias() -= WD * ws.W[k].transpose();
+  pa += WD * ws.tie_u[k];
+}
+
+}  // namespace
+
+// Articulated-body algorithm, RBDA 7.3, table 7.1, in body coordinates: gravity enters as
+// a force on each body (not as the base acceleration -a_g of the table), so the spatial
+// accelerations a_i left in ws are the bodies' true ones.
+void forwardDynamics(const TreeModel& model, const System& sys, const Eigen::VectorXd& q,
+                     const Eigen::VectorXd& qdot, const Eigen::VectorXd& tau, TreeWorkspace& ws,
+                     Eigen::VectorXd& qddot, const Inputs* loads) {
+  // Pass 1 (outward): velocities and the bias c_i (forwardKinematics), then the rest
+  forwardKinematics(model, q, qdot, ws);
+  forwardDynamicsAtKinematics(model, sys, tau, ws, qddot, loads);
+}
+
+void forwardDynamicsAtKinematics(const TreeModel& model, const System& sys, const Eigen::VectorXd& tau,
+                                 TreeWorkspace& ws, Eigen::VectorXd& qddot, const Inputs* loads) {
+  ws.generation = nextWorkspaceGeneration();
+  // Pass 1 (continued): I^A_i = I_i, p^A_i = v_i x* I_i v_i - f^x_i (as table 7.1 starts
+  // them). Welded bodies are in their hosts' I_i and f^x_i (joint_space/tree.h): the passes skip them.
+  for (int b : model.order) {
+    const int k = b - 1;
+    const TreeLink& L = model.links[k];
+    if (L.kind == TreeJointKind::kFixed) continue;
+    if (L.tie >= 0 || L.tie_master || L.pivot >= 0) ws.W[k].setZero(), ws.dd[k] = 0.0, ws.beta[k] = 0.0;
+    if (L.composite) {
+      ws.IA[k] = L.Ic0;
+      ws.pA[k] = crossForce(ws.v[k], L.Ic0 * ws.v[k]) - groupExternalForce(sys, L, ws, model, loads);
+      continue;
+    }
+    const Body& B = sys.bodies[b];
+    ws.IA[k].setZero();
+    ws.IA[k].topLeftCorner<3, 3>() = B.Jp;
+    ws.IA[k].bottomRightCorner<3, 3>().diagonal().setConstant(B.m);
+    ws.pA[k] = crossForce(ws.v[k], inertiaTimes(B, ws.v[k])) - externalForce(sys, ws, b, loads);
+  }
+  // Pass 2 (inward): U_i = I^A_i S_i, D_i = S_i^T U_i, u_i = tau_i - S_i^T p^A_i, and the
+  // articulated inertia and bias the parent sees through the joint (RBDA 7.2-7.3, table
+  // 7.1): I^a = I^A - U D^-1 U^T, p^a = p^A + I^a c + U D^-1 u.
+  for (int n = model.nb - 1; n >= 0; --n) {
+    const int k = model.order[n] - 1;
+    const TreeLink& L = model.links[k];
+    if (L.kind == TreeJointKind::kFixed) continue;
+    Matrix6d& IA = ws.IA[k];
+    Vector6d pa = ws.pA[k];
+    if (L.tie >= 0) {  // (out of line, so that the common loop stays short)
+      tiedLinkInward(model, ws, k, tau(L.iv), pa);
+      continue;
+    }
+    if (L.pivot >= 0) pivotInward(sys, L, k, ws, pa);
+    if (L.nv == 1) {  // the common case without the small-matrix machinery
+      Vector6d U = IA * ws.S[k].col(0);
+      double D = ws.S[k].col(0).dot(U), u = tau(L.iv) - ws.S[k].col(0).dot(pa);
+      if (L.tie_master) {  // the tied links' terms (above): U = I^A S + W, D, u
+        U += ws.W[k];
+        D = ws.S[k].col(0).dot(U) + ws.S[k].col(0).dot(ws.W[k]) + ws.dd[k];
+        u -= ws.beta[k];
+      }
+      if (!(D > 0.0)) notPositive(sys, L, D);
+      const double Dinv = 1.0 / D;
+      ws.U[k].col(0) = U;
+      ws.Dinv[k](0, 0) = Dinv;
+      ws.u[k](0) = u;
+      if (L.aparent == 0) continue;
+      IA.noalias() -= (U * Dinv) * U.transpose();
+      pa += IA * ws.c[k] + U * (Dinv * u);
+    } else {
+      MotionSubspace& U = ws.U[k];
+      U.noalias() = IA * ws.S[k];
+      if (L.nv > 0) {
+        const SmallMatrix D = ws.S[k].transpose() * U;
+        // D is symmetric positive definite when the subtree has mass along every joint
+        // direction; LLT on at most 6 x 6 in place (no heap).
+        Eigen::LLT<SmallMatrix> llt(D);
+        if (llt.info() != Eigen::Success) notPositive(sys, L, D.sum());
+        ws.Dinv[k] = llt.solve(SmallMatrix::Identity(L.nv, L.nv));
+        // (element by element: the expression with tau.segment() would evaluate through a
+        // heap temporary)
+        for (int i = 0; i < L.nv; ++i) ws.u[k](i) = tau(L.iv + i) - ws.S[k].col(i).dot(pa);
+      }
+      if (L.aparent == 0) continue;
+      if (L.nv > 0) {
+        const MotionSubspace UD = U * ws.Dinv[k];
+        IA.noalias() -= UD * U.transpose();
+        pa += IA * ws.c[k] + UD * ws.u[k];
+      } else {
+        pa += IA * ws.c[k];
+      }
+    }
+    // The parent accumulates X^T I^a X and X^T p^a (table 7.1, with X = i_X_lambda(i)).
+    const int p = L.aparent - 1;
+    Matrix3d E;
+    Vector3d rho;
+    articulatedTransform(model, ws, k, E, rho);
+    addTransformedInertia(E, rho, IA, ws.IA[p]);
+    ws.pA[p] += transformForceBack(E, rho, pa);
+  }
+  // Pass 3 (outward): a'_i = X a_parent + c_i, q_ddot_i = D^-1 (u_i - U_i^T a'_i),
+  // a_i = a'_i + S_i q_ddot_i (ground does not accelerate: gravity is a force here).
+  qddot.resize(model.nv);
+  for (int b : model.order) {
+    const int k = b - 1;
+    const TreeLink& L = model.links[k];
+    Vector6d ap = ws.c[k];
+    if (L.parent != 0) ap += transformMotion(ws.E[k], ws.rho[k], ws.a[L.parent - 1]);
+    if (L.tie >= 0) {  // (its master, an ancestor, is done)
+      const double qdd = L.tie_mult * qddot(model.links[L.tie].iv);
+      qddot(L.iv) = qdd;
+      ws.a[k] = ap + ws.S[k].col(0) * qdd;
+    } else if (L.nv == 1) {
+      const double qdd = ws.Dinv[k](0, 0) * (ws.u[k](0) - ws.U[k].col(0).dot(ap));
+      qddot(L.iv) = qdd;
+      ws.a[k] = ap + ws.S[k].col(0) * qdd;
+    } else if (L.nv > 0) {
+      const SmallVector qdd = ws.Dinv[k] * (ws.u[k] - ws.U[k].transpose() * ap);
+      qddot.segment(L.iv, L.nv) = qdd;
+      ws.a[k] = ap + ws.S[k] * qdd;
+    } else {
+      ws.a[k] = ap;
+    }
+    if (L.pivot >= 0)  // the tied coordinate (inward above): q_ddot_m = D^-1 (u - W^T a)
+      qddot(L.pivot) = ws.tie_Dinv[k] * (ws.tie_u[k] - ws.W[k].dot(ws.a[k]));
+  }
+}
+
+// Recursive Newton-Euler, RBDA 5.3, table 5.1 (gravity as a body force as above):
+// a_i = X a_parent + S_i q_ddot_i + c_i, f_i = I_i a_i + v_i x* I_i v_i - f^x_i outward;
+// tau_i = S_i^T f_i, f_parent += X^T f_i inward.
+void inverseDynamics(const TreeModel& model, const System& sys, const Eigen::VectorXd& q,
+                     const Eigen::VectorXd& qdot, const Eigen::VectorXd& qddot, TreeWorkspace& ws,
+                     Eigen::VectorXd& tau, const Inputs* loads) {
+  forwardKinematics(model, q, qdot, ws);
+  for (int b : model.order) {
+    const int k = b - 1;
+    const TreeLink& L = model.links[k];
+    const Body& B = sys.bodies[b];
+    Vector6d a = ws.c[k] + ws.S[k] * qddot.segment(L.iv, L.nv);
+    if (L.parent != 0) a += transformMotion(ws.E[k], ws.rho[k], ws.a[L.parent - 1]);
+    ws.a[k] = a;
+    ws.f[k] = inertiaTimes(B, a) + crossForce(ws.v[k], inertiaTimes(B, ws.v[k])) - externalForce(sys, ws, b, loads);
+  }
+  tau.resize(model.nv);
+  for (int n = model.nb - 1; n >= 0; --n) {
+    const int k = model.order[n] - 1;
+    const TreeLink& L = model.links[k];
+    tau.segment(L.iv, L.nv) = ws.S[k].transpose() * ws.f[k];
+    if (L.parent != 0) ws.f[L.parent - 1] += transformForceBack(ws.E[k], ws.rho[k], ws.f[k]);
+  }
+}
+
+// Composite-rigid-body algorithm, RBDA 6.2, table 6.2, in body coordinates: I^c_i = I_i +
+// sum over children X^T I^c X; F = I^c_i S_i, H_ii = S_i^T F, then F moves to each ancestor
+// j (F = X^T F) for H_ij = F^T S_j.
+void jointSpaceInertia(const TreeModel& model, const TreeWorkspace& ws, AlignedVector<Matrix6d>& Ic,
+                       Eigen::MatrixXd& H) {
+  // (welded bodies are in their hosts' Ic0: the composites skip them, joint_space/tree.h; F
+  // still moves through their transforms on the way to an ancestor)
+  Ic.resize(model.nb);
+  for (int b : model.order)
+    if (model.links[b - 1].kind != TreeJointKind::kFixed) Ic[b - 1] = model.links[b - 1].Ic0;
+  for (int n = model.nb - 1; n >= 0; --n) {
+    const int k = model.order[n] - 1;
+    const TreeLink& L = model.links[k];
+    if (L.kind == TreeJointKind::kFixed || L.aparent == 0) continue;
+    Matrix3d E;
+    Vector3d rho;
+    articulatedTransform(model, ws, k, E, rho);
+    addTransformedInertia(E, rho, Ic[k], Ic[L.aparent - 1]);
+  }
+  for (int n = 0; n < model.nb; ++n) {
+    const int k = model.order[n] - 1;
+    const TreeLink& L = model.links[k];
+    if (L.nv == 0) continue;
+    MotionSubspace F = Ic[k] * ws.S[k];
+    H.block(L.iv, L.iv, L.nv, L.nv).noalias() = ws.S[k].transpose() * F;
+    for (int j = k; model.links[j].parent != 0;) {
+      for (int c = 0; c < L.nv; ++c) F.col(c) = transformForceBack(ws.E[j], ws.rho[j], F.col(c));
+      j = model.links[j].parent - 1;
+      const TreeLink& P = model.links[j];
+      for (int a = 0; a < L.nv; ++a)
+        for (int c = 0; c < P.nv; ++c) H(L.iv + a, P.iv + c) = H(P.iv + c, L.iv + a) = F.col(a).dot(ws.S[j].col(c));
+    }
+  }
+}
+
+void jointEfforts(const TreeModel& model, const Inputs& in, Eigen::VectorXd& tau) {
+  tau.setZero(model.nv);
+  for (size_t j = 0; j < model.joint_link.size(); ++j) {
+    if (model.joint_link[j] < 0) continue;  // a cut joint: its effort acts through the closure
+    const TreeLink& L = model.links[model.joint_link[j]];
+    for (int k = 0; k < L.nv; ++k) tau(L.iv + k) = in.effort[j][k];
+  }
+}
+
+// The seed's absolute accelerations from the spatial ones: omega'_dot is the angular part
+// (omega_dot = A_Oi omega'_dot, the omega' x omega' term vanishing); the centre of mass
+// accelerates by v_O_dot + omega x v_O in body components (the spatial acceleration is
+// not the classical one: RBDA ch. 2, spatial acceleration), rotated to global.
+void bodyAccelerations(const TreeModel& model, TreeWorkspace& ws, const Eigen::VectorXd& qddot,
+                       Eigen::VectorXd& acc) {
+  acc.resize(6 * model.nb);
+  for (int b : model.order) {
+    const int k = b - 1;
+    const TreeLink& L = model.links[k];
+    Vector6d a = ws.c[k] + ws.S[k] * qddot.segment(L.iv, L.nv);
+    if (L.parent != 0) a += transformMotion(ws.E[k], ws.rho[k], ws.a[L.parent - 1]);
+    ws.a[k] = a;
+    acc.segment<3>(6 * k) = ws.A[k] * (a.tail<3>() + ws.v[k].head<3>().cross(ws.v[k].tail<3>()));
+    acc.segment<3>(6 * k + 3) = a.head<3>();
+  }
+}
+
+void positionRates(const TreeModel& model, const Eigen::VectorXd& q, const Eigen::VectorXd& qdot,
+                   Eigen::VectorXd& qrate) {
+  if (model.nq == model.nv) {  // (no quaternion: q_dot itself)
+    qrate = qdot;
+    return;
+  }
+  qrate.resize(model.nq);
+  for (const TreeLink& L : model.links) {
+    switch (L.kind) {
+      case TreeJointKind::kSpherical: {
+        // omega in frame i: d/dt q = 1/2 (0, omega) (x) q
+        Eigen::Vector4d w(0, qdot(L.iv), qdot(L.iv + 1), qdot(L.iv + 2));
+        qrate.segment<4>(L.iq) = 0.5 * quatProduct(w, q.segment<4>(L.iq));
+        break;
+      }
+      case TreeJointKind::kFree: {
+        // r_dot = v; omega' in body components: p_dot = 1/2 p (x) (0, omega')
+        qrate.segment<3>(L.iq) = qdot.segment<3>(L.iv);
+        Eigen::Vector4d w(0, qdot(L.iv + 3), qdot(L.iv + 4), qdot(L.iv + 5));
+        qrate.segment<4>(L.iq + 3) = 0.5 * quatProduct(q.segment<4>(L.iq + 3), w);
+        break;
+      }
+      default:
+        qrate.segment(L.iq, L.nq) = qdot.segment(L.iv, L.nv);
+    }
+  }
+}
+
+void normalizeQuaternions(const TreeModel& model, Eigen::VectorXd& q) {
+  for (const TreeLink& L : model.links) {
+    if (L.kind == TreeJointKind::kSpherical) q.segment<4>(L.iq).normalize();
+    if (L.kind == TreeJointKind::kFree) q.segment<4>(L.iq + 3).normalize();
+  }
+}
+
+}  // namespace mechanism_sim
