@@ -385,14 +385,15 @@ class ModelBuilder {
       const urdf::Link& l = *entry.second;
       const int g = bodies.groupOf(l.name);
       if (!l.inertial || g == 0 || l.inertial->mass == 0.0) continue;
-      const std::string fault = inertiaFault(inertiaOf(*l.inertial));
+      const RigidGroup& G = bodies.groups()[g];
+      const std::string fault = inertiaFault(inertiaOf(*l.inertial), l.inertial->mass * G.extent * G.extent);
       if (!fault.empty()) own_faults[g].push_back({l.name, fault});
     }
     const std::vector<RigidGroup>& groups = bodies.groups();
     inertia_of_group_.resize(groups.size());
     for (size_t g = 1; g < groups.size(); ++g) {
       inertia_of_group_[g] = groups[g].Jp;
-      const std::string fault = inertiaFault(groups[g].Jp);
+      const std::string fault = inertiaFault(groups[g].Jp, groups[g].inertiaScale());
       const auto own = own_faults.find(static_cast<int>(g));
       if (!fault.empty()) {
         const std::string link = own != own_faults.end() ? own->second.front().first : groups[g].first_link;

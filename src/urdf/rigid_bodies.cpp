@@ -63,6 +63,14 @@ RigidBodies::RigidBodies(const LinkTree& tree, const urdf::ModelInterface& urdf)
     }
     b.Jp = 0.5 * (b.Jp + b.Jp.transpose());
     b.link_T_body.translation() = c;
+    for (const auto& p : parts[g]) b.extent = std::max(b.extent, (p.second.first - c).norm());
+  }
+  for (const auto& entry : group_T_link) {
+    RigidGroup& b = groups_[group_of_.at(entry.first)];
+    const Vector3d c = b.link_T_body.translation();
+    b.extent = std::max(b.extent, (entry.second.translation() - c).norm());
+    for (const JointSpec* j : tree.below(entry.first))
+      b.extent = std::max(b.extent, (entry.second * j->P_J.translation() - c).norm());
   }
 
   // 3. Each link in its body's frame.

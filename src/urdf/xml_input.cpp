@@ -1,5 +1,6 @@
 #include "xml_input.h"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <cstdio>
@@ -164,9 +165,9 @@ void checkInertial(const XMLElement* link, const XmlReader& r) {
 
 }  // namespace
 
-std::string inertiaFault(const Eigen::Matrix3d& J) {
+std::string inertiaFault(const Eigen::Matrix3d& J, double scale) {
   const Eigen::Vector3d ev = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(J).eigenvalues();
-  const double tol = 1e-9 * std::max(1e-300, J.cwiseAbs().maxCoeff());
+  const double tol = 1e-9 * std::max({1e-300, scale, J.cwiseAbs().maxCoeff()});
   if (ev(0) < -tol) return "inertia has a negative principal moment";
   if (ev(2) > ev(0) + ev(1) + tol)
     return "inertia violates the triangle inequality (a principal moment exceeds the sum of the other two)";

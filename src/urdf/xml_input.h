@@ -116,8 +116,10 @@ struct Extension {
 };
 
 // What makes an inertia matrix (about a centre of mass) unphysical, or "" if it is physical:
-// a negative principal moment, or one larger than the sum of the other two (relative 1e-9).
-std::string inertiaFault(const Eigen::Matrix3d& J);
+// a negative principal moment, or one larger than the sum of the other two, by more than
+// 1e-9 of `scale`: the body's own inertia scale (RigidGroup::inertiaScale, at least |J|),
+// so that round-off in the moments of a point mass held away from its joint passes.
+std::string inertiaFault(const Eigen::Matrix3d& J, double scale = 0.0);
 
 // Checks the standard URDF elements the loader relies on, with line numbers. Returns the
 // root links (no parent joint) in file order: one, or several (the loader floats the extra).

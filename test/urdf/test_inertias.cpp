@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -104,6 +105,44 @@ TEST(Inertias, StrictInertiaRefusesAsBefore) {
     auto m = loadModelFile(f);
     EXPECT_EQ(notesWith(*m, "body 'arm': its inertia").size(), 1u) << f;
   }
+}
+
+// A pendulum whose bob is a point mass at distance L from its joint, written as two links
+// fixed together whose merged inertia is round-off (the parallel-axis sum of a humanoid's
+// point masses leaves -5e-20 kg m^2 on a 0.5 kg link 3 cm from its joint): its moments are
+// judged against m L^2, the inertia it swings with, so at every unit scale it runs without
+// a note, with the file's inertia. A moment negative by 1e-6 of m L^2 is still a fault,
+// projected with its note.
+std::string pointMassPendulum(double L, double m, double moment) {
+  std::ostringstream os;
+  os.precision(17);
+  os << "<robot name='bob'><link name='base'/>"
+     << "<link name='arm'><inertial><origin xyz='" << L << " 0 0'/><mass value='" << m << "'/>"
+     << "<inertia ixx='" << moment << "' iyy='" << 0.5 * moment << "' izz='" << moment
+     << "' ixy='0' ixz='0' iyz='0'/></inertial></link>"
+     << "<joint name='pivot' type='continuous'><parent link='base'/><child link='arm'/><axis xyz='0 1 0'/></joint>"
+     << "</robot>";
+  return os.str();
+}
+
+TEST(Inertias, APointMassAwayFromItsJointTakesRoundOffOfItsOwnScaleAtEveryUnitScale) {
+  for (double L : {1e-3, 1e-1, 1.0, 1e1, 1e3})
+    for (double m : {1e-3, 1.0, 1e3}) {
+      const std::string at = "L = " + std::to_string(L) + ", m = " + std::to_string(m);
+      auto model = loadModelString(pointMassPendulum(L, m, -4e-17 * m * L * L), "bob.urdf");
+      EXPECT_TRUE(notesWith(*model, "inertia").empty()) << at;
+      const Eigen::Matrix3d& J = model->mechanism().body(model->links()[model->linkIndex("arm")].body).Jp;
+      EXPECT_EQ(J(0, 0), -4e-17 * m * L * L) << at;  // the file's, not projected
+      const double E0 = model->kineticEnergy() + model->potentialEnergy();
+      const double h = 2e-3 * std::sqrt(L);
+      for (int k = 0; k < 250; ++k) model->step(h);
+      // from the horizontal at rest, a quarter swing and more: m L^2 q'' = m g L cos q
+      EXPECT_GT(model->position(model->dofIndex("pivot")), 1.0) << at;
+      EXPECT_NEAR(model->kineticEnergy() + model->potentialEnergy(), E0, 1e-9 * m * 9.81 * L) << at;
+
+      auto bad = loadModelString(pointMassPendulum(L, m, -1e-6 * m * L * L), "bob.urdf");
+      EXPECT_EQ(notesWith(*bad, "body 'arm': its inertia has a negative principal moment").size(), 1u) << at;
+    }
 }
 
 // A body of mass 0 and inertia 0 is a massless body (no note about its inertia); a massless

@@ -6,6 +6,8 @@
 #include <cmath>
 #include <sstream>
 
+#include "mechanism_sim/core/model/inertia.h"
+
 namespace mechanism_sim {
 namespace {
 
@@ -94,6 +96,13 @@ void PenaltyForm::assemble(const System& sys, const Evaluation& ev, double kappa
 void PenaltyForm::factor(const System& sys, Evaluation& ev, const char* where, double t, bool reweight) {
   if (reweight) rowWeights(sys, ev, sys.all_constraints);
   assemble(sys, ev, kKappa, 1.0, 0.0);
+  // singular mass blocks: what decides the motions that move no mass (massFloor)
+  for (int b = 1; b <= sys.nb; ++b) {
+    const Body& B = sys.bodies[b];
+    const Vec6 floor = massFloor(B.m, B.Jp, sys.Minv[b - 1].diagonal().cwiseInverse(), sys.mass_scale, sys.inertia_scale);
+    bool transposed = false;
+    if (!floor.isZero(0.0)) chol_.block(chol_.address(b - 1, b - 1, &transposed)).diagonal() += floor;
+  }
   if (chol_.factorize(0.0, false) != 0) {
     std::ostringstream os;
     os << "at t = " << t << " s (" << where << "): the constrained mass matrix is singular; some motion moves no mass";

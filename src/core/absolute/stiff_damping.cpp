@@ -49,6 +49,7 @@
 #include <string>
 
 #include "core/absolute/stepper.h"
+#include "mechanism_sim/core/model/inertia.h"
 
 namespace mechanism_sim {
 namespace {
@@ -170,6 +171,12 @@ void Stepper::implicitDamping(const System& sys, State& s, double h) {
   rowWeights(sys, ev_, sys.all_constraints);
   PenaltyForm& H = solver_->penalty();
   H.assemble(sys, ev_, ConstraintSolver::kKappa, 1.0, 0.0);
+  for (int b = 1; b <= sys.nb; ++b) {  // singular mass blocks, as PenaltyForm::factor (massFloor)
+    const Body& B = sys.bodies[b];
+    const Vec6 floor = massFloor(B.m, B.Jp, sys.Minv[b - 1].diagonal().cwiseInverse(), sys.mass_scale, sys.inertia_scale);
+    bool transposed = false;
+    if (!floor.isZero(0.0)) H.cholesky().block(H.cholesky().address(b - 1, b - 1, &transposed)).diagonal() += floor;
+  }
   for (const StiffRow& r : stiff_)
     H.addRows(sys, sys.joint_constraint[r.joint], damp_rows_[r.joint][r.k].J, h * r.c);
   ++stats_.factorizations;

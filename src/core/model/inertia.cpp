@@ -45,4 +45,15 @@ Eigen::Matrix3d nearestPhysicalInertia(const Eigen::Matrix3d& J, Eigen::Vector3d
   return 0.5 * (out + out.transpose());
 }
 
+Eigen::Matrix<double, 6, 1> massFloor(double m, const Eigen::Matrix3d& Jp, const Eigen::Matrix<double, 6, 1>& stand_in,
+                                      double mass_scale, double inertia_scale) {
+  constexpr double kMassFloor = 1e-6;
+  Eigen::Matrix<double, 6, 1> floor = Eigen::Matrix<double, 6, 1>::Zero();
+  if (!(m > 1e-12 * mass_scale)) floor.head<3>() = kMassFloor * stand_in.head<3>();
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig;
+  eig.computeDirect(Jp, Eigen::EigenvaluesOnly);
+  if (!(eig.eigenvalues()(0) > 1e-12 * inertia_scale)) floor.tail<3>() = kMassFloor * stand_in.tail<3>();
+  return floor;
+}
+
 }  // namespace mechanism_sim

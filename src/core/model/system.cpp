@@ -18,7 +18,12 @@
 namespace mechanism_sim {
 namespace {
 
-void validateBody(const Body& b) {
+// extent: the body's own size, the largest distance from its reference point (its centre
+// of mass) to the joint frames and spring ends on it. Its moments are judged against
+// max(|Jp|, m extent^2), the inertia it turns with about its joints: round-off in the
+// moments of a point mass held away from its joint (-5e-20 kg m^2 from a parallel-axis sum)
+// is not a fault.
+void validateBody(const Body& b, double extent) {
   const std::string who = "body '" + b.name + "': ";
   if (!std::isfinite(b.m) || b.m < 0) throw ModelError(who + "mass must be finite and >= 0");
   if (!b.Jp.allFinite()) throw ModelError(who + "inertia must be finite");
@@ -26,7 +31,7 @@ void validateBody(const Body& b) {
   if ((b.Jp - b.Jp.transpose()).cwiseAbs().maxCoeff() > 1e-9 * scale)
     throw ModelError(who + "inertia must be symmetric");
   const Eigen::Vector3d ev = Eigen::SelfAdjointEigenSolver<Matrix3d>(b.Jp).eigenvalues();
-  const double tol = 1e-9 * scale;
+  const double tol = 1e-9 * std::max(scale, b.m * extent * extent);
   if (ev.minCoeff() < -tol) throw ModelError(who + "inertia has a negative principal moment");
   if (ev(2) > ev(0) + ev(1) + tol)
     throw ModelError(who + "inertia violates the triangle inequality (largest principal "
@@ -68,7 +73,13 @@ void IntegratorOptions::validate() const {
 void System::finalize() {
   nb = numBodies() - 1;
   if (nb < 1) throw ModelError("the mechanism has no moving body");
-  for (int b = 1; b <= nb; ++b) validateBody(bodies[b]);
+  std::vector<double> extent(numBodies(), 0.0);
+  auto reach = [&](int b, const Vector3d& sp) {
+    if (b >= 0 && b < numBodies()) extent[b] = std::max(extent[b], sp.norm());
+  };
+  for (const Joint* j : joints) reach(j->bodyI(), j->frameI().sp_B), reach(j->bodyJ(), j->frameJ().sp_B);
+  for (const SpringDamper& s : springs) reach(s.body_i, s.sp_i), reach(s.body_j, s.sp_j);
+  for (int b = 1; b <= nb; ++b) validateBody(bodies[b], extent[b]);
   if (!gravity.allFinite()) throw ModelError("gravity must be finite");
   options.validate();
 
@@ -145,12 +156,17 @@ void System::finalize() {
   m = row;
 
   // Scales of the problem.
+  // A body has moments when its mean moment passes 1e-9 of the largest: a point mass's
+  // round-off (-5e-20 kg m^2 from a parallel-axis sum) is none, not a moment whose inverse
+  // (1e18) would swamp the weights of the equations on it.
+  double largest_moment = 0;
+  for (int b = 1; b <= nb; ++b) largest_moment = std::max(largest_moment, bodies[b].Jp.trace() / 3.0);
+  auto hasMoments = [&](const Body& B) { return B.Jp.trace() / 3.0 > 1e-9 * largest_moment; };
   double msum = 0, isum = 0;
   int mcount = 0, icount = 0;
   for (int b = 1; b <= nb; ++b) {
     if (bodies[b].m > 0) msum += bodies[b].m, ++mcount;
-    const double tr = bodies[b].Jp.trace() / 3.0;
-    if (tr > 0) isum += tr, ++icount;
+    if (hasMoments(bodies[b])) isum += bodies[b].Jp.trace() / 3.0, ++icount;
   }
   double L = 0;
   for (const Joint* j : joints) L = std::max({L, j->frameI().sp_B.norm(), j->frameJ().sp_B.norm()});
@@ -166,7 +182,7 @@ void System::finalize() {
   damping.resize(joints.size(), {0, 0, 0});
   friction.resize(joints.size(), {0, 0, 0});
   // Inverse masses with stand-ins: a massless body weighs the mean mass, a body without
-  // moments the mean moment, and every moment is raised by 1e-3 of the body's mean
+  // moments (hasMoments) the mean moment, and every moment is raised by 1e-3 of the body's mean
   // moment, so a zero principal moment (a thin rod's) does not make the weights of the
   // equations that hold that rotation vanish. They only scale W (the refinement solves the
   // exact KKT system); with 1e-9 instead of 1e-3 a 7 kg ram with ixx = 0 fell short on
@@ -175,8 +191,8 @@ void System::finalize() {
   for (int b = 1; b <= nb; ++b) {
     const Body& B = bodies[b];
     const double m = B.m > 0 ? B.m : mass_scale;
-    const double tr = B.Jp.trace() / 3.0;
-    const Matrix3d Jp = B.Jp + (tr > 0 ? 1e-3 * tr : inertia_scale) * Matrix3d::Identity();
+    const Matrix3d Jp = hasMoments(B) ? Matrix3d(B.Jp + 1e-3 * B.Jp.trace() / 3.0 * Matrix3d::Identity())
+                                      : Matrix3d(inertia_scale * Matrix3d::Identity());
     Minv[b - 1].topLeftCorner<3, 3>() = Matrix3d::Identity() / m;
     Minv[b - 1].bottomRightCorner<3, 3>() = Jp.inverse();
   }

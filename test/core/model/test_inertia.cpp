@@ -8,7 +8,9 @@
 #include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 
+#include "mechanism_sim/core/model/errors.h"
 #include "mechanism_sim/core/model/inertia.h"
+#include "pendulum.h"
 
 namespace mechanism_sim {
 namespace {
@@ -103,6 +105,57 @@ TEST(NearestPhysicalInertia, IsTheNearestInTheFrobeniusNorm) {
     }
   }
   EXPECT_GT(non_physical, 50);
+}
+
+// A point mass m at distance L from its revolute, its central inertia round-off of its
+// own scale m L^2 (a parallel-axis sum leaves -5e-20 kg m^2 on a 0.5 kg link 3 cm from its
+// joint): the body is valid at every unit scale and swings as the exact pendulum (period
+// and energy of m L^2 q'' = m g L cos q), while a moment negative by 1e-6 of m L^2 is
+// still refused.
+TEST(BodyValidation, APointMassAwayFromItsJointTakesRoundOffOfItsOwnScaleAtEveryUnitScale) {
+  std::mt19937 rng(7);
+  for (double L : {1e-3, 1e-1, 1.0, 1e1, 1e3})
+    for (double m : {1e-3, 1.0, 1e3}) {
+      const Matrix3d R = randomRotation(rng);
+      auto build = [&](Mechanism& mech, double moment) {
+        const Matrix3d Jp = R * Vector3d(moment, 0.0, 0.5 * moment).asDiagonal() * R.transpose();
+        const int b = mech.addBody(body("bob", m, Jp, Vector3d(L, 0, 0)));
+        mech.addJoint(makeJoint("revolute", "pivot", Mechanism::kGround, models::axisY(Vector3d::Zero()), b,
+                                models::axisY(Vector3d(-L, 0, 0))));
+        mech.setGravity(Vector3d(0, 0, -kG));
+        return b;
+      };
+      Mechanism mech;
+      const int b = build(mech, -4e-17 * m * L * L);
+      mech.build();
+      mech.assemble();
+      const double E0 = mech.kineticEnergy() + mech.potentialEnergy();
+      const double h = 2e-3 * std::sqrt(L), T = 0.5 * std::sqrt(L);  // a quarter swing and more
+      for (long k = 0, n = std::lround(T / h); k < n; ++k) mech.step(h);
+      // q'' = (g / L) cos q from rest, by RK4 in 20000 steps of T / 20000
+      double q = 0, v = 0;
+      const double c = kG / L, he = T / 20000;
+      for (int k = 0; k < 20000; ++k) {
+        const double k1v = c * std::cos(q), k2v = c * std::cos(q + 0.5 * he * v);
+        const double k3v = c * std::cos(q + 0.5 * he * v + 0.25 * he * he * k1v);
+        const double k4v = c * std::cos(q + he * v + 0.5 * he * he * k2v);
+        q += he * v + he * he / 6.0 * (k1v + k2v + k3v);
+        v += he / 6.0 * (k1v + 2 * k2v + 2 * k3v + k4v);
+      }
+      EXPECT_LT((mech.position(b) - L * Vector3d(std::cos(q), 0, -std::sin(q))).norm(), 1e-8 * L)
+          << "L = " << L << ", m = " << m;
+      EXPECT_NEAR(mech.kineticEnergy() + mech.potentialEnergy(), E0, 1e-9 * m * kG * L) << "L = " << L << ", m = " << m;
+
+      Mechanism bad;
+      build(bad, -1e-6 * m * L * L);
+      try {
+        bad.build();
+        ADD_FAILURE() << "a moment of -1e-6 m L^2 passed, L = " << L << ", m = " << m;
+      } catch (const ModelError& e) {
+        EXPECT_NE(std::string(e.what()).find("body 'bob': inertia has a negative principal moment"), std::string::npos)
+            << e.what();
+      }
+    }
 }
 
 }  // namespace

@@ -22,4 +22,16 @@ Eigen::Matrix3d nearestPhysicalInertia(const Eigen::Matrix3d& J, Eigen::Vector3d
 // applies along the principal axes).
 Eigen::Vector3d nearestPhysicalMoments(const Eigen::Vector3d& l);
 
+// What the constraint solver's factorizations of H = M + Phi_q^T W Phi_q add to the
+// diagonal of a body's mass block diag(m I, Jp) where that block is singular: 1e-6 of the
+// body's stand-ins `stand_in` (the diagonal of System::Minv's inverse) on the translations
+// when m is not above 1e-12 of mass_scale, on the rotations when Jp's least principal
+// moment is not above 1e-12 of inertia_scale; zero for every other body. Only the
+// preconditioner holds it (the refinement solves the exact equations), so it decides only
+// the motions that move no mass at all, which H leaves singular: a gimbal's massless links
+// turning about its lined-up axes at the lock, a point mass turning about itself. They
+// keep their rate. Assembly's mass-rank check does not add it.
+Eigen::Matrix<double, 6, 1> massFloor(double m, const Eigen::Matrix3d& Jp, const Eigen::Matrix<double, 6, 1>& stand_in,
+                                      double mass_scale, double inertia_scale);
+
 }  // namespace mechanism_sim
