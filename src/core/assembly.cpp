@@ -156,11 +156,14 @@ bool mirrored(const Evaluation& ev, const Joint& jt, double* cz, double* cx) {
 // terms, radians otherwise: scale-free), each target q_k - value likewise, and, per cut
 // joint that holds axes parallel (or locks the twist), bz_j - bz_i (bx_j - bx_i): zero
 // only at the pose the joint defines, where the dot-product equations also hold at the
-// mirror pose. The gap closes by homotopy, R(q) = (1 - s) R(q0) with s from 0 to 1 in
-// steps that double while the path is followed and halve when it is not: an Euler
-// predictor along the path's tangent, then Levenberg-Marquardt (Marquardt's scaling, steps
-// capped at half a radian or half a length) as corrector; so the pose moves continuously
-// from the file's onto the nearest branch. Then the least-squares minimum at s = 1.
+// mirror pose; and per limited coordinate its excess over the limits (gap(): bounds
+// relaxed at the start and tightened along the path). The gap closes by homotopy,
+// R(q) = (1 - s) R(q0) with s from 0 to 1 in steps that double while the path is followed
+// and halve when it is not: an Euler predictor along the path's tangent, then
+// Levenberg-Marquardt (Marquardt's scaling, steps capped at half a radian or half a length)
+// as corrector, on the path when no motion removes more of the residual than the tolerance
+// (dependent rows need not shrink in proportion); so the pose moves continuously from the
+// file's onto the nearest branch. Then the least-squares minimum at s = 1.
 constexpr int kCorrectorIterations = 12;   // Levenberg-Marquardt iterations per continuation step
 constexpr int kFinalIterations = 200;      // at s = 1
 constexpr double kMinContinuationStep = 1.0 / 1024;
