@@ -21,6 +21,11 @@ constexpr int kMaxVelocityPasses = 8;
 // (force), so that a mechanism at rest is not judged on round-off divided by round-off.
 constexpr double kFloor = 1e-6;
 
+// A coordinate within this fraction of its limits' and the model's scale past a bound is
+// on it (limitSlack, model/system.h): an assembled or driven position's round-off, far
+// below any motion a limit is there to stop.
+constexpr double kLimitSlack = 1e-9;
+
 // ---- the absolute formulation (absolute/)
 namespace absolute {
 
@@ -118,6 +123,11 @@ namespace assembly {
 constexpr int kMaxPositionIterations = 300;
 constexpr int kMaxVelocityIterations = 60;
 constexpr double kAssemblyFailureResidual = 1e-9;
+// The precision of a description, relative to its length scale: six significant digits, as
+// CAD exporters write them (a rounded rpy is off by up to 5e-6 rad); loops whose dependent
+// equations disagree by less at their least-squares pose are accepted (with a note), not
+// refused.
+constexpr double kDescriptionPrecision = 1e-5;
 // Continuation: corrector iterations per step, iterations at s = 1, the smallest step of s
 // (ten halvings: a path not followed at 1/1024 is left), the largest move of a coordinate in
 // one iteration (radians, or length scales: beyond it the linearization misleads), the

@@ -734,6 +734,16 @@ class ModelBuilder {
       fail(e.what());
     }
     noteAssemblyMoves(placed);
+    if (model_->assembly_.position_residual > 1e-9) {
+      // (past assembly's own failure residual: dependent equations that disagree at the
+      // file's precision, which assembly accepts)
+      std::ostringstream os;
+      os.precision(3);
+      os << "the loops' dependent equations disagree by " << model_->assembly_.position_residual
+         << " (relative) at the closest pose: the file's precision (axes or points that should meet miss by a "
+            "rounding); the independent ones are held";
+      model_->notes_.push_back(os.str());
+    }
     model_->command_.assign(model_->dofs_.size(), 0.0);
     model_->initial_ = mech().snapshot();
   }

@@ -361,6 +361,119 @@ TEST(Assembly, ParallelogramsTakenAcrossTheirFlatPoseStayParallelograms) {
   }
 }
 
+// A four-bar whose file pose has the crank and the rocker outside their limits (the loop
+// open as well), like a Strandbeest leg whose joints are all limited away from zero. The
+// limits admit a band of closed poses: held on the bound nearest the start one at a time,
+// the crank on its bound leaves the rocker outside its own, and both on their bounds the
+// loop cannot close. The limits are bounds of the assembly's least squares instead: it
+// closes with both coordinates within their limits.
+TEST(Assembly, ALoopStartedOutsideItsJointsLimitsClosesWithinThem) {
+  auto rockerAt = [](double crank) {  // the closed rocker angle for a crank angle
+    Mechanism m;
+    Parts p{m};
+    FourBar fb;
+    fb.build(p);
+    m.assemble({{fb.crank_joint, 0, crank}});
+    return m.jointPosition(fb.rocker_joint, 0);
+  };
+  const double r1 = rockerAt(1.25), r2 = rockerAt(1.35), r0 = rockerAt(1.0);
+  const double r_lo = std::min(r1, r2), r_hi = std::max(r1, r2);
+  ASSERT_TRUE(r0 < r_lo || r0 > r_hi);  // the crank on its lower bound puts the rocker outside its limits
+  Mechanism m;
+  Parts p{m};
+  FourBar fb;
+  fb.build(p);
+  m.setJointLimits(fb.crank_joint, 0, 1.0, 1.4);
+  m.setJointLimits(fb.rocker_joint, 0, r_lo, r_hi);
+  ASSERT_GT(std::fabs(r_lo), 1e-3);  // (the rocker's zero, the file's pose, lies outside too)
+  ASSERT_TRUE(0.0 < r_lo || 0.0 > r_hi);
+  m.assemble();
+  EXPECT_LT(m.positionViolation(), 1e-12);
+  const double crank = m.jointPosition(fb.crank_joint, 0), rocker = m.jointPosition(fb.rocker_joint, 0);
+  EXPECT_GE(crank, 1.0 - 1e-9);
+  EXPECT_LE(crank, 1.4 + 1e-9);
+  EXPECT_GE(rocker, r_lo - 1e-9);
+  EXPECT_LE(rocker, r_hi + 1e-9);
+  EXPECT_NEAR((p.now(fb.coupler, fb.C1) - fb.D).norm(), fb.c, 1e-12);  // the loop's equation
+}
+
+// A spherical four-bar closed by a ball at a point of its closing axis (as onshape-to-robot
+// closes a spherical parallel mechanism): the point stays on the sphere about the axes'
+// common point, so one of the ball's three equations is dependent, and at a start whose
+// points are a chord apart that row cannot shrink with the others as (1 - s) R0: the
+// continuation follows the least-squares path.
+struct BallClosedSphericalFourBar : SphericalFourBar {
+  double rho = 0.5;  // the ball's distance from the axes' common point
+
+  // miss: the rocker's ground pivot moved along its axis (the axes no longer meet).
+  void build(Parts& p, double open, double miss) {
+    a1.normalize(), a2.normalize(), a3.normalize(), a4.normalize();
+    a3_rocker = Eigen::AngleAxisd(open, a4) * a3;
+    crank = p.add("crank", 0.5, 0.5 * (a1 + a2));
+    coupler = p.add("coupler", 0.7, 0.5 * (a2 + rho * a3));
+    rocker = p.add("rocker", 0.6, 0.5 * (rho * a3_rocker + a4));
+    const Vector3d O = Vector3d::Zero();
+    const Matrix3d I = Matrix3d::Identity();
+    p.join("revolute", "crank_joint", 0, O, axisTo(a1), crank, O, axisTo(a1));
+    p.join("revolute", "coupler_joint", crank, O, axisTo(a2), coupler, O, axisTo(a2));
+    p.join("revolute", "rocker_joint", 0, O + miss * a4, axisTo(a4), rocker, O, axisTo(a4));
+    closure = p.join("spherical", "closure", coupler, rho * a3, I, rocker, rho * a3_rocker, I);
+  }
+};
+
+TEST(Assembly, ABallClosedSphericalLoopStartedOneRadianOpenCloses) {
+  for (double open : {1.0, -1.44}) {
+    Mechanism m;
+    Parts p{m};
+    BallClosedSphericalFourBar sb;
+    sb.build(p, open, 0.0);
+    m.assemble();
+    EXPECT_LT(m.positionViolation(), 1e-12) << open;
+    // The ball's points meet on the sphere of radius rho; the rocker's axis stays a4.
+    const Vector3d Pc = p.now(sb.coupler, sb.rho * sb.a3), Pr = p.now(sb.rocker, sb.rho * sb.a3_rocker);
+    EXPECT_LT((Pc - Pr).norm(), 1e-12) << open;
+    EXPECT_NEAR(Pc.norm(), sb.rho, 1e-12) << open;
+    EXPECT_NEAR(Pr.dot(sb.a4), sb.rho * sb.a3.dot(sb.a4), 1e-12) << open;
+  }
+}
+
+// The same loop with the rocker's pivot 1e-6 m off the axes' common point, along its axis,
+// as a file's rounded numbers leave it: no pose closes it (the ball's point on the rocker
+// runs on a circle 1e-6 |a3 . a4| m off the coupler's sphere), and the gap is at the
+// file's precision (2e-6 of the loop's size). Assembly keeps the least-squares pose (the gap under the miss), the
+// dependent row dropped; the mechanism then moves under gravity with its independent
+// equations held and the gap unchanged. A miss of 1e-3 m is refused.
+TEST(Assembly, ARedundantLoopWhoseAxesMissByAFilesRoundingIsAcceptedAndRuns) {
+  const double miss = 1e-6;
+  Mechanism m;
+  Parts p{m};
+  BallClosedSphericalFourBar sb;
+  sb.build(p, 0.3, miss);
+  m.setGravity(Vector3d(0, -9.81, 0));
+  const AssemblyReport rep = m.assemble();
+  const double gap = miss * std::fabs(sb.a3.dot(sb.a4));  // the rocker's circle off the sphere
+  EXPECT_GT(rep.position_residual, 1e-9);
+  EXPECT_LT(rep.position_residual, 1e-5);
+  EXPECT_LE(m.positionViolation(), miss * 1.0001);
+  EXPECT_GE(m.positionViolation(), 0.1 * gap);
+  const double crank0 = m.jointPosition(0, 0);
+  for (int i = 0; i < 200; ++i) m.step(1e-3);
+  EXPECT_GT(std::fabs(m.jointPosition(0, 0) - crank0), 1e-3);  // it moves: one dof, not locked
+  EXPECT_LE(m.positionViolation(), miss * 1.0001);
+  EXPECT_LT(m.relativePositionViolation(), 1e-12);  // the independent equations (the dropped one not judged)
+
+  Mechanism far;
+  Parts q{far};
+  BallClosedSphericalFourBar off;
+  off.build(q, 0.3, 1e-3);
+  try {
+    far.assemble();
+    FAIL() << "assembled a loop whose axes miss by 1e-3 m";
+  } catch (const ModelError& e) {
+    EXPECT_NE(std::string(e.what()).find("does not close"), std::string::npos) << e.what();
+  }
+}
+
 TEST(Assembly, AClosedPoseIsLeftAsItIs) {
   Mechanism m;
   Parts p{m};

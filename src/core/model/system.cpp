@@ -13,6 +13,7 @@
 #include "mechanism_sim/core/model/errors.h"
 #include "core/absolute/evaluation.h"
 #include "core/linalg/block_cholesky.h"
+#include "core/numerics.h"
 #include "mechanism_sim/core/model/tableau.h"
 
 namespace mechanism_sim {
@@ -245,12 +246,16 @@ int limitSide(const LimitSpec& L, double q) {
   return q < L.lower - slack ? -1 : q > L.upper + slack ? 1 : 0;
 }
 
+double limitSlack(const System& sys, const LimitSpec& L) {
+  return numerics::kLimitSlack * (std::fabs(L.lower) + std::fabs(L.upper) + sys.length_scale);
+}
+
 bool drivenAtLimit(const System& sys, const LimitSpec& L, double q, double t) {
   for (const DriveSpec& D : sys.drives)
     if (D.joint == L.joint && D.k == L.k) {
       // within the assembly's slack of the bound (a gripper's finger held at its stop, off by
       // round-off): the drive holds it there, no limit to activate
-      const double slack = 1e-9 * (std::fabs(L.lower) + std::fabs(L.upper) + sys.length_scale);
+      const double slack = limitSlack(sys, L);
       if (q >= L.lower - slack && q <= L.upper + slack) return true;
       std::ostringstream os;
       os << "at t = " << t << " s: the drive of joint '" << sys.joints[L.joint]->name() << "' moves it to " << fmt(q)

@@ -241,6 +241,10 @@ Inputs zeroInputs(const System& sys);
 // motion is prescribed; no stop can hold it); false for a coordinate no drive moves. Both
 // formulations call it where they activate a limit.
 bool drivenAtLimit(const System& sys, const LimitSpec& limit, double q, double t);
+// How far past a bound a coordinate may stand and still count as on it: the round-off of
+// an assembled or driven position, 1e-9 of the limits' and the model's scale
+// (numerics::kLimitSlack). Assembly and drivenAtLimit judge by it alike.
+double limitSlack(const System& sys, const LimitSpec& limit);
 // Which bound a free limit's coordinate q is past: -1 (lower), +1 (upper) or 0, with a
 // round-off slack of a few ulps of the bounds' size: a coordinate driven exactly onto its
 // bound (q = 2 t reaching 1 at t = 0.5, t itself a sum of steps) is at it, not past it,
