@@ -12,6 +12,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <random>
 #include <string>
 
@@ -324,6 +325,8 @@ TEST(CoordinateCoupler, MimicPendulumsSwingAsOneWithTheEffectiveInertia) {
       worst = std::max(worst, std::fabs(qb - q0 * std::cos(omega * t)));
       worst_tie = std::max(worst_tie, std::fabs(mech.jointPosition(ja, 0) - mult * qb));
     }
+    std::printf("[mimic pendulums, %s] T = %.6f s, largest |q_b - q0 cos(2 pi t / T)| over 1.25 T: %.1e q0\n", f, T,
+                worst / q0);
     EXPECT_LT(worst, 1e-5 * q0) << "T = " << T << " s";
     EXPECT_LT(worst_tie, 1e-11) << "the slave follows q_a = m q_b (to the position tolerance)";
   }
