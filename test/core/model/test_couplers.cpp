@@ -210,7 +210,8 @@ TEST(LimitConstraint, RowFollowsTheSideItPressesAndMatchesFiniteDifferences) {
       const EvalContext ctx{&tracked, sides};
       auto eval = [&](const std::vector<BodyKin>& kk, Eigen::MatrixXd* J, Eigen::VectorXd* gamma) {
         const BodyKin* ptrs[2] = {&kk[0], &kk[1]};
-        Eigen::VectorXd Phi = Eigen::VectorXd::Constant(1, 7.0), g = Phi;
+        Eigen::VectorXd Phi(1), g(1);
+        Phi(0) = g(0) = 7.0;
         Eigen::MatrixXd Jl = Eigen::MatrixXd::Constant(1, 12, 7.0);
         limit.evaluate(ptrs, ctx, Phi, Jl, g);
         if (J) *J = Jl;
