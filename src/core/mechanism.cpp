@@ -135,12 +135,9 @@ void Mechanism::checkCoordinate(int joint, int k) const {
 void Mechanism::setJointLimits(int joint, int k, double lower, double upper) {
   requireUnbuilt("setJointLimits");
   checkCoordinate(joint, k);
-  const Joint& j = *sys_->joints[joint];
-  if (!j.holonomicCoordinates())
-    throw ModelError("joint '" + j.name() + "': limits need a position coordinate");
-  if (!(lower <= upper) || !std::isfinite(lower) || !std::isfinite(upper))
-    throw ModelError("joint '" + j.name() + "': limits need finite lower <= upper");
-  sys_->limits.push_back(LimitSpec{joint, k, lower, upper, 0});
+  const LimitSpec limit{joint, k, lower, upper, 0};
+  validateLimit(*sys_, limit);  // (at once, as finalize() would)
+  sys_->limits.push_back(limit);
 }
 
 int Mechanism::addDrive(int joint, int k, const DriveProfile& profile, double q0) {

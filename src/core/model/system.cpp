@@ -109,6 +109,7 @@ void System::finalize() {
   for (const auto& c : constraints) m_eq += c->size();
   for (size_t l = 0; l < limits.size(); ++l) {
     LimitSpec& L = limits[l];
+    validateLimit(*this, L);
     L.constraint = numConstraints();
     constraints.push_back(std::make_shared<LimitConstraint>(*joints[L.joint], L.k,
                                                             static_cast<int>(l), L.lower, L.upper));
@@ -244,6 +245,17 @@ Inputs zeroInputs(const System& sys) {
 int limitSide(const LimitSpec& L, double q) {
   const double slack = 8 * std::numeric_limits<double>::epsilon() * std::max(std::fabs(L.lower), std::fabs(L.upper));
   return q < L.lower - slack ? -1 : q > L.upper + slack ? 1 : 0;
+}
+
+void validateLimit(const System& sys, const LimitSpec& L) {
+  if (L.joint < 0 || L.joint >= sys.numJoints())
+    throw ModelError("limit on joint " + std::to_string(L.joint) + ": no such joint");
+  const Joint& j = *sys.joints[L.joint];
+  if (L.k < 0 || L.k >= j.dof())
+    throw ModelError("joint '" + j.name() + "': a limit on coordinate " + std::to_string(L.k) + ", which it does not have");
+  if (!j.holonomicCoordinates()) throw ModelError("joint '" + j.name() + "': limits need a position coordinate");
+  if (!(L.lower <= L.upper) || !std::isfinite(L.lower) || !std::isfinite(L.upper))
+    throw ModelError("joint '" + j.name() + "': limits need finite lower <= upper");
 }
 
 double limitSlack(const System& sys, const LimitSpec& L) {

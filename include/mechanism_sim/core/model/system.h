@@ -245,6 +245,9 @@ bool drivenAtLimit(const System& sys, const LimitSpec& limit, double q, double t
 // an assembled or driven position, 1e-9 of the limits' and the model's scale
 // (numerics::kLimitSlack). Assembly and drivenAtLimit judge by it alike.
 double limitSlack(const System& sys, const LimitSpec& limit);
+// Throws ModelError naming the joint for a limit on no joint coordinate, on one without a
+// position coordinate, or with bounds that are not finite with lower <= upper.
+void validateLimit(const System& sys, const LimitSpec& limit);
 // Which bound a free limit's coordinate q is past: -1 (lower), +1 (upper) or 0, with a
 // round-off slack of a few ulps of the bounds' size: a coordinate driven exactly onto its
 // bound (q = 2 t reaching 1 at t = 0.5, t itself a sum of steps) is at it, not past it,
