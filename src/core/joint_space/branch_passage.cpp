@@ -176,6 +176,7 @@ bool LoopClosures::findPassageNow() {
   if (p_P_.rows() != m || p_P_.cols() != m) {
     p_P_.setZero(m, m), p_R_.setZero(m, nv), p_w_.setZero(m, m), p_z_.setZero(m, m);
     p_held_.assign(m, 0);
+    p_excl_held_.assign(m, 0);
     p_b_.setZero(m), p_g_.setZero(m), p_mu_.setZero(m);
     p_A_.setZero(m, m);
     p_least_norm_ = ScaledLeastNorm(m);
@@ -223,6 +224,7 @@ bool LoopClosures::findPassageNow() {
         for (int j = row[c]; j < row[c] + p_used_[c]; ++j) clearSlot(j, c, n);
         for (int e = row[c]; e < row[c] + n; ++e) p_keep_(e) = 0.0, p_held_[e] = 0;
         p_used_[c] = 0;
+        p_in_band_[c] = 0;
       }
       return false;
     }
@@ -240,6 +242,7 @@ bool LoopClosures::findPassageNow() {
     }
     const int kr = static_cast<int>(p_rows_.size()), kc = static_cast<int>(p_cols_.size());
     const Eigen::VectorXd& dr = p_dr_;
+    bool in_band = false;  // a direction of c below kPassageBand (held or released)
     // the directions of the decomposition svd of W
     auto directions = [&](const auto& svd) {
       const auto& sigma = svd.singularValues();
@@ -253,7 +256,8 @@ bool LoopClosures::findPassageNow() {
       // the component is round-off of the normalized rows, not of the row (onshape's planar
       // 2-dof closes its loop by a ball: the out-of-plane row is round-off, 1 of 3 rows over
       // 2 columns, and the velocity projection stalled at 0.06 judging it).
-      auto exclude = [&](Eigen::Index d) {
+      auto exclude = [&](Eigen::Index d, bool held_dir = false) {
+        p_excl_held_[p_excl_] = held_dir;
         p_w_.row(p_excl_).setZero();
         p_z_.row(p_excl_).setZero();
         for (int i = 0; i < kr; ++i) {
@@ -273,7 +277,8 @@ bool LoopClosures::findPassageNow() {
         const int j = row[c] + p_used_[c]++;
         ++p_r_;
         p_keep_(j) = 1.0;
-        const bool held = passage_hold && s < kPassageBand;
+        const bool held = passage_hold && s < kPassageBand && !p_release_[c];
+        in_band = in_band || s < kPassageBand;
         p_near_ = p_near_ || s < kPassageNear;
         p_held_[j] = held;
         // R_j = (1/s) u^T D_r G = (v o unit)^T, P(j, e) = D_r(e) u_e / s
@@ -294,7 +299,7 @@ bool LoopClosures::findPassageNow() {
           }
         }
         if (held) {
-          exclude(d);
+          exclude(d, true);
           ++p_band_;
         }
       }
@@ -314,6 +319,7 @@ bool LoopClosures::findPassageNow() {
       directions(p_svd_);
     }
     for (int j = row[c] + p_used_[c]; j < row[c] + used_before; ++j) clearSlot(j, c, n);
+    p_in_band_[c] = in_band;
   }
   if (p_band_ > 0) ++p_met_;
   return reduce;
@@ -358,6 +364,41 @@ double LoopClosures::passageResidual(const Eigen::VectorXd& b, const Eigen::Vect
   double worst = 0.0;
   for (int e = 0; e < m; ++e) worst = std::max(worst, relative(p_b_(e), scale_e(e)));
   return worst;
+}
+
+// Spells without a crossing. At a crossing the integration carries a held direction on its
+// branch: its residual is Phi = x y with y the round-off it entered with, eps times the
+// terms. Where the singular value dips into the band and comes back up without a crossing
+// (a near change point: the branches pass close and the motion turns from one onto the
+// other), the acceleration held across them is wrong and the residual along the held
+// direction grows; there the equations themselves determine the motion well (eps / s^3 of
+// the acceleration at s of 1e-3). The position projection at the end of a step releases
+// the closures whose held residual exceeds its tolerance (releaseHeld): their directions are
+// held by their equations until an accepted state finds them out of the band
+// (endPassageSpells).
+double LoopClosures::heldResidual(const Eigen::VectorXd& b, const Eigen::VectorXd& scale_e) {
+  p_b_.setZero();
+  bool any = false;
+  for (int h = 0; h < p_excl_; ++h)
+    if (p_excl_held_[h]) p_b_ += p_z_.row(h).transpose() * p_w_.row(h).dot(b), any = true;
+  if (!any) return 0.0;
+  double worst = 0.0;
+  for (int e = 0; e < m; ++e) worst = std::max(worst, relative(p_b_(e), scale_e(e)));
+  return worst;
+}
+
+bool LoopClosures::releaseHeld() {
+  bool any = false;
+  for (size_t c = 0; c < constraints.size(); ++c)
+    for (int j = row[c]; j < row[c] + p_used_[c]; ++j)
+      if (p_held_[j]) p_release_[c] = 1, any = true;
+  if (any) p_at_g_ = -1;  // (findPassage() decides again)
+  return any;
+}
+
+void LoopClosures::endPassageSpells() {
+  for (size_t c = 0; c < constraints.size(); ++c)
+    if (!p_in_band_[c]) p_release_[c] = 0;
 }
 
 }  // namespace mechanism_sim

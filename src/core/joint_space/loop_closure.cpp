@@ -140,10 +140,10 @@ LoopClosures::LoopClosures(const TreeModel& model, const System& sys) : model_(&
   }
   only_limits_ = true;
   for (int c : constraints) only_limits_ = only_limits_ && sys.constraints[c]->limit() >= 0;
-  limit_col_.assign(sys.limits.size(), -1);
+  limit_qcol_.assign(sys.limits.size(), -1);
   for (size_t i = 0; i < constraints.size(); ++i) {
     const int l = sys.constraints[constraints[i]]->limit();
-    if (l >= 0 && direct_[i].n == 1) limit_col_[l] = direct_[i].col[0];
+    if (l >= 0 && direct_[i].n == 1) limit_qcol_[l] = direct_[i].qcol[0];
   }
   {
     const State s0 = initialState(sys);
@@ -252,6 +252,8 @@ void LoopClosures::layout(const TreeModel& model, const System& sys, const std::
   p_solver_ = solver_;
   p_keep_.setZero(m);
   p_used_.assign(constraints.size(), 0);
+  p_release_.assign(constraints.size(), 0);
+  p_in_band_.assign(constraints.size(), 0);
 }
 
 // Idle rows. A row of a closure's equations whose G = Phi_x J(q) row is zero at every q is
@@ -414,8 +416,8 @@ int LoopClosures::activateReachedLimits(const System& sys, const TreeModel& mode
     if (limit_side[l]) continue;
     const LimitSpec& L = sys.limits[l];
     double q;
-    if (limit_col_[l] >= 0) {  // a tree coordinate: the limit's row is q's own
-      q = qv(limit_col_[l]);
+    if (limit_qcol_[l] >= 0) {  // a tree coordinate: the limit's row is q's own
+      q = qv(limit_qcol_[l]);
     } else {
       if (!kinematics) forwardKinematics(model, qv, qdot, ws), loadKin(ws), kinematics = true;
       const Joint& J = *sys.joints[L.joint];
@@ -1035,8 +1037,12 @@ ClosureProjectionReport projectClosurePositions(const TreeModel& model, const Sy
     forwardKinematics(model, q, qdot, ws);
     cl.evaluate(model, sys, ws, q);
     rep.at_rates = rates != nullptr;
-    // in a branch passage the held directions are the integration's: not judged, not moved
-    const bool passage = cl.passage_ref && cl.findPassage();
+    // in a branch passage the held directions are the integration's: not judged, not moved;
+    // where they have left the round-off a crossing leaves, their closures are released
+    // (branch_passage.cpp, "spells without a crossing")
+    bool passage = cl.passage_ref && cl.findPassage();
+    if (passage && cl.passageDirections() > 0 && cl.heldResidual(cl.Phi, cl.scale) > tol && cl.releaseHeld())
+      passage = cl.findPassage();
     rep.residual = passage ? cl.passageResidual(cl.Phi, cl.scale) : cl.positionResidual();
     const bool near = cl.passage_ref && cl.passageNear();
     rep.converged = rep.residual <= tol;
@@ -1069,6 +1075,8 @@ ClosureProjectionReport projectClosurePositions(const TreeModel& model, const Sy
     retract(model, q, dv);
     ++rep.iterations;
   }
+  // (the last evaluation is q's: a closure out of the band there ends its spell)
+  if (cl.passage_ref) cl.endPassageSpells();
   return rep;
 }
 

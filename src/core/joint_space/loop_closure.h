@@ -293,6 +293,14 @@ class LoopClosures {
   // Whether the last findPassage() saw a direction below kPassageNear (a passage, or one
   // close): the projections then go on to round-off past their tolerance.
   bool passageNear() const { return p_near_; }
+  // max_e |b''_e| / scale_e, b'' = b's components on the held directions (0: none held)
+  double heldResidual(const Eigen::VectorXd& b, const Eigen::VectorXd& scale_e);
+  // The closures with a held direction at the last findPassage() are released: held by
+  // their equations until they leave the band. Returns whether any was.
+  bool releaseHeld();
+  // At an accepted state (the position projection's end): closures out of the band there
+  // end their spell (the next passage is held again).
+  void endPassageSpells();
   // What the last findPassage() returned (at the last evaluate()).
   bool passageFound() const { return p_reduce_; }
 
@@ -317,7 +325,9 @@ class LoopClosures {
   };
   const Eigen::VectorXd* q_ = nullptr;  // evaluate()'s q, for the direct rows' Phi
   std::vector<DirectRow> direct_;  // per closure
-  std::vector<int> limit_col_;     // per sys limit: its velocity coordinate (a direct row), or -1
+  // per sys limit: its position coordinate in q (a direct row; past a spherical or free link
+  // not its velocity coordinate's index), or -1
+  std::vector<int> limit_qcol_;
   std::vector<char> implied_;      // per sys limit: a held slave's, implied by its master's (never active)
   std::vector<int> nrows_;         // per closure: its rows (the constraint's, less its idle ones)
   // Idle rows (idleRows()): rows of a closure's equations whose G row is zero wherever the
@@ -379,6 +389,9 @@ class LoopClosures {
   Eigen::JacobiSVD<Eigen::Matrix<double, 2, 3>> p_svd23_;
   int p_r_ = 0, p_band_ = 0;
   int p_excl_ = 0;  // rows of p_w_, p_z_: the held directions and the dependent ones
+  std::vector<char> p_excl_held_;  // per row of p_w_: a held direction (else dependent)
+  std::vector<char> p_release_;    // per closure: its passage released (held by the equations)
+  std::vector<char> p_in_band_;    // per closure: a direction below kPassageBand at the last findPassage()
   bool p_near_ = false, p_reduce_ = false;
   // max_k |dv_k| unit_k: a correction's size as a length (positions) or speed (rates)
   double correctionSize(const Eigen::VectorXd& dv) const;
