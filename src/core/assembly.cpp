@@ -118,10 +118,10 @@ Row coordinateRow(const System& sys, const State& s, const Evaluation& ev, const
 // times the mechanism's motion scale V (motionScale, max over bodies of
 // max(|v|, |w| L); all at rest, the gravity's velocity scale), for linear and V / L for
 // angular velocities. A
-// target of 0 is met when the rate is 0 to the rounding of the motion. (Judged against
-// |rate| alone, a zero target met to 1e-17 was a residual of 1; against the row's own
-// products J_i u_i or its bodies' own speeds, it still failed where the bodies barely turn
-// about the joint's axis or its body rests on the ground beside a moving one.)
+// target of 0 is met when the rate is 0 to the rounding of the motion: judged against
+// |rate| alone a zero target met to round-off would be a residual of 1, and against the
+// row's own products J_i u_i or its bodies' own speeds it fails where the bodies barely
+// turn about the joint's axis or its body rests on the ground beside a moving one.
 double rateScale(const System& sys, const CoordinateTarget& t, const Row& row, double V) {
   const double L = sys.length_scale;
   const int bs[2] = {sys.joints[t.joint]->bodyI(), sys.joints[t.joint]->bodyJ()};
@@ -766,7 +766,7 @@ AssemblyReport assembleOnce(const System& sys, State& s, Stepper& st,
   const DependencyReport dependencies = st.analyzeDependencies(sys, s);
   if (deps) *deps = dependencies;
 
-  // ---- velocities: mass-orthogonal projection onto Phi_q v = 0 and G_k v = target by the
+  // ---- velocities: mass-orthogonal projection onto Phi_q v = 0 and q_x,k v = target by the
   // augmented Lagrangian, starting from the bodies' own velocities.
   try {
     st.solver().factorPenalty(sys, ev, "assembly", s.t);

@@ -11,7 +11,7 @@
 // determine y only to eps / x, y_dot (velocity projection, G q_dot = 0) to eps / x^2 and
 // y_ddot (the acceleration solve, y_ddot = -(x_ddot y + 2 x_dot y_dot) / x) to eps / x^3.
 // An RK stage that lands near the crossing turns that into motion, and smaller steps land
-// closer: the error at 0.1 ms was larger than at 1 ms.
+// closer, so a smaller step does not help.
 //
 // What. The branch is smooth through the crossing, and so is the motion across it: near
 // the crossing y is carried by the integration, not by the equations. Each closure's rows
@@ -41,10 +41,8 @@
 // round-off it entered with, eps / kPassageBand), v_i leans into the motion by y / x. The
 // held row's reaction R_i^T mu_i then does work on the motion at the rate
 // mu_i (v_i o unit)^T q_dot ~ mu_i x_dot y / x, which grows without bound as a stage lands
-// near the crossing (x -> 0): each passage gave the motion an energy error of that size,
-// at random with where the stages fell (ten-loop four-bar at 0.1 ms: 1e-15 to 1e-13 of its
-// energy per passage, largest with a stage 6e-6 rad from flat; its 5 s error 3e-12 to
-// 1e-11 m with the round-off of one early step). An ideal constraint does no work on the
+// near the crossing (x -> 0): each passage would give the motion an energy error of that
+// size, at random with where the stages fall. An ideal constraint does no work on the
 // motion it allows (d'Alembert: the motion along the branch is then the branch's own
 // dynamics), so in an acceleration solve (passage_rate: its q_dot) a held direction is taken
 // across the motion: v_i less its component along m = C q_dot over the closure's columns,

@@ -2,8 +2,8 @@
 // closures are (loop_closure.h uses it for G and for the branch passages' reduced rows R).
 //
 //   TreeMassFactor  (M^-1 of many vectors at one state: the damping's and friction's
-//                   columns) the joint-space inertia matrix H (jointSpaceInertia: CRBA) factored as
-//                   H = L^T D L in the order of the tree (Featherstone, "Rigid Body Dynamics
+//                   columns) the joint-space inertia matrix M (RBDA's H; jointSpaceInertia:
+//                   CRBA) factored as M = L^T D L in the order of the tree (Featherstone, "Rigid Body Dynamics
 //                   Algorithms" (RBDA), 2008, 6.5, table 6.3, "LTDL"): L has the branch-induced
 //                   sparsity of H (L_ij != 0 only for j an ancestor coordinate of i), so the
 //                   factorization costs O(n d^2) and L^-T g touches only g's ancestors (d the
@@ -23,9 +23,9 @@
 //                   (AMD, Eigen's AMDOrdering) found once; if a pivot falls below
 //                   kClosureSparsePivot (rows dependent, or nearly), the rank-revealing dense
 //                   solve (ScaledLeastNorm) takes over, so dependent rows get the least-norm
-//                   multipliers as before. However few the kept rows (a four-bar's 2, an
-//                   arm's active limit), the sparse LDL^T comes first: a rank-revealing
-//                   decomposition of a 2 x 2 cost 10% of the one-loop four-bar's step.
+//                   multipliers. However few the kept rows (a four-bar's 2, an arm's active
+//                   limit), the sparse LDL^T comes first: a rank-revealing decomposition
+//                   costs more than the LDL^T even of a 2 x 2 (bench/RESULTS.md).
 #pragma once
 #include <vector>
 

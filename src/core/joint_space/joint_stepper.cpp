@@ -180,7 +180,7 @@ void JointStepper::accelerations(const System& sys, const State& s, const Inputs
   jointEfforts(model_, in, tau_);  // efforts along the joint coordinates
   // Damping, per coordinate of q_dot: a spherical joint's are the relative angular velocity
   // in frame i, Joint::coordinates' rates (settle() reads q_dot from them), so tau_k =
-  // -c_k q_dot_k is the absolute formulation's G_k^T (-c_k G_k u) (appliedForces): one power,
+  // -c_k q_dot_k is the absolute formulation's q_x,k^T (-c_k q_x,k u) (appliedForces): one power,
   // tau . q_dot = (G^T tau) . u, on the tree's coordinates and the bodies' alike.
   for (size_t i = 0; i < damped_.size(); ++i)  // damping that is not stiff: an effort
     if (!stiff_[i]) tau_(damped_[i].iv) -= damped_[i].c * qdot(damped_[i].iv);
@@ -503,7 +503,7 @@ bool JointStepper::clearFriction(const System& sys, State& s) const {
 // coordinate's rate after the step without friction is q_dot + h q_ddot, q_ddot the free
 // accelerations at q0 (s.qddot; in joint coordinates the coordinate's own velocity term,
 // the absolute formulation's -gamma, is in q_ddot itself). Its effective inertia's inverse
-// is G_k P G_l^T = (P e_k)_l, P the constrained inverse mass in joint coordinates: M^-1
+// is q_x,k P q_x,l^T = (P e_k)_l, P the constrained inverse mass in joint coordinates: M^-1
 // from the articulated factors at q0 (ws_), less M^-1 G^T (G M^-1 G^T)^+ G M^-1 with the
 // closures (their factorization at q0: stage 1 ran there), as classifyDamping's.
 void JointStepper::frictionFor(const System& sys, State& s, double h) {
@@ -596,12 +596,12 @@ double coordinateInverseMassBound(const System& sys, const Joint& J, const Row& 
 //     term M^-1 G^T (G M^-1 G^T)^+ G M^-1 is positive semidefinite), so
 //        |P_lk| <= sqrt(P_ll P_kk) <= sqrt((M^-1)_ll (M^-1)_kk) <= sqrt(beta_l beta_k),
 //        s_k <= h sqrt(c_k beta_k) sum_l sqrt(c_l beta_l) =: u_k.
-//     A coordinate with u_k within stiff_bound is not stiff (the 7-dof arms' heavy links:
-//     kuka_iiwa's u_k is at most 1.82 against RK4's 2; there nothing more is computed).
+//     A coordinate with u_k within stiff_bound is not stiff (the heavy links of a 7-dof
+//     arm: there nothing more is computed).
 //  2. Else the absolute formulation's bound with the joint's own damped coordinates, the
 //     rows on their two bodies and System::Minv: a filter, not a bound (it leaves out the
 //     other joints' terms), so only where it is below stiff_bound / 4 is the coordinate
-//     taken as not stiff (as before 1. was added: the same coordinates are stiff).
+//     taken as not stiff (it finds the same stiff coordinates as 3. would).
 //  3. Else P_lk itself, at the damped l only (dampedInverseMass: O(depth) an entry, where a
 //     column of P costs passes over the tree).
 // (1. decides only where 3. would decide the same: u_k >= s_k.)
@@ -716,9 +716,9 @@ bool JointStepper::classifyDamping(const System& sys, State& s, double h) {
       // when the hand carries it. G M^-1 e_k is row k of M^-1 G^T.
       damp_col_ = damp_Minv_.col(next++);
       if (damp_touched_[i])  // (by columns: Eigen's product kernels cost more at these sizes)
-        // (a row on other branches of the closures has Yd 0 here: skipped, every bit as
-        // before; so are the entries where W's column is zero, which would change at most
-        // the sign of a zero entry, and |P_lk| is read)
+        // (a row on other branches of the closures has Yd 0 here: skipped, the same bits;
+        // so are the entries where W's column is zero, which would change at most the sign
+        // of a zero entry, and |P_lk| is read)
         for (int e : damp_used_)
           if (damp_Yd_(i, e) != 0.0) {
             const int lo = damp_W_lo_[e], n = damp_W_hi_[e] - lo;

@@ -1,4 +1,4 @@
-// The joint-space formulation's stepper (issue 20): the spanning tree moves in joint
+// The joint-space formulation's stepper: the spanning tree moves in joint
 // coordinates (joint_space/tree.h: q, q_dot per joint, unit quaternions for spherical joints and
 // free bodies), integrated by the same Butcher tableaus as the absolute formulation
 // (tableau.h) with the articulated-body algorithm for q_ddot: O(n) a stage, and a revolute
@@ -10,7 +10,7 @@
 // formulation's. The joint state itself (State::q, qdot, qddot) is part of the State: a
 // snapshot restores it bit for bit.
 //
-// What it runs today (jointFormulationUnsupported says what it does not): trees of every
+// What it runs (jointFormulationUnsupported says what it does not): trees of every
 // joint type and free bodies, with gravity, applied efforts, body wrenches, springs (body
 // loads at the tree's poses), and joint limits, drives and mimic couplers as equations on
 // the tree (loop_closure.h: their absolute equations through G = Phi_x J(q)), and joint

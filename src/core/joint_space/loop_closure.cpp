@@ -389,7 +389,7 @@ bool LoopClosures::addCutJointEfforts(const TreeModel& model, const System& sys,
     for (int s = 0; s < 2; ++s) {
       const int b = bodies[s];
       if (b == 0) continue;
-      // the joint's generalized force on b's absolute coordinates: sum_k G_k^T tau_k
+      // the joint's generalized force on b's absolute coordinates: sum_k q_x,k^T tau_k
       Vector6d f = Vector6d::Zero();
       for (int k = 0; k < J.dof(); ++k) f += rows[k].J.segment<6>(6 * s).transpose() * in.effort[j][k];
       for (int a = b; a != 0; a = model.links[a - 1].parent) {
@@ -853,7 +853,6 @@ int ScaledLeastNorm::factor(Eigen::MatrixXd& A, const Eigen::VectorXd* keep) {
     return static_cast<int>(n - kept) + (kept > 0 ? static_cast<int>(small_cod_.rank()) : 0);
   }
   if (compact_) {  // more kept rows, still not all (a planar loop's zero rows): those alone
-    // (bench: the ten-loop four-bar in joint coordinates, 50 rows of which 20 kept)
     for (int i = 0; i < kept; ++i)
       for (int j = 0; j < kept; ++j)
         sub_(i, j) = A(kept_all_[i], kept_all_[j]) * d_(kept_all_[i]) * d_(kept_all_[j]);
@@ -954,7 +953,7 @@ ClosureSolveInfo constrainedForwardDynamics(const TreeModel& model, const System
   // the stepper's projections leave them when they move nothing)
   if (evaluated) forwardDynamicsAtKinematics(model, sys, tau, ws, qddot, loads);
   else forwardDynamics(model, sys, q, qdot, tau, ws, qddot, loads);
-  // efforts on cut joints: q_ddot += M^-1 (G_k J)^T tau_k (the recursion is linear in tau)
+  // efforts on cut joints: q_ddot += M^-1 (q_x,k J)^T tau_k (the recursion is linear in tau)
   if (loads && !model.cut_joints.empty()) {
     cl.tau_.setZero();
     if (cl.addCutJointEfforts(model, sys, ws, *loads, cl.tau_)) {

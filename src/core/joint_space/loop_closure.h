@@ -200,8 +200,8 @@ class LoopClosures {
     for (int e = 0; e < m; ++e) out(sys_row[e]) = lambda(e);
     for (int r : idle_sys_rows_) if (r >= 0) out(r) = 0.0;  // (rows no motion moves: no force)
   }
-  // tau += (G_k J(q))^T tau_k for every cut joint's coordinate k with effort tau_k in `in`
-  // (its rows G_k from Joint::coordinates over its two bodies, mapped as G), at ws's
+  // tau += (q_x,k J(q))^T tau_k for every cut joint's coordinate k with effort tau_k in `in`
+  // (its rows q_x,k from Joint::coordinates over its two bodies, mapped as G), at ws's
   // kinematics; returns whether any such effort is nonzero.
   bool addCutJointEfforts(const TreeModel& model, const System& sys, const TreeWorkspace& ws, const Inputs& in,
                           Eigen::VectorXd& tau);
@@ -384,7 +384,7 @@ class LoopClosures {
   Eigen::JacobiSVD<Eigen::MatrixXd> p_svd_;
   Eigen::JacobiSVD<Small6> p_svd6_;  // (the same up to 6 x 6)
   // (and a planar loop's two rows over three columns, a four-bar's, in fixed-size storage:
-  // the same operations, bit for bit, at a quarter less cost; V in full, its first two
+  // the same operations, bit for bit, for less work; V in full, its first two
   // columns the thin V's)
   Eigen::JacobiSVD<Eigen::Matrix<double, 2, 3>> p_svd23_;
   int p_r_ = 0, p_band_ = 0;

@@ -187,8 +187,9 @@ void System::finalize() {
   // moments (hasMoments) the mean moment, and every moment is raised by 1e-3 of the body's mean
   // moment, so a zero principal moment (a thin rod's) does not make the weights of the
   // equations that hold that rotation vanish. They only scale W (the refinement solves the
-  // exact KKT system); with 1e-9 instead of 1e-3 a 7 kg ram with ixx = 0 fell short on
-  // nearly every solve (test FuzzFindings.ZeroPrincipalMoment...).
+  // exact KKT system); a much smaller raise leaves a body with a zero moment (a 7 kg ram
+  // with ixx = 0, test FuzzFindings.ZeroPrincipalMoment...) weighting its rows so unevenly
+  // that nearly every solve falls short.
   Minv.assign(nb, Eigen::Matrix<double, 6, 6>::Zero());
   for (int b = 1; b <= nb; ++b) {
     const Body& B = bodies[b];
