@@ -179,6 +179,21 @@ std::string jointSpaceUnsupported(const System& sys, bool loops_as_closures) {
       return "joint '" + J->name() + "': the joint-space tree has no model of joint type '" + J->type() + "'";
     if (J->bodyI() == J->bodyJ()) return "joint '" + J->name() + "': joins a body to itself";
   }
+  // Rotor inertias: a diagonal armature on a tree coordinate that no embedded coupler ties
+  if (!sys.rotors.empty()) {
+    const TreeModel model(sys, true);
+    for (const RotorInertia& R : sys.rotors) {
+      if (R.coupled())
+        return "rotor inertia '" + R.name + "' couples two joints (" + sys.joints[R.coords[0].first]->name() + ", " +
+               sys.joints[R.coords[1].first]->name() + "): the joint-space recursions take a diagonal rotor inertia";
+      for (const auto& c : R.coords) {
+        const int link = model.joint_link[c.first];
+        if (link < 0 || model.links[link].tie >= 0 || model.links[link].tie_master)
+          return "rotor inertia '" + R.name + "' on joint '" + sys.joints[c.first]->name() +
+                 "', which closes a loop or is coupled: the joint-space recursions take rotors on free tree joints";
+      }
+    }
+  }
   // Joints that close loops are cut joints, constraints on the tree (loop_closure.h), for
   // a caller that integrates them as such.
   if (!loops_as_closures) {
@@ -388,6 +403,11 @@ TreeModel::TreeModel(const System& sys, bool embed_couplers) {
     H.mc += B.m * L.rhoh;
   }
   if (embed_couplers) embedCouplers(sys, *this);
+  armature = Eigen::VectorXd::Zero(nv);
+  for (const RotorInertia& R : sys.rotors)
+    for (size_t c = 0; c < R.coords.size(); ++c)
+      if (joint_link[R.coords[c].first] >= 0)
+        armature[links[joint_link[R.coords[c].first]].iv + R.coords[c].second] += R.B(c, c);
 }
 
 void TreeModel::holdTies(Eigen::VectorXd& q, Eigen::VectorXd& qdot, Eigen::VectorXd* q_round,
@@ -783,10 +803,10 @@ void forwardDynamicsAtKinematics(const TreeModel& model, const System& sys, cons
     if (L.pivot >= 0) pivotInward(sys, L, k, ws, pa);
     if (L.nv == 1) {  // the common case without the small-matrix machinery
       Vector6d U = IA * ws.S[k].col(0);
-      double D = ws.S[k].col(0).dot(U), u = tau(L.iv) - ws.S[k].col(0).dot(pa);
+      double D = ws.S[k].col(0).dot(U) + model.armature[L.iv], u = tau(L.iv) - ws.S[k].col(0).dot(pa);
       if (L.tie_master) {  // the tied links' terms (above): U = I^A S + W, D, u
         U += ws.W[k];
-        D = ws.S[k].col(0).dot(U) + ws.S[k].col(0).dot(ws.W[k]) + ws.dd[k];
+        D = ws.S[k].col(0).dot(U) + ws.S[k].col(0).dot(ws.W[k]) + ws.dd[k] + model.armature[L.iv];
         u -= ws.beta[k];
       }
       if (!(D > 0.0)) notPositive(sys, L, D);
@@ -801,7 +821,8 @@ void forwardDynamicsAtKinematics(const TreeModel& model, const System& sys, cons
       MotionSubspace& U = ws.U[k];
       U.noalias() = IA * ws.S[k];
       if (L.nv > 0) {
-        const SmallMatrix D = ws.S[k].transpose() * U;
+        SmallMatrix D = ws.S[k].transpose() * U;
+        for (int i = 0; i < L.nv; ++i) D(i, i) += model.armature[L.iv + i];
         // D is symmetric positive definite when the subtree has mass along every joint
         // direction; LLT on at most 6 x 6 in place (no heap).
         Eigen::LLT<SmallMatrix> llt(D);
@@ -906,6 +927,7 @@ void jointSpaceInertia(const TreeModel& model, const TreeWorkspace& ws, AlignedV
     if (L.nv == 0) continue;
     MotionSubspace F = Ic[k] * ws.S[k];
     H.block(L.iv, L.iv, L.nv, L.nv).noalias() = ws.S[k].transpose() * F;
+    for (int i = 0; i < L.nv; ++i) H(L.iv + i, L.iv + i) += model.armature[L.iv + i];
     for (int j = k; model.links[j].parent != 0;) {
       for (int c = 0; c < L.nv; ++c) F.col(c) = transformForceBack(ws.E[j], ws.rho[j], F.col(c));
       j = model.links[j].parent - 1;

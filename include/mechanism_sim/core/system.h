@@ -16,6 +16,7 @@
 #include "mechanism_sim/core/drive.h"
 #include "mechanism_sim/core/errors.h"
 #include "mechanism_sim/core/joint.h"
+#include "mechanism_sim/core/transmission.h"
 
 namespace mechanism_sim {
 
@@ -125,6 +126,7 @@ class System {
   std::vector<LimitSpec> limits;
   std::vector<DriveSpec> drives;
   std::vector<std::array<double, 3>> damping, friction;  // per joint coordinate
+  std::vector<RotorInertia> rotors;  // reflected rotor inertias (transmission.h)
   Vector3d gravity = Vector3d(0, 0, -9.81);
   IntegratorOptions options;
 
