@@ -154,12 +154,18 @@ TEST(Actuators, HarmonicDriveExampleSizing) {
   auto model = loadModelFile(kSource + "/urdf/harmonic_drive_joint.urdf");
   {
     RunLoop loop(*model, 1e-3, 100);
-    while (loop.steps() < 2000) loop.advance();
+    const double E0 = model->kineticEnergy() + model->potentialEnergy();
+    while (loop.steps() < 2300) loop.advance();
+    const double E1 = model->kineticEnergy() + model->potentialEnergy();
     ASSERT_EQ(loop.actuatorSizing().size(), 1u);
     const ActuatorSizing& a = loop.actuatorSizing()[0];
     EXPECT_TRUE(a.withinRating()) << a.describe();
     EXPECT_NE(a.describe().find("within rating"), std::string::npos) << a.describe();
     EXPECT_NEAR(a.peakSpeed(), 100 * 0.8 * 2 * M_PI, 1e-6 * 500);
+    // the motor's work is the change of energy, the rotor's included (no damping here);
+    // the trapezoidal rule's error at 1 ms is O(h^2)
+    ASSERT_GT(std::fabs(E1 - E0), 1.0);
+    EXPECT_NEAR(a.positiveWork() + a.negativeWork(), E1 - E0, 1e-4 * a.positiveWork());
   }
   std::ifstream in(kSource + "/urdf/harmonic_drive_joint.urdf");
   std::string xml((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
