@@ -227,6 +227,49 @@ TEST(RotorInertia, DifferentialCoupledInertia) {
   EXPECT_THROW(build(j, "joint"), ModelError);
 }
 
+// A serial two-link arm (shoulder on the ground, elbow on the upper arm, both about y)
+// behind a four-bar transmission with both rotors: B couples the two joints across three
+// bodies. Released from the horizontal with velocities, the energy with the rotors'
+// 1/2 q_dot^T B q_dot stays constant; without the rotors it is not the same motion.
+TEST(RotorInertia, FourBarRotorsOnASerialArmConserveEnergy) {
+  Transmission t;
+  t.type = TransmissionType::kFourBar;
+  t.actuator_reduction = {30, 20}, t.joint_reduction = {1.5, 2}, t.joint_offset = {0, 0};
+  const Eigen::Matrix2d B = t.reflectedInertia(Eigen::Vector2d(1e-4, 5e-5));
+  ASSERT_GT(std::fabs(B(0, 1)), 1e-3);
+  auto build = [&](Mechanism& m, bool rotors) {
+    const int upper = m.addBody(body("upper", 2.0, 0.02 * Matrix3d::Identity(), Vector3d(0.2, 0, 0)));
+    const int fore = m.addBody(body("fore", 1.0, 0.01 * Matrix3d::Identity(), Vector3d(0.6, 0, 0)));
+    m.addJoint(makeJoint("revolute", "shoulder", Mechanism::kGround, models::axisY(Vector3d::Zero()), upper,
+                         models::axisY(Vector3d(-0.2, 0, 0))));
+    m.addJoint(makeJoint("revolute", "elbow", upper, models::axisY(Vector3d(0.2, 0, 0)), fore,
+                         models::axisY(Vector3d(-0.2, 0, 0))));
+    if (rotors) {
+      RotorInertia r;
+      r.name = "four_bar";
+      r.coords = {{0, 0}, {1, 0}};
+      r.B = B;
+      m.addRotorInertia(r);
+    }
+    IntegratorOptions io;
+    io.formulation = "auto";
+    m.setIntegrator(io);
+    m.build();
+    m.assemble({}, {{0, 0, 1.0}, {1, 0, -2.0}});
+  };
+  Mechanism m, plain;
+  build(m, true);
+  build(plain, false);
+  EXPECT_STREQ(m.formulation(), "absolute");
+  const Eigen::Vector2d q_dot(1.0, -2.0);
+  EXPECT_NEAR(m.kineticEnergy() - plain.kineticEnergy(), 0.5 * q_dot.dot(B * q_dot), 1e-12 * m.kineticEnergy());
+  const double E0 = m.kineticEnergy() + m.potentialEnergy();
+  for (int k = 0; k < 1000; ++k) m.step(1e-3), plain.step(1e-3);
+  EXPECT_NEAR(m.kineticEnergy() + m.potentialEnergy(), E0, 1e-8 * std::fabs(E0) + 1e-8);
+  EXPECT_GT(std::fabs(m.jointPosition(1, 0) - plain.jointPosition(1, 0)), 0.01);
+  EXPECT_LT(m.relativePositionViolation(), 1e-10);
+}
+
 TEST(RotorInertia, BadRotorIsRefused) {
   Mechanism m;
   Pendulum().add(m);
