@@ -11,7 +11,7 @@ ActuatorState MechanismModel::actuatorState(int actuator) const {
   const int n = static_cast<int>(t.dofs.size());
   const System& sys = mechanism_->system();
   const State& st = mechanism_->state();
-  Eigen::VectorXd q(n), q_dot(n), tau(n);
+  Eigen::Vector2d q = Eigen::Vector2d::Zero(), q_dot = q, tau = q;
   for (int i = 0; i < n; ++i) {
     const Dof& d = dofs_[t.dofs[i]];
     q[i] = position(t.dofs[i]);
@@ -25,9 +25,11 @@ ActuatorState MechanismModel::actuatorState(int actuator) const {
     if (drive >= 0) tau[i] -= st.lambda[sys.layout[sys.drives[drive].constraint].row];
   }
   ActuatorState s;
-  s.position = t.map.actuatorPosition(q)[a.k];
-  s.velocity = t.map.actuatorVelocity(q_dot)[a.k];
-  s.torque = t.map.actuatorEffort(tau)[a.k];
+  // theta = E (q - q_0), theta_dot = E q_dot, tau_theta = E^-T tau_q (transmission.h)
+  for (int i = 0; i < n; ++i) q[i] -= t.map.joint_offset[i];
+  s.position = t.E.row(a.k).dot(q);
+  s.velocity = t.E.row(a.k).dot(q_dot);
+  s.torque = t.E_inv_T.row(a.k).dot(tau);
   // the motor's own losses, which it overcomes at the speed the motion asks
   const double sign = s.velocity > 0 ? 1.0 : s.velocity < 0 ? -1.0 : 0.0;
   s.torque += a.ratings.damping * s.velocity + a.ratings.friction * sign;

@@ -598,9 +598,15 @@ class ModelBuilder {
   // The simulated <transmission>s (transmissions.h, doc/actuators.md): each joint a movable
   // one-dof joint; the actuators' rotors reflected onto the joints (System::rotors).
   void addTransmissions(const Transmissions& read) {
+    if (read.repeated)
+      limit_notes_.push_back(std::to_string(read.repeated) + " <transmission>s repeat another exactly (one per "
+                             "hardware interface): each is read once");
     for (const TransmissionSpec& s : read.simulated) {
       TransmissionInfo info;
       info.map = s.map;
+      const Eigen::MatrixXd E = s.map.velocityMap();
+      info.E.topLeftCorner(E.rows(), E.cols()) = E;
+      info.E_inv_T.topLeftCorner(E.rows(), E.cols()) = E.inverse().transpose();
       if (!s.note.empty()) limit_notes_.push_back(s.note);
       RotorInertia rotor;
       rotor.name = s.map.name;

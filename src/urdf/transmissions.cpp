@@ -152,6 +152,18 @@ Transmissions readTransmissions(const XMLElement* robot, const XmlReader& r) {
       continue;
     }
     TransmissionSpec s = readOne(t, tt, r);
+    // the same transmission again (files write one per hardware interface: franka_ros's
+    // position, velocity and effort ones) is read once; a different one on the same
+    // joints or actuators contradicts it
+    bool repeated = false;
+    for (const TransmissionSpec& o : out.simulated)
+      repeated = repeated || (o.map.type == s.map.type && o.joints == s.joints && o.actuators == s.actuators &&
+                              o.map.actuator_reduction == s.map.actuator_reduction &&
+                              o.map.joint_reduction == s.map.joint_reduction && o.map.joint_offset == s.map.joint_offset);
+    if (repeated) {
+      ++out.repeated;
+      continue;
+    }
     for (const std::string& a : s.actuators) {
       if (actuator_of.count(a)) r.fail(t, "actuator '" + a + "' is in another transmission already");
       actuator_of[a] = t;

@@ -32,6 +32,7 @@ struct Transmissions {
   // Types read but not simulated: type -> count (listed as ignored, as other elements)
   std::map<std::string, int> ignored;
   std::map<std::string, ActuatorSpec> actuators;  // by name: every actuator a simulated one names
+  int repeated = 0;  // transmissions that repeat a simulated one exactly (read once)
 };
 
 // The robot's <transmission> children and <mechanism_sim:actuator> elements. Throws

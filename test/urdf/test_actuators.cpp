@@ -109,6 +109,17 @@ TEST(Actuators, Pr2FormAndIgnoredTypes) {
   for (const std::string& note : model->notes())
     listed = listed || note.find("1 <transmission> of type sr_mechanism_model/SimpleTransmission") != std::string::npos;
   EXPECT_TRUE(listed);
+  // the same transmission once per hardware interface (franka_ros) is one transmission; a
+  // different one on the same actuator contradicts it
+  auto twice = [](const std::string& reduction) {
+    return std::string(kSimple) + "<transmission name=\"gearbox\"><type>transmission_interface/SimpleTransmission</type>"
+           "<joint name=\"hinge\"><hardwareInterface>hardware_interface/VelocityJointInterface</hardwareInterface></joint>"
+           "<actuator name=\"motor\"><mechanicalReduction>" + reduction + "</mechanicalReduction></actuator></transmission>";
+  };
+  auto franka = loadModelString(pendulum(twice("100")), "franka.urdf");
+  EXPECT_EQ(franka->transmissions().size(), 1u);
+  EXPECT_EQ(loadError(pendulum(twice("50"))),
+            "t.urdf:1: transmission 'gearbox': actuator 'motor' is in another transmission already");
 }
 
 // Two pendulums hinged on the ground behind one differential (ros_control's roles and

@@ -100,6 +100,9 @@ struct TransmissionInfo {
   Transmission map;
   std::vector<int> dofs;
   std::vector<int> actuators;  // indices into MechanismModel::actuators()
+  // map.velocityMap() and its inverse transpose, in the top-left size x size (what
+  // actuatorState applies at every step, without allocating)
+  Eigen::Matrix2d E = Eigen::Matrix2d::Zero(), E_inv_T = Eigen::Matrix2d::Zero();
 };
 
 // An actuator a simulated transmission names, with its ratings (0: not given).
