@@ -598,6 +598,7 @@ class ModelBuilder {
   // The simulated <transmission>s (transmissions.h, doc/actuators.md): each joint a movable
   // one-dof joint; the actuators' rotors reflected onto the joints (System::rotors).
   void addTransmissions(const Transmissions& read) {
+    std::string no_reduction;  // transmissions without a reduction, listed in one note
     if (read.repeated)
       limit_notes_.push_back(std::to_string(read.repeated) + " <transmission>s repeat another exactly (one per "
                              "hardware interface): each is read once");
@@ -607,7 +608,7 @@ class ModelBuilder {
       const Eigen::MatrixXd E = s.map.velocityMap();
       info.E.topLeftCorner(E.rows(), E.cols()) = E;
       info.E_inv_T.topLeftCorner(E.rows(), E.cols()) = E.inverse().transpose();
-      if (!s.note.empty()) limit_notes_.push_back(s.note);
+      if (!s.note.empty()) no_reduction += (no_reduction.empty() ? "'" : ", '") + s.map.name + "'";
       RotorInertia rotor;
       rotor.name = s.map.name;
       for (const std::string& joint : s.joints) {
@@ -639,6 +640,9 @@ class ModelBuilder {
       if (J.maxCoeff() > 0.0 && !kinematic_) mech().addRotorInertia(rotor);
       model_->transmissions_.push_back(info);
     }
+    if (!no_reduction.empty())
+      limit_notes_.push_back("transmissions without a <mechanicalReduction> take 1, as gazebo_ros_control reads them: " +
+                             no_reduction);
   }
 
   // <mechanism_sim:drive> and the options' velocity drives (which replace the file's

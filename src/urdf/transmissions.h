@@ -18,7 +18,7 @@ struct TransmissionSpec {
   const tinyxml2::XMLElement* element = nullptr;
   Transmission map;                     // its type, reductions and offsets
   std::vector<std::string> joints, actuators;  // in the roles' order (joint1, joint2; actuator1, actuator2)
-  std::string note;  // what the loader assumed (a missing reduction), "" if nothing
+  std::string note;  // what the loader assumed (a missing reduction: the loader lists them), "" if nothing
 };
 
 struct ActuatorSpec {
