@@ -4,6 +4,11 @@ catkin_add_gtest(test_loader test/urdf/test_loader.cpp test/urdf/test_drive_file
 target_link_libraries(test_loader mechanism_sim_urdf gtest_main)
 target_compile_definitions(test_loader PRIVATE MECHANISM_SIM_SOURCE_DIR="${PROJECT_SOURCE_DIR}")
 
+# Transmissions and actuators (doc/actuators.md).
+catkin_add_gtest(test_actuators test/urdf/test_actuators.cpp)
+target_link_libraries(test_actuators mechanism_sim_urdf gtest_main)
+target_compile_definitions(test_actuators PRIVATE MECHANISM_SIM_SOURCE_DIR="${PROJECT_SOURCE_DIR}")
+
 # Loop closures in other tools' dialects (doc/loop_dialects.md), fixtures in test/dialects/.
 catkin_add_gtest(test_dialects test/urdf/test_dialects.cpp)
 target_link_libraries(test_dialects mechanism_sim_urdf gtest_main)

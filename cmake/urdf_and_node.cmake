@@ -9,6 +9,8 @@ add_library(mechanism_sim_urdf
   src/urdf/run_loop.cpp
   src/urdf/trajectory.cpp
   src/urdf/xacro.cpp
+  src/urdf/transmissions.cpp
+  src/urdf/actuators.cpp
 )
 target_include_directories(mechanism_sim_urdf PUBLIC include ${urdfdom_INCLUDE_DIRS})
 target_link_libraries(mechanism_sim_urdf mechanism_sim_core ${urdfdom_LIBRARIES} ${TINYXML2_TARGET} console_bridge)

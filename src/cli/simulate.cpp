@@ -33,7 +33,7 @@ const char* kUsage =
     "                [--set JOINT=POSITION]... [--velocity JOINT=VALUE]...\n"
     "                [--effort JOINT=VALUE]... [--drive JOINT=VELOCITY]...\n"
     "                [--reactions] [--bag FILE.bag] [--plot FILE.png] [--plot-columns LIST]\n"
-    "                [--closures FILE.yaml] [--strict-inertia] [--quiet]\n"
+    "                [--closures FILE.yaml] [--actuators FILE.yaml] [--strict-inertia] [--quiet]\n"
     "                [--trajectory FILE.csv] [--trajectory-start-tolerance X]\n";
 
 // A command line that cannot be run throws mechanism_sim::UsageError (exit 2 with the usage).
@@ -98,6 +98,7 @@ Args parse(int argc, char** argv) {
     else if (arg == "--plot") a.plot = value();
     else if (arg == "--plot-columns") a.plot_columns = value();
     else if (arg == "--closures") a.load.closures_file = value();  // doc/loop_dialects.md
+    else if (arg == "--actuators") a.load.actuators_file = value();  // doc/actuators.md
     else if (arg == "--strict-inertia") a.load.strict_inertia = true;  // doc/robots.md
     else if (arg == "--quiet") a.quiet = true;
     else if (arg == "--trajectory") a.trajectory = value();  // doc/trajectories.md
@@ -261,6 +262,16 @@ int main(int argc, char** argv) {
   const std::string summary = runSummary(*model, steps, args.dt, wall, loop.worstPositionViolation(),
                                          loop.worstVelocityViolation(), loop.drivePeaks());
   if (!args.quiet) std::fprintf(stderr, "%s: %s\n", args.model.c_str(), summary.c_str());
+  // each actuator described (ratings or a rotor given) sized; the others counted
+  // (doc/actuators.md)
+  int undescribed = 0;
+  for (size_t a = 0; a < loop.actuatorSizing().size(); ++a) {
+    if (!ratingsGiven(model->actuators()[a].ratings)) ++undescribed;
+    else if (!args.quiet) std::fprintf(stderr, "%s: %s\n", args.model.c_str(), loop.actuatorSizing()[a].describe().c_str());
+  }
+  if (undescribed && !args.quiet)
+    std::fprintf(stderr, "%s: %d actuators without ratings (their motor_* columns are in the CSV)\n", args.model.c_str(),
+                 undescribed);
   for (const std::string& note : model->notes())
     if (!args.quiet) std::fprintf(stderr, "%s: %s\n", args.model.c_str(), note.c_str());
   if (!args.plot.empty()) {

@@ -793,6 +793,7 @@ AssemblyReport assembleOnce(const System& sys, State& s, Stepper& st,
   Eigen::VectorXd Mu(sys.n), mu_c = Eigen::VectorXd::Zero(sys.m), Ju(sys.m), y(sys.m);
   std::vector<double> mu_t(velocities.size(), 0.0);
   mulM(sys, s.u.data(), Mu.data());
+  addRotorMass(sys, ev, s.u.data(), Mu.data());
   std::vector<std::array<double, 2>> scales(sys.nb);
   double vres = 0;
   auto velocityError = [&]() {

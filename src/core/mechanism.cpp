@@ -193,6 +193,11 @@ void Mechanism::setJointDamping(int joint, int k, double c) {
   if (joint_) joint_->setDamping(*sys_);  // (the joint stepper keeps its damped coordinates)
 }
 
+void Mechanism::addRotorInertia(const RotorInertia& rotor) {
+  requireUnbuilt("addRotorInertia");
+  sys_->rotors.push_back(rotor);
+}
+
 void Mechanism::setJointFriction(int joint, int k, double f) {
   checkCoordinate(joint, k);
   if (!(f >= 0) || !std::isfinite(f))
@@ -465,6 +470,14 @@ std::vector<Reaction> Mechanism::jointReactions() const {
       if (tau != 0.0) add(j, rows[k].J.segment<6>(6).transpose() * tau);
     }
   }
+  // The rotors' inertial efforts -B q_ddot (transmission.h): the drives' and commands'
+  // efforts above accelerate the rotors too, which the gearbox, not the child link, takes.
+  for (const RotorInertia& R : sys.rotors) {
+    Eigen::Vector2d q_ddot = Eigen::Vector2d::Zero();
+    for (size_t c = 0; c < R.coords.size(); ++c) q_ddot[c] = jointAcceleration(R.coords[c].first, R.coords[c].second);
+    const Eigen::Vector2d tau = R.B * q_ddot;
+    for (size_t c = 0; c < R.coords.size(); ++c) along(R.coords[c].first, R.coords[c].second, -tau[c]);
+  }
   return out;
 }
 
@@ -491,6 +504,11 @@ double Mechanism::kineticEnergy() const {
     const double* ub = state_.u.data() + BodyCoordinates::u(b - 1);
     const Eigen::Map<const Vector3d> v(ub), w(ub + 3);
     T += 0.5 * B.m * v.squaredNorm() + 0.5 * w.dot(B.Jp * w);
+  }
+  for (const RotorInertia& R : sys_->rotors) {  // 1/2 q_dot^T B q_dot
+    Eigen::Vector2d q_dot = Eigen::Vector2d::Zero();
+    for (size_t c = 0; c < R.coords.size(); ++c) q_dot[c] = jointVelocity(R.coords[c].first, R.coords[c].second);
+    T += 0.5 * q_dot.dot(R.B * q_dot);
   }
   return T;
 }

@@ -25,6 +25,7 @@
 #include "mechanism_sim/urdf/model.h"
 #include "rigid_bodies.h"
 #include "xacro.h"
+#include "transmissions.h"
 #include "xml_input.h"
 
 namespace mechanism_sim {
@@ -140,7 +141,9 @@ class ModelBuilder {
     }
     const std::vector<std::string> roots = validateStandard(robot, reader_);
     if (roots.size() > 1) floatExtraRoots(doc, robot, roots, implicit_world);
-    noteIgnored(robot);
+    Transmissions transmissions = readTransmissions(robot, reader_);  // (transmissions.h)
+    readActuatorsFile(options_.actuators_file, transmissions);
+    noteIgnored(robot, transmissions.ignored);
     Extension ext = readExtension(robot, reader_);
     readClosuresFile(options_.closures_file, robot, &ext);  // "Extended URDF" (loop_dialects.h)
     std::string why;
@@ -181,6 +184,7 @@ class ModelBuilder {
     for (const JointSpec& s : specs.tree) addMimic(s, specs);
     for (const JointSpec& s : specs.tree) tree_joints_.push_back(s.name);
     for (const Coupling& c : resolveCouplings(ext, specs, reader_)) addCoupling(c);
+    addTransmissions(transmissions);
     model_->notes_ = ext.notes;
     model_->notes_.insert(model_->notes_.end(), root_notes_.begin(), root_notes_.end());
     if (!ignored_note_.empty()) model_->notes_.push_back(ignored_note_);
@@ -246,10 +250,11 @@ class ModelBuilder {
   // shapes (no contact is simulated), Gazebo extensions other than SDF joints and links (plugins,
   // materials, sensors) and other tools' top-level elements (<mujoco>, ...). Visuals and
   // materials are for viewers (rviz reads them) and not listed.
-  void noteIgnored(const tinyxml2::XMLElement* robot) {
+  void noteIgnored(const tinyxml2::XMLElement* robot, const std::map<std::string, int>& transmission_types) {
     std::map<std::string, int> count;
     static const std::set<std::string> read = {"link", "joint", "material", "loop_joint", "loop", "coupling",
-                                               "constraint", "drake:ball_constraint"};
+                                               "constraint", "drake:ball_constraint", "transmission"};
+    for (const auto& [type, n] : transmission_types) count["<transmission> of type " + type] += n;
     for (const tinyxml2::XMLElement* e = robot->FirstChildElement(); e; e = e->NextSiblingElement()) {
       const std::string tag = e->Name();
       if (tag == "gazebo") {
@@ -589,6 +594,56 @@ class ModelBuilder {
       fail(c.element, "a coupling needs two one-dof joints ('" + c.leader + "', '" + c.follower + "')");
     mech().addCoupler(c.name, a->second, 0, b->second, 0, c.ratio, 0.0);
     followers_.insert(c.follower);
+  }
+
+  // The simulated <transmission>s (transmissions.h, doc/actuators.md): each joint a movable
+  // one-dof joint; the actuators' rotors reflected onto the joints (System::rotors).
+  void addTransmissions(const Transmissions& read) {
+    std::string no_reduction;  // transmissions without a reduction, listed in one note
+    if (read.repeated)
+      limit_notes_.push_back(std::to_string(read.repeated) + " <transmission>s repeat another exactly (one per "
+                             "hardware interface): each is read once");
+    for (const TransmissionSpec& s : read.simulated) {
+      TransmissionInfo info;
+      info.map = s.map;
+      const Eigen::MatrixXd E = s.map.velocityMap();
+      info.E.topLeftCorner(E.rows(), E.cols()) = E;
+      info.E_inv_T.topLeftCorner(E.rows(), E.cols()) = E.inverse().transpose();
+      if (!s.note.empty()) no_reduction += (no_reduction.empty() ? "'" : ", '") + s.map.name + "'";
+      RotorInertia rotor;
+      rotor.name = s.map.name;
+      for (const std::string& joint : s.joints) {
+        const int d = model_->dofIndex(joint);
+        const auto index = joint_index_.find(joint);
+        if (index == joint_index_.end() || d < 0 || mech().joint(index->second).dof() != 1)
+          fail(s.element, "joint '" + joint + "' is not a movable one-dof joint of the model" +
+                              (index == joint_index_.end() && d < 0 ? " (no such joint, or a fixed one)" : ""));
+        info.dofs.push_back(d);
+        rotor.coords.push_back({index->second, 0});
+      }
+      Eigen::VectorXd J(s.actuators.size());
+      for (size_t k = 0; k < s.actuators.size(); ++k) {
+        Actuator a;
+        a.name = s.actuators[k];
+        a.transmission = static_cast<int>(model_->transmissions_.size());
+        a.k = static_cast<int>(k);
+        a.ratings = read.actuators.at(a.name).ratings;
+        J[k] = a.ratings.rotor_inertia;
+        if (a.ratings.friction > 0 || a.ratings.damping > 0)
+          limit_notes_.push_back("actuator '" + a.name + "': its friction and damping are counted in its torque "
+                                 "(sizing), not applied to the motion");
+        info.actuators.push_back(static_cast<int>(model_->actuators_.size()));
+        model_->actuators_.push_back(a);
+      }
+      const Eigen::MatrixXd B = s.map.reflectedInertia(J);
+      rotor.B.topLeftCorner(B.rows(), B.cols()) = B;
+      // a kinematic model has no forces: its rotors do nothing (as joint damping)
+      if (J.maxCoeff() > 0.0 && !kinematic_) mech().addRotorInertia(rotor);
+      model_->transmissions_.push_back(info);
+    }
+    if (!no_reduction.empty())
+      limit_notes_.push_back("transmissions without a <mechanicalReduction> take 1, as gazebo_ros_control reads them: " +
+                             no_reduction);
   }
 
   // <mechanism_sim:drive> and the options' velocity drives (which replace the file's

@@ -16,6 +16,7 @@ RunLoop::RunLoop(MechanismModel& model, double h, long steps_per_sample)
   sample_.velocity.resize(dofs);
   sample_.effort.resize(dofs);
   sample_.link_poses.resize(model.links().size());
+  sample_.actuators.resize(model.actuators().size());
   restartWorst();
   takeSample();
 }
@@ -49,6 +50,8 @@ void RunLoop::restartWorst() {
   peaks_.clear();
   for (size_t d = 0; d < model_.dofs().size(); ++d)
     if (model_.dofs()[d].drive >= 0) peaks_.push_back(DrivePeak{static_cast<int>(d), 0.0, model_.time()});
+  sizing_.clear();
+  for (const Actuator& a : model_.actuators()) sizing_.emplace_back(a.name, a.ratings);
   trackPeaks();
 }
 
@@ -56,6 +59,10 @@ void RunLoop::trackPeaks() {
   for (DrivePeak& p : peaks_) {
     const double e = model_.effort(p.dof);
     if (std::fabs(e) > std::fabs(p.effort)) p.effort = e, p.time = model_.time();
+  }
+  for (size_t a = 0; a < sizing_.size(); ++a) {
+    const ActuatorState s = model_.actuatorState(static_cast<int>(a));
+    sizing_[a].add(model_.time(), s.velocity, s.torque);
   }
 }
 
@@ -75,6 +82,7 @@ void RunLoop::takeSample() {
   for (size_t l = 0; l < sample_.link_poses.size(); ++l) sample_.link_poses[l] = model_.linkPose(static_cast<int>(l));
   sample_.position_violation = model_.positionViolation();
   sample_.velocity_violation = model_.velocityViolation();
+  for (size_t a = 0; a < sample_.actuators.size(); ++a) sample_.actuators[a] = model_.actuatorState(static_cast<int>(a));
   if (reactions_) sample_.reactions = model_.jointReactions();
   else sample_.reactions.clear();
 }

@@ -511,8 +511,10 @@ Extension readExtension(const XMLElement* robot, const XmlReader& r) {
     } else if (what == "gravity") {
       r.onlyAttributes(e, {"xyz"});
       ext.gravity = r.vec3(e, "xyz", Vector3d(0, 0, -9.81), 1e4);
+    } else if (what == "actuator") {
+      // read with the transmissions (transmissions.cpp)
     } else {
-      r.fail(e, "unknown extension element (joint, spring, initial, drive, gravity)");
+      r.fail(e, "unknown extension element (joint, spring, initial, drive, gravity, actuator)");
     }
   }
   readOnshapeClosures(robot, r, &ext);

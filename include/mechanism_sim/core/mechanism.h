@@ -56,6 +56,10 @@ class Mechanism {
   int addCoupler(const std::string& name, int joint_a, int k_a, int joint_b, int k_b,
                  double multiplier, double offset);
   int addSpring(const SpringDamper& spring);
+  // The reflected inertia of a transmission's rotors on one or two joint coordinates
+  // (transmission.h): the kinetic energy 1/2 q_dot^T B q_dot, in both formulations (a
+  // coupled B runs in absolute coordinates). Before build(); build() validates it.
+  void addRotorInertia(const RotorInertia& rotor);
   // Position limits of a coordinate: unilateral, activated on contact with no rebound,
   // released when the joint pulls away.
   void setJointLimits(int joint, int k, double lower, double upper);

@@ -14,6 +14,7 @@
 #include <Eigen/Geometry>
 
 #include "mechanism_sim/core/mechanism.h"
+#include "mechanism_sim/core/model/transmission.h"
 
 namespace mechanism_sim {
 
@@ -45,6 +46,8 @@ struct LoadOptions {
   // inequality) is refused; by default it runs with the nearest physical inertia and a
   // note (doc/robots.md, "Inertias that are not physical").
   bool strict_inertia = false;
+  // Actuator ratings (YAML, doc/actuators.md) over the file's <mechanism_sim:actuator>.
+  std::string actuators_file;
 };
 
 // One degree of freedom of a joint, tree or loop closure.
@@ -91,6 +94,30 @@ struct JointReaction {
   Eigen::Vector3d force = Eigen::Vector3d::Zero(), torque = Eigen::Vector3d::Zero();
 };
 
+// A <transmission> the model simulates (doc/actuators.md): its maps (transmission.h), the
+// dofs of its joints and its actuators, both in its roles' order.
+struct TransmissionInfo {
+  Transmission map;
+  std::vector<int> dofs;
+  std::vector<int> actuators;  // indices into MechanismModel::actuators()
+  // map.velocityMap() and its inverse transpose, in the top-left size x size (what
+  // actuatorState applies at every step, without allocating)
+  Eigen::Matrix2d E = Eigen::Matrix2d::Zero(), E_inv_T = Eigen::Matrix2d::Zero();
+};
+
+// An actuator a simulated transmission names, with its ratings (0: not given).
+struct Actuator {
+  std::string name;
+  int transmission = -1, k = 0;  // its transmission and its row there
+  ActuatorRatings ratings;
+};
+
+// An actuator's operating point: motor-side position, velocity, torque and mechanical
+// power (torque times velocity).
+struct ActuatorState {
+  double position = 0.0, velocity = 0.0, torque = 0.0, power = 0.0;
+};
+
 class MechanismModel {
  public:
   // ---- what the model is
@@ -127,8 +154,17 @@ class MechanismModel {
   // kinematically (simulate's summary, the node's log and diagnostics, Python).
   std::string formulationReason() const;
 
+  const std::vector<TransmissionInfo>& transmissions() const { return transmissions_; }
+  const std::vector<Actuator>& actuators() const { return actuators_; }
+
   // ---- where it is now
   double time() const;
+  // An actuator's operating point through its transmission's maps (transmission.h): position
+  // and velocity from its joints'; torque from the joint efforts the actuators supply (the
+  // commanded efforts and the drives' efforts, which include the rotors' reflected inertia,
+  // not damping, friction or limits), E^-T, plus the motor's own damping and friction
+  // (Actuator::ratings) at its speed.
+  ActuatorState actuatorState(int actuator) const;
   // World pose of a link.
   Eigen::Isometry3d linkPose(int link) const;
   // Velocity of a link's frame origin and its angular velocity, both in world axes.
@@ -194,6 +230,8 @@ class MechanismModel {
   std::vector<Link> links_;
   std::vector<TreeJoint> tree_;
   std::vector<LoopJoint> loops_;
+  std::vector<TransmissionInfo> transmissions_;
+  std::vector<Actuator> actuators_;
   std::vector<Eigen::Isometry3d> reaction_frames_;  // per core joint: its file frame in its child's body
   std::vector<double> command_;
   AssemblyReport assembly_;

@@ -11,6 +11,7 @@
 
 #include <Eigen/Geometry>
 
+#include "mechanism_sim/core/model/actuator_sizing.h"
 #include "mechanism_sim/urdf/model.h"
 
 namespace mechanism_sim {
@@ -22,6 +23,7 @@ struct Sample {
   std::vector<Eigen::Isometry3d> link_poses;        // by link, as MechanismModel::links(); world frame
   double position_violation = 0.0, velocity_violation = 0.0;  // largest |Phi|, |Phi_q v|
   std::vector<JointReaction> reactions;  // when RunLoop::setReactions(true)
+  std::vector<ActuatorState> actuators;  // by actuator, as MechanismModel::actuators()
 };
 
 // The largest |effort| a driven dof needed, and when.
@@ -68,6 +70,9 @@ class RunLoop {
   void setReactions(bool on);
   // Per driven dof, the largest |effort| at any step since construction or reset().
   const std::vector<DrivePeak>& drivePeaks() const { return peaks_; }
+  // Per actuator (MechanismModel::actuators()), its operating points at every step since
+  // construction or reset() against its ratings.
+  const std::vector<ActuatorSizing>& actuatorSizing() const { return sizing_; }
   MechanismModel& model() { return model_; }
   const MechanismModel& model() const { return model_; }
 
@@ -84,6 +89,7 @@ class RunLoop {
   Sample sample_;
   bool reactions_ = false;
   std::vector<DrivePeak> peaks_;
+  std::vector<ActuatorSizing> sizing_;
 };
 
 }  // namespace mechanism_sim

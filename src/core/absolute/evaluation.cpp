@@ -46,6 +46,7 @@ Evaluation::Evaluation(const System& sys) {
   stamp.u = Eigen::VectorXd::Zero(sys.n);
   stamp.limit_side.assign(sys.limits.size(), 0);
   stamp.drive.assign(sys.drives.size(), DriveRamp());
+  rotor_rows.assign(2 * sys.rotors.size(), Row());
 }
 
 void loadKinematics(const System& sys, const double* x, const double* u, std::vector<BodyKin>& kin) {
@@ -97,6 +98,15 @@ void evaluateConstraints(const System& sys, const State& st, Evaluation& ev, boo
           ev.J[ci].row(e).setZero(), ev.gamma[L.row + e] = 0.0, ev.nu[L.row + e] = 0.0;
         }
     }
+  if (!sys.rotors.empty()) {
+    ev.rotor_rows.resize(2 * sys.rotors.size());
+    Row rows[kMaxJointDofs];
+    for (size_t r = 0; r < sys.rotors.size(); ++r)
+      for (size_t c = 0; c < sys.rotors[r].coords.size(); ++c) {
+        jointRows(sys, ev, st, sys.rotors[r].coords[c].first, rows);
+        ev.rotor_rows[2 * r + c] = rows[sys.rotors[r].coords[c].second];
+      }
+  }
   if (!rates) ev.gamma.setZero();  // (the joints' is not meaningful, the other constraints' not asked for)
   ev.stamp.limit_side = st.limit_side;
   ev.stamp.t = st.t;
@@ -178,6 +188,26 @@ void appliedForces(const System& sys, const State& s, const Inputs& in,
     jointRows(sys, ev, s, j, rows);
     for (int k = 0; k < dof; ++k)
       scatterRow(sys, j, rows[k], appliedEffort(tau[k], c[k], rows[k].Phi_dot, fr[k]), Q.data());
+  }
+  // the rotors' -G^T B (G a - gamma): its G^T B gamma part (addRotorMass has the other)
+  for (size_t r = 0; r < sys.rotors.size(); ++r) {
+    const RotorInertia& R = sys.rotors[r];
+    const int n = static_cast<int>(R.coords.size());
+    Eigen::Vector2d g = Eigen::Vector2d::Zero();
+    for (int c = 0; c < n; ++c) g[c] = ev.rotor_rows[2 * r + c].gamma;
+    const Eigen::Vector2d f = R.B * g;
+    for (int c = 0; c < n; ++c) scatterRow(sys, R.coords[c].first, ev.rotor_rows[2 * r + c], f[c], Q.data());
+  }
+}
+
+void addRotorMass(const System& sys, const Evaluation& ev, const double* v, double* out) {
+  for (size_t r = 0; r < sys.rotors.size(); ++r) {
+    const RotorInertia& R = sys.rotors[r];
+    const int n = static_cast<int>(R.coords.size());
+    Eigen::Vector2d y = Eigen::Vector2d::Zero();
+    for (int c = 0; c < n; ++c) y[c] = rowDot(sys, R.coords[c].first, ev.rotor_rows[2 * r + c], v);
+    const Eigen::Vector2d f = R.B * y;
+    for (int c = 0; c < n; ++c) scatterRow(sys, R.coords[c].first, ev.rotor_rows[2 * r + c], f[c], out);
   }
 }
 

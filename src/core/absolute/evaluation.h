@@ -67,6 +67,9 @@ struct Evaluation {
   Eigen::VectorXd Q;               // generalized applied forces per body (appliedForces)
   std::vector<char> dropped;       // per row: left out (State::dropped when evaluated)
   std::vector<double> dropped_scale;  // per row: the size of a dropped row's terms
+  // Per rotor inertia (System::rotors), per coordinate (2 r + c): its joint's row
+  // (evaluateConstraints), whose G_k and gamma_k put the rotor into M and Q.
+  std::vector<Row> rotor_rows;
 
   Evaluation() = default;
   explicit Evaluation(const System& sys);  // sized for sys: filling it allocates nothing
@@ -134,6 +137,10 @@ inline Vec6 padded(const double* y, int size) {
 void mulJ(const System& sys, const Evaluation& ev, const std::vector<int>& cs, const double* v, double* out);
 void addJt(const System& sys, const Evaluation& ev, const std::vector<int>& cs, const double* y, double* out);
 void mulM(const System& sys, const double* v, double* out);  // out = M v
+// out += sum_r q_x,r^T B_r q_x,r v: the rotor inertias' part of the mass matrix at the
+// evaluation (System::rotors; the rotor's generalized force is -q_x^T B q_ddot,
+// q_ddot = q_x a - gamma, whose gamma part appliedForces puts in Q).
+void addRotorMass(const System& sys, const Evaluation& ev, const double* v, double* out);
 // A coordinate row q_x,k (12 columns: body i, body j of joint j): out += q_x,k^T x, and
 // q_x,k v.
 void scatterRow(const System& sys, int joint, const Row& row, double x, double* out);

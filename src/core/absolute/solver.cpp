@@ -91,6 +91,38 @@ void PenaltyForm::assemble(const System& sys, const Evaluation& ev, double kappa
   }
   for (int ci = 0; ci < sys.numConstraints(); ++ci)
     addPenalty(sys, ev, ci, kappa, chol_, sys.layout[ci].address.data(), sys.layout[ci].transposed.data());
+  if (mass != 0.0) addRotorBlocks(sys, ev, mass, chol_);
+}
+
+// H(b1, b2) += mass G_b1 B G_b2^T per rotor inertia, G_b the 6 x n columns of its
+// coordinates' rows on body b (System::rotors; the pairs are in block_edges).
+void addRotorBlocks(const System& sys, const Evaluation& ev, double mass, BlockCholesky& H) {
+  for (size_t r = 0; r < sys.rotors.size(); ++r) {
+    const RotorInertia& R = sys.rotors[r];
+    const int n = static_cast<int>(R.coords.size());
+    int bodies[4], count = 0;
+    Eigen::Matrix<double, 6, 2> G[4];
+    for (int c = 0; c < n; ++c) {
+      const Joint& J = *sys.joints[R.coords[c].first];
+      const int bs[2] = {J.bodyI(), J.bodyJ()};
+      for (int s = 0; s < 2; ++s) {
+        if (bs[s] == System::kGround) continue;
+        int at = 0;
+        while (at < count && bodies[at] != bs[s] - 1) ++at;
+        if (at == count) bodies[count] = bs[s] - 1, G[count].setZero(), ++count;
+        G[at].col(c) += ev.rotor_rows[2 * r + c].J.segment<6>(6 * s).transpose();
+      }
+    }
+    const Eigen::Matrix2d B = mass * R.B;
+    for (int i = 0; i < count; ++i)
+      for (int j = i; j < count; ++j) {
+        bool transposed = false;
+        const int a = H.address(bodies[i], bodies[j], &transposed);
+        const Mat6 block = G[i] * B * G[j].transpose();
+        if (transposed) H.block(a) += block.transpose();
+        else H.block(a) += block;
+      }
+  }
 }
 
 void PenaltyForm::factor(const System& sys, Evaluation& ev, const char* where, double t, bool reweight) {
@@ -284,6 +316,7 @@ void ConstraintSolver::residualScales(const System& sys, const Evaluation& ev, c
   for (int b = 1; b <= sys.nb; ++b)
     V = std::max({V, ev.kin[b].v.cwiseAbs().maxCoeff(), ev.kin[b].w.cwiseAbs().maxCoeff() * length});
   mulM(sys, a.data(), s1_.data());
+  addRotorMass(sys, ev, a.data(), s1_.data());
   for (int i = 0; i < sys.n; ++i) s1_[i] = std::fabs(ev.Q[i]) + std::fabs(s1_[i]);
   // ... and at least what the loads alone would do (a mechanism at rest against stops has
   // accelerations of round-off size: they are not the scale of its equations)
@@ -353,6 +386,7 @@ bool ConstraintSolver::solve(const System& sys, Evaluation& ev, Eigen::VectorXd&
   if (rescale || cold) residualScales(sys, ev, a, lam);
   for (int pass = 0;; ++pass) {
     mulM(sys, a.data(), r1_.data());
+    addRotorMass(sys, ev, a.data(), r1_.data());
     for (int i = 0; i < sys.n; ++i) r1_[i] = ev.Q[i] - r1_[i];
     for (int ci = 0; ci < sys.numConstraints(); ++ci) {
       const ConstraintLayout& L = sys.layout[ci];
@@ -421,6 +455,7 @@ double minimumNormMultipliers(const System& sys, const State& s, const Inputs& i
   Eigen::VectorXd dm(sys.m);
   // g = Q - M a: the constraint forces (the limits' part taken out: they keep their own)
   mulM(sys, s.acc.data(), dn.data());
+  addRotorMass(sys, ev, s.acc.data(), dn.data());
   Eigen::VectorXd g = ev.Q - dn;
   Eigen::VectorXd limit_lambda = Eigen::VectorXd::Zero(sys.m);
   limit_lambda.tail(sys.m - sys.m_eq) = s.lambda.tail(sys.m - sys.m_eq);

@@ -58,6 +58,9 @@ class PenaltyForm {
   BlockCholesky chol_;
 };
 
+// Adds mass times the rotor inertias' G^T B G (System::rotors) into H's body blocks.
+void addRotorBlocks(const System& sys, const Evaluation& ev, double mass, BlockCholesky& H);
+
 // Adds kappa J_c^T W_c J_c of constraint ci into `target` at the given block addresses
 // (lower triangle of the diagonal blocks).
 void addPenalty(const System& sys, const Evaluation& ev, int ci, double kappa, BlockCholesky& target,

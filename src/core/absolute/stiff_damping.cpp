@@ -190,12 +190,14 @@ void Stepper::implicitDamping(const System& sys, State& s, double h) {
   // solveKKT: r1 = M u - (M + hC) u' - Phi_q^T mu, r2 = nu - Phi_q u'.
   damp_u0_ = s.u;
   mulM(sys, damp_u0_.data(), damp_b_.data());
+  addRotorMass(sys, ev_, damp_u0_.data(), damp_b_.data());
   const Eigen::VectorXd& dn = solver_->dn();
   damp_mu_.setZero();  // -mu
   const double scale = motionScale(sys, damp_u0_);
   double previous = HUGE_VAL, step = 0;
   for (int pass = 0; pass < kMaxPasses; ++pass) {
     mulM(sys, s.u.data(), r1_.data());
+    addRotorMass(sys, ev_, s.u.data(), r1_.data());
     r1_ = damp_b_ - r1_;
     addJt(sys, ev_, sys.all_constraints, damp_mu_.data(), r1_.data());
     for (const StiffRow& r : stiff_) {

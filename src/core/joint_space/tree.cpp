@@ -110,6 +110,21 @@ std::string jointSpaceUnsupported(const System& sys, bool loops_as_closures) {
       return "joint '" + J->name() + "': the joint-space tree has no model of joint type '" + J->type() + "'";
     if (J->bodyI() == J->bodyJ()) return "joint '" + J->name() + "': joins a body to itself";
   }
+  // Rotor inertias: a diagonal armature on a tree coordinate that no embedded coupler ties
+  if (!sys.rotors.empty()) {
+    const TreeModel model(sys, true);
+    for (const RotorInertia& R : sys.rotors) {
+      if (R.coupled())
+        return "rotor inertia '" + R.name + "' couples two joints (" + sys.joints[R.coords[0].first]->name() + ", " +
+               sys.joints[R.coords[1].first]->name() + "): the joint-space recursions take a diagonal rotor inertia";
+      for (const auto& c : R.coords) {
+        const int link = model.joint_link[c.first];
+        if (link < 0 || model.links[link].tie >= 0 || model.links[link].tie_master)
+          return "rotor inertia '" + R.name + "' on joint '" + sys.joints[c.first]->name() +
+                 "', which closes a loop or is coupled: the joint-space recursions take rotors on free tree joints";
+      }
+    }
+  }
   // Joints that close loops are cut joints, constraints on the tree (loop_closure.h), for
   // a caller that integrates them as such.
   if (!loops_as_closures) {
@@ -319,6 +334,11 @@ TreeModel::TreeModel(const System& sys, bool embed_couplers) {
     H.mc += B.m * L.rhoh;
   }
   if (embed_couplers) embedCouplers(sys, *this);
+  armature = Eigen::VectorXd::Zero(nv);
+  for (const RotorInertia& R : sys.rotors)
+    for (size_t c = 0; c < R.coords.size(); ++c)
+      if (joint_link[R.coords[c].first] >= 0)
+        armature[links[joint_link[R.coords[c].first]].iv + R.coords[c].second] += R.B(c, c);
 }
 
 void TreeModel::holdTies(Eigen::VectorXd& q, Eigen::VectorXd& qdot, Eigen::VectorXd* q_round,

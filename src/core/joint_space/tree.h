@@ -179,6 +179,10 @@ struct TreeModel {
   std::vector<int> order;       // moving bodies, each after its parent (b, 1..nb)
   std::vector<int> joint_link;  // per sys joint: its link (body - 1); -1 for a cut joint
   std::vector<int> cut_joints;  // sys joints that close loops (not on the tree), ascending
+  // Per q_dot coordinate: the reflected rotor inertia on it (System::rotors, diagonal ones:
+  // jointSpaceUnsupported refuses a coupled one), added to D_i in the articulated-body pass
+  // as an armature (Featherstone, RBDA 7.3) and to H_ii in the composite one.
+  Eigen::VectorXd armature;
   std::vector<int> ties;        // links tied to a master's coordinate (embed_couplers), parents first
   // q_s = r q_m + o and q_dot_s = r q_dot_m of every tie (their round-off in q_round and
   // qdot_round likewise, when given): what the integration holds up to round-off, exactly.

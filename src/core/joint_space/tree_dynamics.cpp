@@ -170,10 +170,10 @@ void forwardDynamicsAtKinematics(const TreeModel& model, const System& sys, cons
     if (L.pivot >= 0) pivotInward(sys, L, k, ws, pa);
     if (L.nv == 1) {  // the common case without the small-matrix machinery
       Vector6d U = IA * ws.S[k].col(0);
-      double D = ws.S[k].col(0).dot(U), u = tau(L.iv) - ws.S[k].col(0).dot(pa);
+      double D = ws.S[k].col(0).dot(U) + model.armature[L.iv], u = tau(L.iv) - ws.S[k].col(0).dot(pa);
       if (L.tie_master) {  // the tied links' terms (above): U = I^A S + W, D, u
         U += ws.W[k];
-        D = ws.S[k].col(0).dot(U) + ws.S[k].col(0).dot(ws.W[k]) + ws.dd[k];
+        D = ws.S[k].col(0).dot(U) + ws.S[k].col(0).dot(ws.W[k]) + ws.dd[k] + model.armature[L.iv];
         u -= ws.beta[k];
       }
       if (!(D > 0.0)) notPositive(sys, L, D);
@@ -188,7 +188,8 @@ void forwardDynamicsAtKinematics(const TreeModel& model, const System& sys, cons
       MotionSubspace& U = ws.U[k];
       U.noalias() = IA * ws.S[k];
       if (L.nv > 0) {
-        const SmallMatrix D = ws.S[k].transpose() * U;
+        SmallMatrix D = ws.S[k].transpose() * U;
+        for (int i = 0; i < L.nv; ++i) D(i, i) += model.armature[L.iv + i];
         // D is symmetric positive definite when the subtree has mass along every joint
         // direction; LLT on at most 6 x 6 in place (no heap).
         Eigen::LLT<SmallMatrix> llt(D);
@@ -293,6 +294,7 @@ void jointSpaceInertia(const TreeModel& model, const TreeWorkspace& ws, AlignedV
     if (L.nv == 0) continue;
     MotionSubspace F = Ic[k] * ws.S[k];
     H.block(L.iv, L.iv, L.nv, L.nv).noalias() = ws.S[k].transpose() * F;
+    for (int i = 0; i < L.nv; ++i) H(L.iv + i, L.iv + i) += model.armature[L.iv + i];
     for (int j = k; model.links[j].parent != 0;) {
       for (int c = 0; c < L.nv; ++c) F.col(c) = transformForceBack(ws.E[j], ws.rho[j], F.col(c));
       j = model.links[j].parent - 1;

@@ -49,6 +49,12 @@ void treeJointMultipliers(const System& sys, const TreeModel& model, const State
       w.load[moving].noalias() -= Jb.topRows(L.size).transpose() * lambda.segment(L.row, L.size);
     });
   }
+  //    and the rotors' -G^T B G a (transmission.h; their G^T B gamma is in Q)
+  if (!sys.rotors.empty()) {
+    Eigen::VectorXd Ba = Eigen::VectorXd::Zero(sys.n);
+    addRotorMass(sys, ev, s.acc.data(), Ba.data());
+    for (int k = 0; k < sys.nb; ++k) w.load[k] -= Ba.segment<6>(BodyCoordinates::u(k));
+  }
   // 3. leaves first (RBDA table 5.1's inward loop): the wrench F_b the tree joint applies
   //    to body b is what b's motion needs beyond its load,
   //      F_b = M_b a_b - load_b,

@@ -83,6 +83,7 @@ void System::finalize() {
   for (int b = 1; b <= nb; ++b) validateBody(bodies[b], extent[b]);
   if (!gravity.allFinite()) throw ModelError("gravity must be finite");
   options.validate();
+  validateRotors(*this);
 
   // Drives become constraints after joints and couplers, limits after all others (free
   // until reached).
@@ -130,6 +131,7 @@ void System::finalize() {
     for (int b1 : c->bodies())
       for (int b2 : c->bodies())
         if (b1 > 0 && b2 > 0 && b1 < b2) block_edges.push_back({b1 - 1, b2 - 1});
+  addRotorEdges(*this, block_edges);
   BlockCholesky pattern;
   pattern.analyze(nb, block_edges);
 

@@ -84,6 +84,8 @@ void buildTreeTopology(System& sys) {
       break;
     }
   }
+  // Rotor inertias (transmission.h) add body-pair blocks to M: the penalty form holds them.
+  if (!sys.rotors.empty()) tree = false;
   if (!tree) {
     std::fill(T.node.begin(), T.node.end(), -1);
     T.penalized = sys.all_constraints;

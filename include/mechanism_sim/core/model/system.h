@@ -15,6 +15,7 @@
 #include "mechanism_sim/core/model/drive.h"
 #include "mechanism_sim/core/model/errors.h"
 #include "mechanism_sim/core/model/joint.h"
+#include "mechanism_sim/core/model/transmission.h"
 
 namespace mechanism_sim {
 
@@ -124,6 +125,7 @@ class System {
   std::vector<LimitSpec> limits;
   std::vector<DriveSpec> drives;
   std::vector<std::array<double, 3>> damping, friction;  // per joint coordinate
+  std::vector<RotorInertia> rotors;  // reflected rotor inertias (transmission.h)
   Vector3d gravity = Vector3d(0, 0, -9.81);
   IntegratorOptions options;
 

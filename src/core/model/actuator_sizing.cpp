@@ -1,0 +1,121 @@
+// Sizing an actuator against its ratings (actuator_sizing.h).
+#include "mechanism_sim/core/model/actuator_sizing.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
+namespace mechanism_sim {
+
+void ActuatorSizing::reset() { *this = ActuatorSizing(name_, ratings_); }
+
+double ActuatorSizing::envelope(double velocity, double torque) const {
+  if (!(ratings_.stall_torque > 0.0)) return HUGE_VAL;
+  if (torque * velocity < 0.0) return ratings_.stall_torque;  // braking
+  return std::max(0.0, ratings_.stall_torque * (1.0 - std::fabs(velocity) / ratings_.no_load_speed));
+}
+
+void ActuatorSizing::exceed(int which, double value, double t) {
+  Worst& w = worst_[which];
+  const double ratio = w.limit > 0 ? std::fabs(value) / w.limit : HUGE_VAL;
+  if (!w.hit) w.hit = true, w.first = t;
+  if (ratio > w.ratio) w.ratio = ratio, w.value = value, w.time = t;
+}
+
+void ActuatorSizing::add(double t, double velocity, double torque) {
+  const double power = torque * velocity;
+  if (started_) {
+    const double dt = t - t_;
+    tau2_ += 0.5 * dt * (last_tau_ * last_tau_ + torque * torque);
+    work_pos_ += 0.5 * dt * (std::max(last_power_, 0.0) + std::max(power, 0.0));
+    work_neg_ += 0.5 * dt * (std::min(last_power_, 0.0) + std::min(power, 0.0));
+  } else {
+    started_ = true, t0_ = t;
+  }
+  t_ = t, last_tau_ = torque, last_power_ = power;
+  if (std::fabs(torque) > peak_torque_) peak_torque_ = std::fabs(torque), peak_torque_time_ = t;
+  peak_speed_ = std::max(peak_speed_, std::fabs(velocity));
+  peak_power_ = std::max(peak_power_, power);
+  if (ratings_.peak_torque > 0 && std::fabs(torque) > ratings_.peak_torque)
+    worst_[0].limit = ratings_.peak_torque, exceed(0, torque, t);
+  if (ratings_.max_speed > 0 && std::fabs(velocity) > ratings_.max_speed)
+    worst_[1].limit = ratings_.max_speed, exceed(1, velocity, t);
+  const double allowed = envelope(velocity, torque);
+  if (std::fabs(torque) > allowed) {
+    // measured against the stall torque: past the no-load speed the line allows nothing
+    worst_[2].limit = ratings_.stall_torque;
+    Worst& w = worst_[2];
+    const double over = (std::fabs(torque) - allowed) / ratings_.stall_torque;
+    if (!w.hit) w.hit = true, w.first = t;
+    if (over > w.ratio) w.ratio = over, w.value = torque, w.time = t;
+  }
+}
+
+double ActuatorSizing::rmsTorque() const {
+  const double T = t_ - t0_;
+  return T > 0 ? std::sqrt(tau2_ / T) : std::fabs(last_tau_);
+}
+
+std::vector<ActuatorSizing::Exceeded> ActuatorSizing::exceeded() const {
+  std::vector<Exceeded> out;
+  const char* names[3] = {"peak_torque", "max_speed", "torque-speed line"};
+  for (int k = 0; k < 3; ++k)
+    if (worst_[k].hit) out.push_back({names[k], worst_[k].limit, worst_[k].value, worst_[k].time, worst_[k].first});
+  if (ratings_.rated_torque > 0 && rmsTorque() > ratings_.rated_torque)
+    out.push_back({"rated_torque", ratings_.rated_torque, rmsTorque(), t_, t_});
+  return out;
+}
+
+std::string ActuatorSizing::describe() const {
+  char buf[512];
+  std::snprintf(buf, sizeof buf,
+                "actuator '%s': peak torque %.4g N m at t = %.4g s, RMS torque %.4g N m, peak speed %.4g rad/s, "
+                "peak power %.4g W, work %+.4g J / %+.4g J",
+                name_.c_str(), peak_torque_, peak_torque_time_, rmsTorque(), peak_speed_, peak_power_, work_pos_,
+                work_neg_);
+  std::string s = buf;
+  const std::vector<Exceeded> ex = exceeded();
+  const bool rated = ratings_.peak_torque > 0 || ratings_.rated_torque > 0 || ratings_.max_speed > 0 ||
+                     ratings_.stall_torque > 0;
+  if (!rated) return s + "; no ratings given";
+  if (ex.empty()) {
+    s += "; within rating (";
+    std::string list;
+    auto item = [&](const char* what, double v, const char* unit) {
+      if (!(v > 0)) return;
+      char b[96];
+      std::snprintf(b, sizeof b, "%s%s %.4g %s", list.empty() ? "" : ", ", what, v, unit);
+      list += b;
+    };
+    item("peak_torque", ratings_.peak_torque, "N m");
+    item("rated_torque", ratings_.rated_torque, "N m");
+    item("max_speed", ratings_.max_speed, "rad/s");
+    if (ratings_.stall_torque > 0) {
+      char b[128];
+      std::snprintf(b, sizeof b, "%sline %.4g N m to %.4g rad/s", list.empty() ? "" : ", ", ratings_.stall_torque,
+                    ratings_.no_load_speed);
+      list += b;
+    }
+    return s + list + ")";
+  }
+  for (const Exceeded& e : ex) {
+    char b[256];
+    if (e.rating == "rated_torque")
+      std::snprintf(b, sizeof b, "; EXCEEDS rated_torque %.4g N m: RMS torque %.4g N m (%.0f%% over)", e.limit, e.worst,
+                    100 * (e.worst / e.limit - 1));
+    else if (e.rating == "torque-speed line")
+      std::snprintf(b, sizeof b,
+                    "; EXCEEDS the torque-speed line (stall %.4g N m, no-load %.4g rad/s) from t = %.4g s: worst "
+                    "%.4g N m at t = %.4g s, %.0f%% of the stall torque above the line",
+                    ratings_.stall_torque, ratings_.no_load_speed, e.first_time, e.worst, e.worst_time,
+                    100 * worst_[2].ratio);
+    else
+      std::snprintf(b, sizeof b, "; EXCEEDS %s %.4g %s from t = %.4g s: worst %.4g at t = %.4g s (%.0f%% over)",
+                    e.rating.c_str(), e.limit, e.rating == "max_speed" ? "rad/s" : "N m", e.first_time, e.worst,
+                    e.worst_time, 100 * (std::fabs(e.worst) / e.limit - 1));
+    s += b;
+  }
+  return s;
+}
+
+}  // namespace mechanism_sim

@@ -1,0 +1,234 @@
+// Transmissions and actuators as the loader reads them (doc/actuators.md): ros_control's and
+// the PR2 form, the rotor inertia reflected into the dynamics, the motor's torque and speed
+// from ros_control's maps, sizing against ratings, and one-line errors for bad input.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <string>
+
+#include "mechanism_sim/urdf/model.h"
+#include "mechanism_sim/urdf/run_loop.h"
+
+namespace mechanism_sim {
+namespace {
+
+const std::string kSource = MECHANISM_SIM_SOURCE_DIR;
+constexpr double kG = 9.81;
+
+// A pendulum (mass m at L along x from a hinge about y; gravity makes q grow from the
+// horizontal) behind a transmission given as XML, with extra elements.
+std::string pendulum(const std::string& extra, double m = 2.0, double L = 0.5, double Iyy = 1e-3) {
+  char inertial[256];
+  std::snprintf(inertial, sizeof inertial,
+                "<inertial><origin xyz=\"%.17g 0 0\"/><mass value=\"%.17g\"/><inertia ixx=\"%.17g\" iyy=\"%.17g\" "
+                "izz=\"%.17g\" ixy=\"0\" ixz=\"0\" iyz=\"0\"/></inertial>",
+                L, m, Iyy, Iyy, Iyy);
+  return std::string("<robot name=\"geared\" xmlns:mechanism_sim=\"https://mechanism-sim.github.io/urdf-extension\">"
+                     "<link name=\"base\"/><link name=\"arm\">") +
+         inertial +
+         "</link><joint name=\"hinge\" type=\"continuous\"><parent link=\"base\"/><child link=\"arm\"/>"
+         "<axis xyz=\"0 1 0\"/></joint>" +
+         extra + "</robot>";
+}
+
+const char* kSimple =
+    "<transmission name=\"gearbox\"><type>transmission_interface/SimpleTransmission</type>"
+    "<joint name=\"hinge\"><hardwareInterface>hardware_interface/EffortJointInterface</hardwareInterface></joint>"
+    "<actuator name=\"motor\"><mechanicalReduction>100</mechanicalReduction></actuator></transmission>";
+
+std::string loadError(const std::string& xml, const LoadOptions& options = {}) {
+  try {
+    loadModelString(xml, "t.urdf", options);
+  } catch (const LoadError& e) {
+    return e.what();
+  }
+  return "(loaded)";
+}
+
+// At rest at the horizontal: q_ddot = m g L / (m L^2 + Iyy + N^2 J), in both formulations.
+TEST(Actuators, RotorInertiaReflectedThroughTheGearbox) {
+  const double m = 2.0, L = 0.5, Iyy = 1e-3, N = 100, J = 4e-5;
+  const std::string xml = pendulum(std::string(kSimple) + "<mechanism_sim:actuator name=\"motor\" rotor_inertia=\"4e-5\"/>");
+  for (const char* f : {"absolute", "joint"}) {
+    LoadOptions o;
+    o.formulation = f;
+    auto model = loadModelString(xml, "geared.urdf", o);
+    ASSERT_EQ(model->actuators().size(), 1u);
+    EXPECT_EQ(model->actuators()[0].name, "motor");
+    EXPECT_DOUBLE_EQ(model->actuators()[0].ratings.rotor_inertia, J);
+    const double expected = m * kG * L / (m * L * L + Iyy + N * N * J);
+    EXPECT_NEAR(model->acceleration(0), expected, 1e-10 * expected) << f;
+    for (const std::string& note : model->notes()) EXPECT_EQ(note.find("transmission"), std::string::npos) << note;
+  }
+}
+
+// Driven q = A sin(w t): the drive's effort is (I + N^2 J) q_ddot - m g L cos q; the motor
+// turns N times as fast with 1/N of the torque (ros_control's SimpleTransmission), the
+// rotor's J theta_ddot included.
+TEST(Actuators, MotorTorqueAndSpeedThroughTheGearbox) {
+  const double m = 2.0, L = 0.5, Iyy = 1e-3, N = 100, J = 4e-5, A = 0.5, f = 0.8, w = 2 * M_PI * f;
+  const std::string drive = "<mechanism_sim:drive joint=\"hinge\" profile=\"harmonic\" offset=\"0\" amplitude=\"0.5\" "
+                            "frequency=\"0.8\" phase=\"0\"/>";
+  const std::string xml = pendulum(std::string(kSimple) + "<mechanism_sim:actuator name=\"motor\" rotor_inertia=\"4e-5\"/>" + drive);
+  for (const char* formulation : {"absolute", "joint"}) {
+    LoadOptions o;
+    o.formulation = formulation;
+    auto model = loadModelString(xml, "geared.urdf", o);
+    for (int k = 0; k < 300; ++k) {
+      model->step(1e-3);
+      if (k % 50 != 49) continue;
+      const double t = model->time(), q = A * std::sin(w * t), qd = A * w * std::cos(w * t), qdd = -A * w * w * std::sin(w * t);
+      const double effort = (m * L * L + Iyy + N * N * J) * qdd - m * kG * L * std::cos(q);
+      const double scale = (m * L * L + Iyy + N * N * J) * A * w * w + m * kG * L;
+      EXPECT_NEAR(model->effort(0), effort, 1e-8 * scale) << formulation << " t = " << t;
+      const ActuatorState s = model->actuatorState(0);
+      EXPECT_NEAR(s.velocity, N * qd, 1e-9 * N * A * w) << formulation;
+      EXPECT_NEAR(s.position, N * q, 1e-9 * N * A) << formulation;
+      EXPECT_NEAR(s.torque, effort / N, 1e-8 * scale / N) << formulation;
+      EXPECT_NEAR(s.power, s.torque * s.velocity, 1e-12 * scale * A * w);
+      // the hinge turns the arm alone: (m L^2 + Iyy) q_ddot - m g L cos q about its axis
+      const std::vector<JointReaction> r = model->jointReactions();
+      EXPECT_NEAR(r[0].torque.y(), (m * L * L + Iyy) * qdd - m * kG * L * std::cos(q), 1e-8 * scale) << formulation;
+    }
+  }
+}
+
+// The PR2 form: <mechanicalReduction> in the transmission, the type an attribute.
+TEST(Actuators, Pr2FormAndIgnoredTypes) {
+  const std::string xml = pendulum(
+      "<transmission name=\"t\" type=\"pr2_mechanism_model/SimpleTransmission\"><actuator name=\"motor\"/>"
+      "<joint name=\"hinge\"/><mechanicalReduction>25</mechanicalReduction></transmission>"
+      "<transmission name=\"hand\"><type>sr_mechanism_model/SimpleTransmission</type>"
+      "<actuator name=\"x\"/><joint name=\"hinge\"/></transmission>");
+  auto model = loadModelString(xml, "pr2.urdf");
+  ASSERT_EQ(model->transmissions().size(), 1u);
+  EXPECT_EQ(model->transmissions()[0].map.actuator_reduction[0], 25.0);
+  bool listed = false;
+  for (const std::string& note : model->notes())
+    listed = listed || note.find("1 <transmission> of type sr_mechanism_model/SimpleTransmission") != std::string::npos;
+  EXPECT_TRUE(listed);
+  // the same transmission once per hardware interface (franka_ros) is one transmission; a
+  // different one on the same actuator contradicts it
+  auto twice = [](const std::string& reduction) {
+    return std::string(kSimple) + "<transmission name=\"gearbox\"><type>transmission_interface/SimpleTransmission</type>"
+           "<joint name=\"hinge\"><hardwareInterface>hardware_interface/VelocityJointInterface</hardwareInterface></joint>"
+           "<actuator name=\"motor\"><mechanicalReduction>" + reduction + "</mechanicalReduction></actuator></transmission>";
+  };
+  auto franka = loadModelString(pendulum(twice("100")), "franka.urdf");
+  EXPECT_EQ(franka->transmissions().size(), 1u);
+  EXPECT_EQ(loadError(pendulum(twice("50"))),
+            "t.urdf:1: transmission 'gearbox': actuator 'motor' is in another transmission already");
+}
+
+// Two pendulums hinged on the ground behind one differential (ros_control's roles and
+// reductions): the coupled reflected inertia E^T diag(J) E in the first accelerations; the
+// motors' speeds from ros_control's jointToActuatorVelocity.
+TEST(Actuators, DifferentialCouplesTheJoints) {
+  const std::string xml =
+      "<robot name=\"diff\" xmlns:mechanism_sim=\"https://mechanism-sim.github.io/urdf-extension\"><link name=\"base\"/>"
+      "<link name=\"a\"><inertial><origin xyz=\"0.5 0 0\"/><mass value=\"1\"/><inertia ixx=\"1e-3\" iyy=\"1e-3\" izz=\"1e-3\" "
+      "ixy=\"0\" ixz=\"0\" iyz=\"0\"/></inertial></link>"
+      "<link name=\"b\"><inertial><origin xyz=\"0.3 0 0\"/><mass value=\"1.5\"/><inertia ixx=\"2e-3\" iyy=\"2e-3\" izz=\"2e-3\" "
+      "ixy=\"0\" ixz=\"0\" iyz=\"0\"/></inertial></link>"
+      "<joint name=\"ja\" type=\"continuous\"><parent link=\"base\"/><child link=\"a\"/><axis xyz=\"0 1 0\"/></joint>"
+      "<joint name=\"jb\" type=\"continuous\"><parent link=\"base\"/><child link=\"b\"/><origin xyz=\"0 1 0\"/>"
+      "<axis xyz=\"0 1 0\"/></joint>"
+      "<transmission name=\"wrist\"><type>transmission_interface/DifferentialTransmission</type>"
+      "<actuator name=\"m1\"><role>actuator1</role><mechanicalReduction>20</mechanicalReduction></actuator>"
+      "<actuator name=\"m2\"><role>actuator2</role><mechanicalReduction>30</mechanicalReduction></actuator>"
+      "<joint name=\"ja\"><role>joint1</role><offset>0.1</offset><mechanicalReduction>1</mechanicalReduction></joint>"
+      "<joint name=\"jb\"><role>joint2</role><mechanicalReduction>2</mechanicalReduction></joint></transmission>"
+      "<mechanism_sim:actuator name=\"m1\" rotor_inertia=\"1e-4\"/><mechanism_sim:actuator name=\"m2\" rotor_inertia=\"2e-4\"/>"
+      "<mechanism_sim:initial joint=\"ja\" velocity=\"1.5\"/><mechanism_sim:initial joint=\"jb\" velocity=\"-2\"/>"
+      "</robot>";
+  auto model = loadModelString(xml, "diff.urdf");
+  EXPECT_NE(model->formulationReason().find("couples two joints"), std::string::npos) << model->formulationReason();
+  Eigen::Matrix2d E;
+  E << 20 * 1, 20 * 2, 30 * 1, -30 * 2;
+  const Eigen::Matrix2d B = E.transpose() * Eigen::Vector2d(1e-4, 2e-4).asDiagonal() * E;
+  Eigen::Matrix2d M = Eigen::Matrix2d::Zero();
+  M(0, 0) = 1 * 0.25 + 1e-3, M(1, 1) = 1.5 * 0.09 + 2e-3;
+  const Eigen::Vector2d qd(1.5, -2.0);
+  EXPECT_NEAR(model->kineticEnergy(), 0.5 * qd.dot((M + B) * qd), 1e-10 * qd.dot((M + B) * qd));
+  const ActuatorState s1 = model->actuatorState(0), s2 = model->actuatorState(1);
+  EXPECT_NEAR(s1.velocity, (qd[0] * 1 + qd[1] * 2) * 20, 1e-9);
+  EXPECT_NEAR(s2.velocity, (qd[0] * 1 - qd[1] * 2) * 30, 1e-9);
+  EXPECT_NEAR(s1.position, ((0.0 - 0.1) * 1 + 0.0 * 2) * 20, 1e-9);  // joint1's offset
+}
+
+// The example: within its ratings as written; driven twice as fast the motor's top speed,
+// its continuous rating and its torque-speed line are exceeded (not its peak torque), and the
+// summary says when and by how much.
+TEST(Actuators, HarmonicDriveExampleSizing) {
+  auto model = loadModelFile(kSource + "/urdf/harmonic_drive_joint.urdf");
+  {
+    RunLoop loop(*model, 1e-3, 100);
+    const double E0 = model->kineticEnergy() + model->potentialEnergy();
+    while (loop.steps() < 2300) loop.advance();
+    const double E1 = model->kineticEnergy() + model->potentialEnergy();
+    ASSERT_EQ(loop.actuatorSizing().size(), 1u);
+    const ActuatorSizing& a = loop.actuatorSizing()[0];
+    EXPECT_TRUE(a.withinRating()) << a.describe();
+    EXPECT_NE(a.describe().find("within rating"), std::string::npos) << a.describe();
+    EXPECT_NEAR(a.peakSpeed(), 100 * 0.8 * 2 * M_PI, 1e-6 * 500);
+    // the motor's work is the change of energy, the rotor's included (no damping here);
+    // the trapezoidal rule's error at 1 ms is O(h^2)
+    ASSERT_GT(std::fabs(E1 - E0), 1.0);
+    EXPECT_NEAR(a.positiveWork() + a.negativeWork(), E1 - E0, 1e-4 * a.positiveWork());
+  }
+  std::ifstream in(kSource + "/urdf/harmonic_drive_joint.urdf");
+  std::string xml((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  xml.replace(xml.find("frequency=\"1\""), 13, "frequency=\"2\"");
+  auto fast = loadModelString(xml, "fast.urdf");
+  RunLoop loop(*fast, 1e-3, 100);
+  while (loop.steps() < 1000) loop.advance();
+  const ActuatorSizing& a = loop.actuatorSizing()[0];
+  EXPECT_FALSE(a.withinRating());
+  const std::string d = a.describe();
+  EXPECT_EQ(d.find("peak_torque"), std::string::npos) << d;
+  EXPECT_NE(d.find("EXCEEDS max_speed 600 rad/s from t = 0 s: worst 1005"), std::string::npos) << d;
+  EXPECT_NE(d.find("EXCEEDS rated_torque 0.3 N m"), std::string::npos) << d;
+  EXPECT_NE(d.find("EXCEEDS the torque-speed line"), std::string::npos) << d;
+}
+
+TEST(Actuators, ActuatorsFile) {
+  const std::string path = testing::TempDir() + "/actuators.yaml";
+  {
+    std::ofstream out(path);
+    out << "actuators:\n  motor:\n    rotor_inertia: 2.0e-5\n    peak_torque: 3\n";
+  }
+  LoadOptions o;
+  o.actuators_file = path;
+  auto model = loadModelString(pendulum(std::string(kSimple) + "<mechanism_sim:actuator name=\"motor\" rotor_inertia=\"4e-5\"/>"),
+                               "geared.urdf", o);
+  EXPECT_DOUBLE_EQ(model->actuators()[0].ratings.rotor_inertia, 2e-5);
+  EXPECT_DOUBLE_EQ(model->actuators()[0].ratings.peak_torque, 3.0);
+  {
+    std::ofstream out(path);
+    out << "actuators:\n  motor:\n    rotor_inertai: 2.0e-5\n";
+  }
+  EXPECT_EQ(loadError(pendulum(kSimple), o), path + ":3: actuator 'motor': unknown property 'rotor_inertai'");
+}
+
+TEST(Actuators, BadInputIsOneLine) {
+  auto simple = [](const std::string& joint, const std::string& reduction) {
+    return "<transmission name=\"gearbox\"><type>transmission_interface/SimpleTransmission</type><joint name=\"" + joint +
+           "\"/><actuator name=\"motor\"><mechanicalReduction>" + reduction + "</mechanicalReduction></actuator></transmission>";
+  };
+  EXPECT_EQ(loadError(pendulum(simple("elbow", "10"))),
+            "t.urdf:1: transmission 'gearbox': joint 'elbow' is not a movable one-dof joint of the model (no such joint, "
+            "or a fixed one)");
+  EXPECT_EQ(loadError(pendulum(simple("hinge", "0"))),
+            "t.urdf:1: transmission 'gearbox': a mechanical reduction must be finite and not zero");
+  EXPECT_EQ(loadError(pendulum(simple("hinge", "ten"))),
+            "t.urdf:1: actuator 'motor': <mechanicalReduction> is not a finite number: 'ten'");
+  EXPECT_EQ(loadError(pendulum(std::string(kSimple) + "<mechanism_sim:actuator name=\"motor\" rotor_inertia=\"-1e-5\"/>")),
+            "t.urdf:1: mechanism_sim:actuator 'motor': rotor_inertia must be finite and not negative");
+  EXPECT_EQ(loadError(pendulum(std::string(kSimple) + "<mechanism_sim:actuator name=\"servo\" rotor_inertia=\"1e-5\"/>")),
+            "t.urdf:1: mechanism_sim:actuator 'servo': no transmission of a simulated type names actuator 'servo'");
+}
+
+}  // namespace
+}  // namespace mechanism_sim
