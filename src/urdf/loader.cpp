@@ -603,7 +603,23 @@ class ModelBuilder {
     if (read.repeated)
       limit_notes_.push_back(std::to_string(read.repeated) + " <transmission>s repeat another exactly (one per "
                              "hardware interface): each is read once");
+    // A reduced model locks joints by making them fixed, or leaves them out, and keeps their
+    // <transmission>s: those drive nothing and are not simulated, listed in one note each way
+    // (ros_control's loader skips a transmission whose joint the URDF lacks, with an error).
+    std::string on_fixed, on_missing;
     for (const TransmissionSpec& s : read.simulated) {
+      bool fixed = false, missing = false;
+      for (const std::string& joint : s.joints) {
+        bool found = false;
+        for (const TreeJoint& t : model_->tree_)
+          if (t.name == joint) found = true, fixed = fixed || t.fixed;
+        if (!found && joint_index_.find(joint) == joint_index_.end()) missing = true;
+      }
+      if (fixed || missing) {
+        std::string& list = missing ? on_missing : on_fixed;
+        list += (list.empty() ? "'" : ", '") + s.map.name + "'";
+        continue;
+      }
       TransmissionInfo info;
       info.map = s.map;
       const Eigen::MatrixXd E = s.map.velocityMap();
@@ -617,7 +633,7 @@ class ModelBuilder {
         const auto index = joint_index_.find(joint);
         if (index == joint_index_.end() || d < 0 || mech().joint(index->second).dof() != 1)
           fail(s.element, "joint '" + joint + "' is not a movable one-dof joint of the model" +
-                              (index == joint_index_.end() && d < 0 ? " (no such joint, or a fixed one)" : ""));
+                              (index == joint_index_.end() && d < 0 ? " (no such joint)" : ""));
         info.dofs.push_back(d);
         rotor.coords.push_back({index->second, 0});
       }
@@ -641,6 +657,11 @@ class ModelBuilder {
       if (J.maxCoeff() > 0.0 && !kinematic_) mech().addRotorInertia(rotor);
       model_->transmissions_.push_back(info);
     }
+    if (!on_missing.empty())
+      limit_notes_.push_back("transmissions of joints the file does not have drive nothing and are not simulated: " +
+                             on_missing);
+    if (!on_fixed.empty())
+      limit_notes_.push_back("transmissions of fixed joints drive nothing and are not simulated: " + on_fixed);
     if (!no_reduction.empty())
       limit_notes_.push_back("transmissions without a <mechanicalReduction> take 1, as gazebo_ros_control reads them: " +
                              no_reduction);

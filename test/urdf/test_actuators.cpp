@@ -212,14 +212,46 @@ TEST(Actuators, ActuatorsFile) {
   EXPECT_EQ(loadError(pendulum(kSimple), o), path + ":3: actuator 'motor': unknown property 'rotor_inertai'");
 }
 
+// A reduced model fixes joints, or leaves them out, and keeps their <transmission>s
+// (example-robot-data's kinova fingers, talos_left_arm's shoulder): such a transmission
+// drives nothing, is listed in one note, and the rest of the model runs with its rotors.
+TEST(Actuators, ATransmissionOfAFixedOrMissingJointIsNotSimulated) {
+  const std::string wrist =
+      "<link name=\"hand\"><inertial><mass value=\"0.1\"/><inertia ixx=\"1e-4\" iyy=\"1e-4\" izz=\"1e-4\" "
+      "ixy=\"0\" ixz=\"0\" iyz=\"0\"/></inertial></link><joint name=\"wrist\" type=\"fixed\"><parent "
+      "link=\"arm\"/><child link=\"hand\"/><origin xyz=\"1 0 0\"/></joint>"
+      "<transmission name=\"wrist_trans\"><type>transmission_interface/SimpleTransmission</type><joint "
+      "name=\"wrist\"/><actuator name=\"wrist_motor\"><mechanicalReduction>50</mechanicalReduction></actuator>"
+      "</transmission>";
+  auto model = loadModelString(pendulum(std::string(kSimple) + wrist), "t.urdf", {});
+  int listed = 0;
+  for (const std::string& note : model->notes())
+    if (note.find("transmissions of fixed joints drive nothing") != std::string::npos &&
+        note.find("'wrist_trans'") != std::string::npos)
+      ++listed;
+  EXPECT_EQ(listed, 1);
+  ASSERT_EQ(model->actuators().size(), 1u);  // the hinge's motor only
+  EXPECT_EQ(model->actuators()[0].name, "motor");
+  // and one of a joint the file does not have (a reduced model left it out), likewise
+  const std::string elsewhere =
+      "<transmission name=\"elbow_trans\"><type>transmission_interface/SimpleTransmission</type><joint "
+      "name=\"elbow\"/><actuator name=\"elbow_motor\"><mechanicalReduction>50</mechanicalReduction></actuator>"
+      "</transmission>";
+  model = loadModelString(pendulum(std::string(kSimple) + elsewhere), "t.urdf", {});
+  listed = 0;
+  for (const std::string& note : model->notes())
+    if (note.find("transmissions of joints the file does not have drive nothing") != std::string::npos &&
+        note.find("'elbow_trans'") != std::string::npos)
+      ++listed;
+  EXPECT_EQ(listed, 1);
+  EXPECT_EQ(model->actuators().size(), 1u);
+}
+
 TEST(Actuators, BadInputIsOneLine) {
   auto simple = [](const std::string& joint, const std::string& reduction) {
     return "<transmission name=\"gearbox\"><type>transmission_interface/SimpleTransmission</type><joint name=\"" + joint +
            "\"/><actuator name=\"motor\"><mechanicalReduction>" + reduction + "</mechanicalReduction></actuator></transmission>";
   };
-  EXPECT_EQ(loadError(pendulum(simple("elbow", "10"))),
-            "t.urdf:1: transmission 'gearbox': joint 'elbow' is not a movable one-dof joint of the model (no such joint, "
-            "or a fixed one)");
   EXPECT_EQ(loadError(pendulum(simple("hinge", "0"))),
             "t.urdf:1: transmission 'gearbox': a mechanical reduction must be finite and not zero");
   EXPECT_EQ(loadError(pendulum(simple("hinge", "ten"))),
