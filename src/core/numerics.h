@@ -11,10 +11,11 @@ namespace numerics {
 
 // ---- shared by both formulations
 
-// Velocity projections: passes of the least-norm correction Phi_q du = -Phi_q u. One pass
-// is exact for the linear equations up to round-off; the further passes take the round-off
-// of a badly scaled Phi_q down to the tolerance; 8 is reached only at a singular
-// configuration, where more would not help.
+// Velocity projections solved exactly (the joint formulation's closures): passes of the
+// least-norm correction Phi_q du = -Phi_q u. One pass is exact for the linear equations up
+// to round-off; the further passes take the round-off of a badly scaled Phi_q down to the
+// tolerance; 8 is reached only at a singular configuration, where more would not help.
+// (The absolute formulation's penalty form has its own cap, kMaxPenaltyVelocityPasses.)
 constexpr int kMaxVelocityPasses = 8;
 
 // Residual floors (evaluation.h, relative()): kFloor times the system's largest motion
@@ -59,6 +60,16 @@ constexpr double kMaxStepError = 1e-3;
 // grows like kappa. 1e7 is where the two balance: a larger kappa drifts by the round-off
 // of H, a smaller one takes more passes.
 constexpr double kKappa = 1e7;
+// Velocity projection passes on the penalty form (projection.cpp): a pass is not exact, it
+// contracts the residual by about 1 / (1 + kappa sigma), and sigma is small wherever two rows
+// act on nearly the same motion in the metric M^-1: a bob whose rotational inertia Ic is
+// tiny beside m L^2 has its pivot's lateral row and its limit's row both mostly on its
+// rotation, sigma about Ic / (2 m L^2), whatever the diagonal row weights (van der Sluis:
+// the rows' own weights are within a factor of the row count of the best diagonal ones).
+// The passes go on while each halves the residual against the starting scales (a pass that
+// gains less ends them); this cap only bounds that: from a relative residual of 1 to double
+// round-off (2^-52) under the residual floor kFloor (about 2^-20) is 72 halvings.
+constexpr int kMaxPenaltyVelocityPasses = 72;
 // Refinement passes of a KKT solve on its exact residual (each contracts by 1/(kappa sigma)).
 constexpr int kMaxSolvePasses = 12;
 // A pass with H factored at a nearby state that gains less than 1/kNearbyGain triggers a

@@ -8,8 +8,8 @@
 namespace mechanism_sim {
 namespace {
 
-using numerics::kMaxVelocityPasses;
 using numerics::absolute::kMaxNewton;
+using numerics::absolute::kMaxPenaltyVelocityPasses;
 using numerics::absolute::kRoundoffSteps;
 
 // The size of a correction dn (per body: translation and rotation): max |dn| over the
@@ -129,7 +129,7 @@ bool projectVelocities(const System& sys, State& s, Evaluation& ev, ConstraintSo
     std::fill(w.mechanism_scale.begin(), w.mechanism_scale.end(), std::array<double, 2>{V, V / sys.length_scale});
     gauge_all = velocityResidualAtScales(sys, ev, s.u, w.mechanism_scale);
   }
-  for (int it = 0; err > tol && it < kMaxVelocityPasses; ++it) {
+  for (int it = 0; err > tol && it < kMaxPenaltyVelocityPasses; ++it) {
     mulJ(sys, ev, sys.all_constraints, s.u.data(), w.r2.data());
     w.r2 = ev.nu - w.r2;
     w.r1.setZero();
