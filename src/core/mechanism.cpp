@@ -11,6 +11,7 @@
 #include "core/absolute/stepper.h"
 #include "core/assembly.h"
 #include "core/formulation.h"
+#include "core/numerics.h"
 #include "core/joint_space/joint_stepper.h"
 #include "core/joint_space/tree_reactions.h"
 #include "core/reaction_solve.h"
@@ -19,6 +20,19 @@
 namespace mechanism_sim {
 
 namespace {
+
+// How far apart two poses of the bodies are: the largest of |r - r0| / L and the rotation
+// angle between p and p0 (either sign of the quaternion).
+double poseDistance(const System& sys, const Eigen::VectorXd& x0, const Eigen::VectorXd& x) {
+  double d = 0.0;
+  for (int b = 0; b < sys.nb; ++b) {
+    const int i = BodyCoordinates::x(b);
+    d = std::max(d, (x.segment<3>(i) - x0.segment<3>(i)).norm() / sys.length_scale);
+    const double c = std::min(1.0, std::fabs(x.segment<4>(i + 3).dot(x0.segment<4>(i + 3))));
+    d = std::max(d, 2.0 * std::acos(c));
+  }
+  return d;
+}
 
 // An input set again to the same bits (signed zeros apart): nothing to recompute.
 bool sameBits(double a, double b) { return a == b && std::signbit(a) == std::signbit(b); }
@@ -232,7 +246,29 @@ AssemblyReport Mechanism::assemble(const std::vector<CoordinateTarget>& position
   stateChanged();
   const AssemblyReport r = mechanism_sim::assemble(*sys_, state_, *stepper_, positions, velocities, &dependencies_);
   stepper_->settle(*sys_, state_, inputs_);
-  if (joint_) joint_->settle(*sys_, state_, inputs_);  // the joint state of the assembled one
+  if (joint_) {  // the joint state of the assembled one
+    const State assembled = state_;
+    joint_->settle(*sys_, state_, inputs_);
+    // Where assembly accepted dependent equations that disagree at the file's precision,
+    // the joint formulation's closure projection may not hold the assembled pose (a least-norm
+    // step along a direction the disagreeing rows nearly share moves it far): then the
+    // absolute formulation, whose dependent rows stay dropped, runs the mechanism ("joint"
+    // asked: refused).
+    const double moved = poseDistance(*sys_, assembled.x, state_.x);
+    if (moved > numerics::assembly::kDescriptionPrecision) {
+      std::ostringstream why;
+      why << "the closures in joint coordinates move the assembled pose by " << moved
+          << " (relative): its dependent equations disagree";
+      if (parseFormulation(sys_->options.formulation) == Formulation::kJoint)
+        throw ModelError("the joint formulation cannot run this mechanism: " + why.str() + "; use formulation 'absolute'");
+      state_ = assembled;
+      joint_.reset();
+      stepper_->adopt(*sys_, state_, inputs_);
+      running_ = stepper_.get();
+      formulation_ = Formulation::kAbsolute;
+      formulation_why_ = "absolute coordinates (auto: " + why.str() + ")";
+    }
+  }
   return r;
 }
 
