@@ -10,6 +10,7 @@ add_library(mechanism_sim_urdf
   src/urdf/trajectory.cpp
   src/urdf/xacro.cpp
   src/urdf/transmissions.cpp
+  src/urdf/yaml_file.cpp
   src/urdf/actuators.cpp
 )
 target_include_directories(mechanism_sim_urdf PUBLIC include ${urdfdom_INCLUDE_DIRS})

@@ -578,6 +578,19 @@ AssemblyReport assembleOnce(const System& sys, State& s, Stepper& st,
   double disagreement = 0;  // the dependent rows' residual where they disagree at the file's precision
   double worst = residual(&cost);
   const double tol = sys.options.position_tol;
+  // Closes the independent equations alone where the dependent ones disagree at the file's
+  // precision (closeIndependent); else the pose stays as it was.
+  auto closeIndependentOnes = [&]() {
+    State closed = s;
+    if (closeIndependent(sys, closed, st)) {
+      s = closed;
+      worst = 0;
+      disagreement = droppedResidual(sys, ev);
+    } else {
+      st.load(sys, s.x.data(), s.u.data());
+      worst = residual(&cost);
+    }
+  };
   // On the spanning tree first (TreeAssembly): the loops close from however far apart
   // their cut frames start; the absolute iteration below then polishes. A System the tree
   // has no model of is assembled by the absolute iteration alone.
@@ -605,15 +618,7 @@ AssemblyReport assembleOnce(const System& sys, State& s, Stepper& st,
   const bool may_disagree = positions.empty();  // (closeIndependent holds no target)
   if (worst > tol && may_disagree && !any_mirrored && !outside_limits &&
       positionViolation(ev) <= kDescriptionPrecision * sys.length_scale) {
-    State closed = s;
-    if (closeIndependent(sys, closed, st)) {
-      s = closed;
-      worst = 0;
-      disagreement = droppedResidual(sys, ev);
-    } else {
-      st.load(sys, s.x.data(), s.u.data());
-      worst = residual(&cost);
-    }
+    closeIndependentOnes();
   }
   if (worst > tol || any_mirrored || outside_limits) {
     std::unique_ptr<TreeModel> model;
@@ -687,15 +692,7 @@ AssemblyReport assembleOnce(const System& sys, State& s, Stepper& st,
   // dropped).
   if (worst > std::max(tol, kAssemblyFailureResidual) && may_disagree &&
       positionViolation(ev) <= kDescriptionPrecision * sys.length_scale) {
-    State closed = s;
-    if (closeIndependent(sys, closed, st)) {
-      s = closed;
-      worst = 0;
-      disagreement = droppedResidual(sys, ev);
-    } else {
-      st.load(sys, s.x.data(), s.u.data());
-      worst = residual(&cost);
-    }
+    closeIndependentOnes();
   }
   report.position_residual = std::max(worst, disagreement);
   if (worst > std::max(tol, kAssemblyFailureResidual)) {

@@ -11,6 +11,8 @@
 
 #include <yaml-cpp/yaml.h>
 
+#include "yaml_file.h"
+
 #include "mechanism_sim/urdf/model.h"
 
 namespace mechanism_sim {
@@ -487,16 +489,7 @@ void readOnshapeClosures(const XMLElement* robot, const XmlReader& r, Extension*
 // joint origin, moving with the joint): a joint's name stands for its child link.
 void readClosuresFile(const std::string& path, const XMLElement* robot, Extension* ext) {
   if (path.empty()) return;
-  std::ifstream in(path);
-  if (!in) throw LoadError(path + ": cannot open the closures file");
-  YAML::Node doc;
-  try {
-    doc = YAML::Load(in);
-  } catch (const YAML::Exception& e) {
-    std::ostringstream os;
-    os << path << ":" << e.mark.line + 1 << ": malformed YAML: " << e.msg;
-    throw LoadError(os.str());
-  }
+  const YAML::Node doc = loadYamlFile(path, "closures");
   auto fail = [&](const YAML::Node& n, const std::string& what) { throw LoadError(where(path, n) + oneLine(what, 400)); };
   if (!doc.IsMap()) fail(doc, "a closures file is a map with closed_loop: [[frameA, frameB], ...] and type: [3d|6d, ...]");
   auto stringList = [&](const char* key) {

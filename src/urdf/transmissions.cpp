@@ -8,6 +8,8 @@
 
 #include <yaml-cpp/yaml.h>
 
+#include "yaml_file.h"
+
 #include "mechanism_sim/urdf/model.h"
 
 namespace mechanism_sim {
@@ -206,16 +208,7 @@ Transmissions readTransmissions(const XMLElement* robot, const XmlReader& r) {
 
 void readActuatorsFile(const std::string& path, Transmissions& into) {
   if (path.empty()) return;
-  std::ifstream in(path);
-  if (!in) throw LoadError(path + ": cannot open the actuators file");
-  YAML::Node doc;
-  try {
-    doc = YAML::Load(in);
-  } catch (const YAML::Exception& e) {
-    std::ostringstream os;
-    os << path << ":" << e.mark.line + 1 << ": malformed YAML: " << e.msg;
-    throw LoadError(os.str());
-  }
+  const YAML::Node doc = loadYamlFile(path, "actuators");
   auto fail = [&](const YAML::Node& n, const std::string& what) {
     std::ostringstream os;
     os << path;
