@@ -26,7 +26,13 @@ struct Pendulum {
   // on the scalar equation with a step of 1e-5 s (its own error, against the same in long
   // double: 2.4e-13 m after 10 s, the round-off of its 1e6 steps).
   Vector3d exact(double T) const {
-    const double c = m * kG * L / (m * L * L + Ic);
+    const double q = exactAngle(T);
+    return pivot + L * Vector3d(std::cos(q), 0, -std::sin(q));
+  }
+  // The angle q of that motion at T; with `reflected` (a rotor's N^2 J behind a gearbox)
+  // added to the inertia about the pivot.
+  double exactAngle(double T, double reflected = 0.0) const {
+    const double c = m * kG * L / (m * L * L + Ic + reflected);
     double q = 0, v = 0;
     const double h = 1e-5;
     auto f = [c](double x) { return c * std::cos(x); };
@@ -38,7 +44,7 @@ struct Pendulum {
       q += h / 6.0 * (k1x + 2 * k2x + 2 * k3x + k4x);
       v += h / 6.0 * (k1v + 2 * k2v + 2 * k3v + k4v);
     }
-    return pivot + L * Vector3d(std::cos(q), 0, -std::sin(q));
+    return q;
   }
 };
 

@@ -80,23 +80,7 @@ TEST(Transmission, SimpleAndBadInput) {
 }
 
 // A pendulum behind a gearbox of ratio N with a rotor J: (m L^2 + Ic + N^2 J) q'' = m g L
-// cos q, released from the horizontal; the exact motion by RK4 at 1e-5 s on that equation.
-double gearedExact(const Pendulum& p, double B, double T) {
-  const double c = p.m * kG * p.L / (p.m * p.L * p.L + p.Ic + B);
-  double q = 0, v = 0;
-  const double h = 1e-5;
-  auto f = [c](double x) { return c * std::cos(x); };
-  for (long k = 0, n = std::lround(T / h); k < n; ++k) {
-    const double k1x = v, k1v = f(q);
-    const double k2x = v + 0.5 * h * k1v, k2v = f(q + 0.5 * h * k1x);
-    const double k3x = v + 0.5 * h * k2v, k3v = f(q + 0.5 * h * k2x);
-    const double k4x = v + h * k3v, k4v = f(q + h * k3x);
-    q += h / 6.0 * (k1x + 2 * k2x + 2 * k3x + k4x);
-    v += h / 6.0 * (k1v + 2 * k2v + 2 * k3v + k4v);
-  }
-  return q;
-}
-
+// cos q (Pendulum::exactAngle with N^2 J reflected). Built, not yet assembled.
 void buildGeared(Mechanism& m, const Pendulum& p, double N, double J, const char* formulation) {
   p.add(m);
   RotorInertia r;
@@ -108,21 +92,21 @@ void buildGeared(Mechanism& m, const Pendulum& p, double N, double J, const char
   io.formulation = formulation;
   m.setIntegrator(io);
   m.build();
-  m.assemble();
 }
 
 TEST(RotorInertia, GearedPendulumSwingsWithReflectedInertia) {
   Pendulum p;
   p.m = 2.0, p.L = 0.5, p.Ic = 1e-3;
   const double N = 100, J = 5e-5;  // N^2 J = 0.5 kg m^2, next to m L^2 = 0.5
-  const double q_exact = gearedExact(p, N * N * J, 1.0);
-  const double q_free = gearedExact(p, 0.0, 1.0);
+  const double q_exact = p.exactAngle(1.0, N * N * J);
+  const double q_free = p.exactAngle(1.0);
   ASSERT_GT(std::fabs(q_exact - q_free), 0.05);  // the rotor matters (0.09 rad)
   double q_by[2];
   int i = 0;
   for (const char* f : {"absolute", "joint"}) {
     Mechanism m;
     buildGeared(m, p, N, J, f);
+    m.assemble();
     EXPECT_STREQ(m.formulation(), f);
     const double E0 = m.kineticEnergy() + m.potentialEnergy();
     for (int k = 0; k < 1000; ++k) m.step(1e-3);
@@ -144,16 +128,7 @@ TEST(RotorInertia, SmallOscillationPeriod) {
   const double period = 2 * M_PI * std::sqrt(I / (p.m * kG * p.L));
   for (const char* f : {"absolute", "joint"}) {
     Mechanism m;
-    p.add(m);
-    RotorInertia r;
-    r.name = "gearbox";
-    r.coords = {{0, 0}};
-    r.B(0, 0) = N * N * J;
-    m.addRotorInertia(r);
-    IntegratorOptions io;
-    io.formulation = f;
-    m.setIntegrator(io);
-    m.build();
+    buildGeared(m, p, N, J, f);
     // hanging (q = pi/2) plus 1e-3 rad, at rest
     m.assemble({{0, 0, M_PI / 2 + 1e-3}}, {{0, 0, 0.0}});
     // time of the first return to rest on the far side and back (velocity sign changes)
