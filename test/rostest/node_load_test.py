@@ -404,9 +404,16 @@ class NodeUnderLoad(unittest.TestCase):
         self.assertGreater(len(L.tail), 20, "joint_states stopped after the load (messages in its last second)")
         self.assertLess(L.run_seconds, 110.0)
 
-    def test_commands_fast(self):
+    def test_commands_outnumber_publishes(self):
+        """The load is a flood: several commands arrive between two joint_states messages, so
+        each message must pick the newest whole command. The rate itself is the test's own
+        publisher's and is reported, not asserted (bench/ measures speed)."""
         L = self.load
-        self.assertGreater(L.commands / L.publish_seconds, 2000.0, "commands per second")
+        sent = [m[3] for m in L.js]  # the last command k sent when each message arrived
+        gaps = [k1 - k0 for k0, k1 in zip(sent, sent[1:])]
+        gaps = sorted(g for g in gaps if g > 0)
+        self.assertTrue(gaps, "no command was sent between two joint_states messages")
+        self.assertGreater(gaps[len(gaps) // 2], 1, "median commands sent between messages")
 
     def test_service_calls_all_returned(self):
         L = self.load
