@@ -5,6 +5,7 @@
 #include <cmath>
 #include <map>
 #include <memory>
+#include <random>
 #include <sstream>
 
 #include <Eigen/Cholesky>
@@ -202,7 +203,12 @@ class TreeAssembly {
     };
     for (int k = 0; k < nt; ++k) runit_[sys.m + k] = coordinateUnit(targets[k]);
     targeted_.assign(sys.limits.size(), 0);
+    limit_q_.assign(sys.limits.size(), -1);
+    limit_v_.assign(sys.limits.size(), -1);
     for (size_t k = 0; k < sys.limits.size(); ++k) {
+      for (const TreeLink& Lk : model.links)
+        if (Lk.joint == sys.limits[k].joint && Lk.nq == Lk.nv && sys.limits[k].k < Lk.nq)
+          limit_q_[k] = Lk.iq + sys.limits[k].k, limit_v_[k] = Lk.iv + sys.limits[k].k;
       runit_[r_limit_ + k] = coordinateUnit({sys.limits[k].joint, sys.limits[k].k, 0.0});
       for (const auto& t : targets)
         if (t.joint == sys.limits[k].joint && t.k == sys.limits[k].k) targeted_[k] = 1;
@@ -210,8 +216,80 @@ class TreeAssembly {
   }
 
   // Closes the loops from the current pose; s is left at the last pose reached (the tree's
-  // joints exact). Returns max |R| there.
+  // joints exact). Returns max |R| there. Where the path from the file's pose ends in a
+  // least-squares minimum that does not close (bounds held, a leg folded the other way),
+  // it starts again from the closest pose so far with the coordinates that only the
+  // unclosed loops move drawn anew (limited ones within their limits, revolute ones a
+  // turn around the file's), as one restarts an inverse-kinematics solve from random
+  // guesses, loop by loop; a fixed seed, so a file assembles the same way every time.
   double run() {
+    const Eigen::VectorXd q_file = q_;
+    const std::vector<Tracked> tracked_file = s_.tracked;
+    double best = follow();
+    if (best <= kDescriptionPrecision) return best;
+    // Per q_dot coordinate: its limit (-1: none), whether it is an unlimited revolute angle,
+    // its link (for a link whose q and q_dot coordinates are the same: no quaternion).
+    std::vector<int> limit_of(model_.nv, -1);
+    std::vector<char> turns(model_.nv, 0);
+    std::vector<const TreeLink*> link_of(model_.nv, nullptr);
+    for (const TreeLink& Lk : model_.links)
+      if (Lk.joint >= 0 && Lk.nq == Lk.nv)
+        for (int c = 0; c < Lk.nv; ++c) link_of[Lk.iv + c] = &Lk;
+    for (int k = 0; k < static_cast<int>(limit_v_.size()); ++k)
+      if (limit_v_[k] >= 0 && !targeted_[k]) limit_of[limit_v_[k]] = k;
+    for (const TreeLink& Lk : model_.links)
+      if (Lk.kind == TreeJointKind::kRevolute && Lk.nq == 1 && limit_of[Lk.iv] < 0) turns[Lk.iv] = 1;
+    for (const auto& t : targets_)
+      for (const TreeLink& Lk : model_.links)
+        if (Lk.joint == t.joint) turns[Lk.iv] = 0;
+    Eigen::VectorXd best_q = q_;
+    std::vector<Tracked> best_tracked = s_.tracked;
+    std::mt19937_64 draw(kRestartSeed);
+    auto uniform = [&]() { return static_cast<double>(draw() >> 11) * 0x1.0p-53; };  // in [0, 1)
+    Eigen::MatrixXd G;
+    for (int restart = 0; restart < kRestarts && best > kDescriptionPrecision; ++restart) {
+      q_ = best_q;
+      s_.tracked = best_tracked;
+      const Eigen::VectorXd F = gap(residual(q_), 0.0);
+      jacobian(G);
+      std::vector<char> row_open(sys_.m, 0);  // (each row of an equation not closed, whole)
+      for (int ci = 0; ci < sys_.numConstraints(); ++ci) {
+        const ConstraintLayout& Ly = sys_.layout[ci];
+        const bool open = Ly.size > 0 && F.segment(Ly.row, Ly.size).cwiseAbs().maxCoeff() > kDescriptionPrecision;
+        for (int e = 0; e < Ly.size; ++e) row_open[Ly.row + e] = open;
+      }
+      bool any = false;
+      for (int c = 0; c < model_.nv; ++c) {
+        if ((limit_of[c] < 0 && !turns[c]) || !link_of[c]) continue;
+        bool open = false, closed = false;  // (whether it moves an unclosed equation, a closed one)
+        for (int r = 0; r < sys_.m; ++r)
+          if (G(r, c) != 0) (row_open[r] ? open : closed) = true;
+        if (!open || closed) continue;
+        any = true;
+        const TreeLink& Lk = *link_of[c];
+        const int i = Lk.iq + (c - Lk.iv);
+        double value = q_file[i] + (2 * uniform() - 1) * M_PI;
+        if (limit_of[c] >= 0) {
+          const LimitSpec& Lm = sys_.limits[limit_of[c]];
+          value = Lm.lower + uniform() * (Lm.upper - Lm.lower);
+        }
+        q_[i] = value;
+        const int slot = Lk.ptr->trackedSlot(c - Lk.iv);
+        if (slot >= 0) s_.tracked[Lk.ptr->id()][slot] = value;
+      }
+      if (!any) break;  // (every coordinate of the unclosed loops moves a closed one too)
+      const double r = follow();
+      if (r < best) best = r, best_q = q_, best_tracked = s_.tracked;
+    }
+    q_ = best_q;
+    s_.tracked = best_tracked;
+    place(q_);
+    return best;
+  }
+
+ private:
+  // run() from q_ alone: the continuation, then the least-squares minimum.
+  double follow() {
     Eigen::VectorXd R0 = residual(q_);
     startAt(R0);
     // A cut joint's axes exactly opposed: |bz_j - bz_i| is at its largest, where it has no
@@ -237,7 +315,7 @@ class TreeAssembly {
       const double s_try = std::min(1.0, reached + step);
       const Eigen::VectorXd q_saved = q_;
       const std::vector<Tracked> tracked_saved = s_.tracked;
-      q_ = moved(q_saved, (s_try - reached) * tangent(1 - reached));  // (the predictor)
+      q_ = projected(moved(q_saved, (s_try - reached) * tangent(1 - reached)), 1 - s_try);  // (the predictor)
       const bool ok = correct(1 - s_try, kCorrectorIterations, kFollowTolerance);
       if (ok) {
         reached = s_try;
@@ -253,7 +331,6 @@ class TreeAssembly {
     return gap(residual(q_), 0.0).cwiseAbs().maxCoeff();
   }
 
- private:
   // The joint coordinates of the absolute state (as JointStepper::settle reads them).
   Eigen::VectorXd jointState() {
     st_.load(sys_, s_.x.data(), s_.u.data());
@@ -391,6 +468,15 @@ class TreeAssembly {
       jacobian(G);
       for (int r = r_limit_; r < nr_; ++r)
         if (F[r] == 0) G.row(r).setZero();  // (a limit not reached: no residual, no slope)
+      // A coordinate on its bound that descent would push past it is held there (its
+      // column dropped): the active set of the bound-constrained problem.
+      Eigen::VectorXd g0 = -G.transpose() * F;
+      for (int k = 0; k < e0_.size(); ++k) {
+        const int c = limit_v_[k], i = limit_q_[k];
+        if (c < 0 || targeted_[k]) continue;
+        const auto [lo, hi] = bounds(k, relax);
+        if ((q_[i] <= lo && g0[c] < 0) || (q_[i] >= hi && g0[c] > 0)) G.col(c).setZero();
+      }
       A.noalias() = G.transpose() * G;
       const Eigen::VectorXd g = -G.transpose() * F;
       const Eigen::VectorXd d = A.diagonal();
@@ -415,7 +501,7 @@ class TreeAssembly {
         const double big = dv.cwiseQuotient(vunit_).cwiseAbs().maxCoeff();
         if (!(big < HUGE_VAL)) { mu *= 10; continue; }
         if (big > kMaxStep) dv *= kMaxStep / big;
-        const Eigen::VectorXd q_try = moved(q_, dv);
+        const Eigen::VectorXd q_try = projected(moved(q_, dv), relax);
         const Eigen::VectorXd F_try = gap(residual(q_try), relax);
         const double c_try = F_try.squaredNorm();
         if (c_try < cost) {
@@ -445,6 +531,25 @@ class TreeAssembly {
     }
   }
 
+  // Limit k's bounds at relax = 1 - s: the limits widened by relax e0 (gap(), below).
+  std::pair<double, double> bounds(int k, double relax) const {
+    const LimitSpec& Lm = sys_.limits[k];
+    return {Lm.lower + std::min(0.0, relax * e0_[k]), Lm.upper + std::max(0.0, relax * e0_[k])};
+  }
+
+  // q with each limited coordinate of its own clamped to its bounds: the iterates stay
+  // within them (bound-constrained least squares, as Drake's inverse kinematics keeps
+  // SNOPT's iterates within the joints' limits), so the loops close on the branch the
+  // limits admit rather than on one the least squares reaches by leaving them.
+  Eigen::VectorXd projected(Eigen::VectorXd q, double relax) const {
+    for (int k = 0; k < e0_.size(); ++k) {
+      if (limit_q_[k] < 0 || targeted_[k]) continue;
+      const auto [lo, hi] = bounds(k, relax);
+      q[limit_q_[k]] = std::min(hi, std::max(lo, q[limit_q_[k]]));
+    }
+    return q;
+  }
+
   // The corrector's residual F at relax = 1 - s: R - relax R0 for the equations, the targets
   // and the axes, and for each limit its coordinate's excess over the bounds relaxed by
   // relax e0 (0 within them): a coordinate that starts past a limit is brought within it
@@ -453,13 +558,12 @@ class TreeAssembly {
   Eigen::VectorXd gap(const Eigen::VectorXd& R, double relax) const {
     Eigen::VectorXd F = R - relax * R0_;
     for (int k = 0; k < e0_.size(); ++k) {
-      const LimitSpec& Lm = sys_.limits[k];
       const double u = runit_[r_limit_ + k], q = R[r_limit_ + k] * u;
       if (targeted_[k]) {  // (a target's own coordinate: the target holds it; a target past its limit is refused after)
         F[r_limit_ + k] = 0;
         continue;
       }
-      const double lo = Lm.lower + std::min(0.0, relax * e0_[k]), hi = Lm.upper + std::max(0.0, relax * e0_[k]);
+      const auto [lo, hi] = bounds(k, relax);
       F[r_limit_ + k] = (q < lo ? q - lo : q > hi ? q - hi : 0.0) / u;
     }
     return F;
@@ -479,6 +583,7 @@ class TreeAssembly {
   int nr_ = 0, r_limit_ = 0;  // rows: all, the first limit's
   Eigen::VectorXd vunit_, runit_, q_, x_, u_, R0_, e0_;
   std::vector<char> targeted_;  // per limit: its coordinate is a target's
+  std::vector<int> limit_q_, limit_v_;  // per limit: its coordinate's index in q, q_dot (-1: none of its own)
 };
 
 

@@ -151,6 +151,10 @@ constexpr double kMaxStep = 0.5;
 constexpr double kFollowTolerance = 1e-6;
 constexpr double kOpposed = 1e-6;
 constexpr double kNudge = 0.1;
+// Restarts from poses drawn within the limits where the path from the file's pose ends in
+// a minimum that does not close (TreeAssembly::run), and the draws' seed.
+constexpr int kRestarts = 24;
+constexpr unsigned kRestartSeed = 20261129;
 
 }  // namespace assembly
 

@@ -98,7 +98,8 @@ struct InitialValues {
   std::map<Coordinate, double> velocities;  // held in assembly
   std::map<Coordinate, bool> velocity_from_file;  // whether the file gave it (else the options)
   // Where a joint starts that nobody placed, because the file's zero pose lies outside its
-  // limits (the nearest limit): placed and held like `positions`, but not the user's.
+  // limits (the nearest limit): placed like `positions`, but not held: assembly keeps every
+  // coordinate within its limits as a bound, and a loop may need the joint off its limit.
   std::map<Coordinate, double> limit_starts;
   // A mimic follower's place, from its leader's start: placed, not held (the coupler holds it).
   std::map<Coordinate, double> followers;
@@ -795,8 +796,7 @@ class ModelBuilder {
   void assemble(const InitialValues& initial) {
     if (kinematic_) holdFreeDofs(initial);
     std::vector<CoordinateTarget> positions, velocities;
-    for (const auto* m : {&initial.positions, &initial.limit_starts})
-      for (const auto& p : *m) positions.push_back({joint_index_.at(p.first.first), p.first.second, p.second});
+    for (const auto& p : initial.positions) positions.push_back({joint_index_.at(p.first.first), p.first.second, p.second});
     for (const auto& v : initial.velocities) {
       const int joint = joint_index_.at(v.first.first);
       if (mech().driveOf(joint, v.first.second) < 0) velocities.push_back({joint, v.first.second, v.second});

@@ -11,6 +11,8 @@
 #include <set>
 #include <sstream>
 
+#include <urdf_parser/urdf_parser.h>
+
 #include "mechanism_sim/urdf/model.h"
 
 namespace mechanism_sim {
@@ -430,6 +432,36 @@ TEST(Dialects, DrakeWorldIsGroundWithoutALink) {
     for (size_t k = 0; k < q.size(); ++k) EXPECT_NEAR(q[k], q_ref[k], 1e-9) << file << " dof " << k;
     EXPECT_NEAR((m->linkPose(m->linkIndex("base")).translation() - Eigen::Vector3d(0, 0, 1)).norm(), 0.0, 1e-12);
   }
+}
+
+// A Jansen-linkage walker shaped like Drake's strandbeest: twelve legs closed by ball
+// constraints, each leg joint limited to +- 0.5 rad about its closed angle with the zero
+// pose outside the limits. From the file's pose the bound-constrained least squares stops
+// with some legs folded the other way; the legs left open start again from angles drawn
+// within their limits (closed legs kept) and every leg closes within its limits.
+TEST(Dialects, LegsLimitedAwayFromTheirZeroPoseAssembleWithinTheLimits) {
+  const std::string file = kDir + "/jansen_walker_drake.urdf";
+  auto m = loadModelFile(file);
+  EXPECT_LT(m->relativePositionViolation(), 1e-12);
+  // (urdfdom wants Drake's undeclared 'world' declared: the limits are read with it added)
+  const urdf::ModelInterfaceSharedPtr urdf =
+      urdf::parseURDF(replaced(readText(file), "<link name=\"frame\">", "<link name=\"world\"/><link name=\"frame\">"));
+  ASSERT_TRUE(urdf);
+  int limited = 0;
+  for (const auto& entry : urdf->joints_) {
+    const urdf::Joint& j = *entry.second;
+    if (j.type != urdf::Joint::REVOLUTE) continue;
+    ++limited;
+    const int dof = m->dofIndex(j.name);
+    ASSERT_GE(dof, 0) << j.name;
+    const double q = m->position(dof);
+    EXPECT_GE(q, j.limits->lower - 1e-9) << j.name;
+    EXPECT_LE(q, j.limits->upper + 1e-9) << j.name;
+  }
+  EXPECT_EQ(limited, 60);
+  // the legs stay closed as the walker runs
+  for (int s = 0; s < 50; ++s) m->step(1e-3);
+  EXPECT_LT(m->relativePositionViolation(), 1e-10);
 }
 
 // One file per dialect and per way it can be wrong, each with its exact one-line error
