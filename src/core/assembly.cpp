@@ -206,9 +206,9 @@ class TreeAssembly {
     limit_q_.assign(sys.limits.size(), -1);
     limit_v_.assign(sys.limits.size(), -1);
     for (size_t k = 0; k < sys.limits.size(); ++k) {
-      for (const TreeLink& Lk : model.links)
-        if (Lk.joint == sys.limits[k].joint && Lk.nq == Lk.nv && sys.limits[k].k < Lk.nq)
-          limit_q_[k] = Lk.iq + sys.limits[k].k, limit_v_[k] = Lk.iv + sys.limits[k].k;
+      const int link = model.joint_link[sys.limits[k].joint];
+      if (link >= 0 && model.links[link].nq == model.links[link].nv && sys.limits[k].k < model.links[link].nq)
+        limit_q_[k] = model.links[link].iq + sys.limits[k].k, limit_v_[k] = model.links[link].iv + sys.limits[k].k;
       runit_[r_limit_ + k] = coordinateUnit({sys.limits[k].joint, sys.limits[k].k, 0.0});
       for (const auto& t : targets)
         if (t.joint == sys.limits[k].joint && t.k == sys.limits[k].k) targeted_[k] = 1;
@@ -240,17 +240,19 @@ class TreeAssembly {
     for (const TreeLink& Lk : model_.links)
       if (Lk.kind == TreeJointKind::kRevolute && Lk.nq == 1 && limit_of[Lk.iv] < 0) turns[Lk.iv] = 1;
     for (const auto& t : targets_)
-      for (const TreeLink& Lk : model_.links)
-        if (Lk.joint == t.joint) turns[Lk.iv] = 0;
+      if (model_.joint_link[t.joint] >= 0) turns[model_.links[model_.joint_link[t.joint]].iv] = 0;
     Eigen::VectorXd best_q = q_;
     std::vector<Tracked> best_tracked = s_.tracked;
     std::mt19937_64 draw(kRestartSeed);
     auto uniform = [&]() { return static_cast<double>(draw() >> 11) * 0x1.0p-53; };  // in [0, 1)
-    Eigen::MatrixXd G;
-    for (int restart = 0; restart < kRestarts && best > kDescriptionPrecision; ++restart) {
+    // The coordinates drawn at the best pose: those that move an unclosed equation and no
+    // closed one (found again only when a restart improves on the best pose).
+    std::vector<int> drawn;
+    auto findDrawn = [&]() {
       q_ = best_q;
       s_.tracked = best_tracked;
       const Eigen::VectorXd F = gap(residual(q_), 0.0);
+      Eigen::MatrixXd G;
       jacobian(G);
       std::vector<char> row_open(sys_.m, 0);  // (each row of an equation not closed, whole)
       for (int ci = 0; ci < sys_.numConstraints(); ++ci) {
@@ -258,14 +260,20 @@ class TreeAssembly {
         const bool open = Ly.size > 0 && F.segment(Ly.row, Ly.size).cwiseAbs().maxCoeff() > kDescriptionPrecision;
         for (int e = 0; e < Ly.size; ++e) row_open[Ly.row + e] = open;
       }
-      bool any = false;
+      drawn.clear();
       for (int c = 0; c < model_.nv; ++c) {
         if ((limit_of[c] < 0 && !turns[c]) || !link_of[c]) continue;
-        bool open = false, closed = false;  // (whether it moves an unclosed equation, a closed one)
+        bool open = false, closed = false;
         for (int r = 0; r < sys_.m; ++r)
           if (G(r, c) != 0) (row_open[r] ? open : closed) = true;
-        if (!open || closed) continue;
-        any = true;
+        if (open && !closed) drawn.push_back(c);
+      }
+    };
+    findDrawn();
+    for (int restart = 0; restart < kRestarts && best > kDescriptionPrecision && !drawn.empty(); ++restart) {
+      q_ = best_q;
+      s_.tracked = best_tracked;
+      for (const int c : drawn) {
         const TreeLink& Lk = *link_of[c];
         const int i = Lk.iq + (c - Lk.iv);
         double value = q_file[i] + (2 * uniform() - 1) * M_PI;
@@ -277,9 +285,11 @@ class TreeAssembly {
         const int slot = Lk.ptr->trackedSlot(c - Lk.iv);
         if (slot >= 0) s_.tracked[Lk.ptr->id()][slot] = value;
       }
-      if (!any) break;  // (every coordinate of the unclosed loops moves a closed one too)
       const double r = follow();
-      if (r < best) best = r, best_q = q_, best_tracked = s_.tracked;
+      if (r < best) {
+        best = r, best_q = q_, best_tracked = s_.tracked;
+        if (best > kDescriptionPrecision) findDrawn();
+      }
     }
     q_ = best_q;
     s_.tracked = best_tracked;
@@ -470,15 +480,14 @@ class TreeAssembly {
         if (F[r] == 0) G.row(r).setZero();  // (a limit not reached: no residual, no slope)
       // A coordinate on its bound that descent would push past it is held there (its
       // column dropped): the active set of the bound-constrained problem.
-      Eigen::VectorXd g0 = -G.transpose() * F;
+      Eigen::VectorXd g = -G.transpose() * F;
       for (int k = 0; k < e0_.size(); ++k) {
         const int c = limit_v_[k], i = limit_q_[k];
         if (c < 0 || targeted_[k]) continue;
         const auto [lo, hi] = bounds(k, relax);
-        if ((q_[i] <= lo && g0[c] < 0) || (q_[i] >= hi && g0[c] > 0)) G.col(c).setZero();
+        if ((q_[i] <= lo && g[c] < 0) || (q_[i] >= hi && g[c] > 0)) G.col(c).setZero(), g[c] = 0;
       }
       A.noalias() = G.transpose() * G;
-      const Eigen::VectorXd g = -G.transpose() * F;
       const Eigen::VectorXd d = A.diagonal();
       const double dmax = std::max(d.maxCoeff(), 1e-300);
       // On the path when no motion removes more of F than tol: F less its least-squares
