@@ -8,6 +8,7 @@
 #include <cstdio>
 
 #include "bodies.h"
+#include "compare.h"
 #include "mechanism_sim/core/models.h"
 #include "pendulum.h"
 
@@ -267,17 +268,7 @@ TEST(Solver, SnapshotRestoreContinuesBitIdentically) {
   m.build();
   m.assemble();
   for (int k = 0; k < 100; ++k) m.step(1e-3);
-  const Mechanism::Snapshot snap = m.snapshot();
-  auto run = [&]() {
-    for (int k = 0; k < 300; ++k) {
-      m.setJointEffort(0, 0, 0.5 * std::sin(0.01 * k));
-      m.step(1e-3);
-    }
-    return m.snapshot();
-  };
-  const State a = run();
-  m.restore(snap);
-  const State b = run();
+  const auto [a, b] = test_util::runTwiceFromSnapshot(m, 300);
   EXPECT_EQ(a.t, b.t);
   for (int i = 0; i < a.x.size(); ++i) ASSERT_EQ(a.x[i], b.x[i]) << i;
   for (int i = 0; i < a.u.size(); ++i) ASSERT_EQ(a.u[i], b.u[i]) << i;

@@ -266,17 +266,7 @@ TEST(JointFormulation, SnapshotRestoreContinuesBitIdentically) {
   m.build();
   m.assemble();
   for (int k = 0; k < 100; ++k) m.step(1e-3);
-  const Mechanism::Snapshot snap = m.snapshot();
-  auto run = [&]() {
-    for (int k = 0; k < 200; ++k) {
-      m.setJointEffort(0, 0, 0.5 * std::sin(0.01 * k));
-      m.step(1e-3);
-    }
-    return m.snapshot();
-  };
-  const State a = run();
-  m.restore(snap);
-  const State b = run();
+  const auto [a, b] = test_util::runTwiceFromSnapshot(m, 200);
   ASSERT_EQ(a.q.size(), b.q.size());
   for (int i = 0; i < a.q.size(); ++i) ASSERT_EQ(a.q[i], b.q[i]) << i;
   for (int i = 0; i < a.x.size(); ++i) ASSERT_EQ(a.x[i], b.x[i]) << i;

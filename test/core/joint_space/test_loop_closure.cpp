@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include "random_loops.h"
+#include "compare.h"
 
 #include <algorithm>
 #include <cmath>
@@ -22,6 +23,7 @@
 namespace mechanism_sim {
 namespace {
 
+using test_util::accelerationDifference;
 using test_util::absoluteFromJoint;
 using test_util::Builder;
 using test_util::isTranslation;
@@ -76,21 +78,6 @@ Builder rssr(double L, double g) {
   b.addJoint("revolute", 0, rocker, D, axesWithZ(Vector3d::UnitX()));
   b.addJoint("spherical", coupler, rocker, C, axesWithZ(Vector3d(0, 1, 1)));
   return b;
-}
-
-// Relative to the largest acceleration, and at least to |g| (a mechanism its closures lock
-// has accelerations of round-off size).
-double accelerationDifference(const Eigen::VectorXd& acc1, const Eigen::VectorXd& acc2, int nb, double length,
-                              double g) {
-  double lin = 0, ang = 0, dlin = 0, dang = 0;
-  for (int k = 0; k < nb; ++k) {
-    lin = std::max(lin, acc2.segment<3>(6 * k).norm());
-    ang = std::max(ang, acc2.segment<3>(6 * k + 3).norm());
-    dlin = std::max(dlin, (acc1.segment<3>(6 * k) - acc2.segment<3>(6 * k)).norm());
-    dang = std::max(dang, (acc1.segment<3>(6 * k + 3) - acc2.segment<3>(6 * k + 3)).norm());
-  }
-  const double A = std::max({lin, ang * length, g});
-  return std::max(dlin / A, dang * length / A);
 }
 
 struct LoopComparison {

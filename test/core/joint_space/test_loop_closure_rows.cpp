@@ -7,6 +7,7 @@
 
 #include "bodies.h"
 #include "random_loops.h"
+#include "compare.h"
 
 #include <algorithm>
 #include <chrono>
@@ -26,6 +27,7 @@
 namespace mechanism_sim {
 namespace {
 
+using test_util::accelerationDifference;
 using test_util::Builder;
 using test_util::uniform;
 
@@ -86,18 +88,6 @@ Builder fourBar(double L) {
 State absoluteFromJoint(const System& sys, const TreeModel& model, TreeWorkspace& ws, const Eigen::VectorXd& q,
                         const Eigen::VectorXd& qd, const State& ctx_from) {
   return test_util::absoluteFromJoint(sys, model, ws, q, qd, &ctx_from);
-}
-
-double accelerationDifference(const Eigen::VectorXd& acc1, const Eigen::VectorXd& acc2, int nb, double length, double g) {
-  double lin = 0, ang = 0, dlin = 0, dang = 0;
-  for (int k = 0; k < nb; ++k) {
-    lin = std::max(lin, acc2.segment<3>(6 * k).norm());
-    ang = std::max(ang, acc2.segment<3>(6 * k + 3).norm());
-    dlin = std::max(dlin, (acc1.segment<3>(6 * k) - acc2.segment<3>(6 * k)).norm());
-    dang = std::max(dang, (acc1.segment<3>(6 * k + 3) - acc2.segment<3>(6 * k + 3)).norm());
-  }
-  const double A = std::max({lin, ang * length, g});
-  return std::max(dlin / A, dang * length / A);
 }
 
 struct Comparison {

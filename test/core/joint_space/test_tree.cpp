@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include "bodies.h"
+#include "compare.h"
 
 #include <algorithm>
 #include <cmath>
@@ -22,6 +23,7 @@
 namespace mechanism_sim {
 namespace {
 
+using test_util::accelerationDifference;
 using test_util::frame;
 
 const char* const kTypes[] = {"revolute", "prismatic", "cylindrical", "screw",
@@ -171,20 +173,6 @@ std::vector<BodyKin> kinematicsOf(const System& sys, const State& s) {
     kin[b].w = s.u.segment<3>(6 * k + 3);
   }
   return kin;
-}
-
-// Relative difference of two acceleration vectors (State::acc layout), lengths measured in
-// `length`: |da| / A and |dw_dot| / (A / length) with A the largest of |a| and |w_dot| length.
-double accelerationDifference(const Eigen::VectorXd& acc1, const Eigen::VectorXd& acc2, int nb, double length) {
-  double lin = 0, ang = 0, dlin = 0, dang = 0;
-  for (int k = 0; k < nb; ++k) {
-    lin = std::max(lin, acc2.segment<3>(6 * k).norm());
-    ang = std::max(ang, acc2.segment<3>(6 * k + 3).norm());
-    dlin = std::max(dlin, (acc1.segment<3>(6 * k) - acc2.segment<3>(6 * k)).norm());
-    dang = std::max(dang, (acc1.segment<3>(6 * k + 3) - acc2.segment<3>(6 * k + 3)).norm());
-  }
-  const double A = std::max(lin, ang * length);
-  return std::max(dlin / A, dang * length / A);
 }
 
 struct Comparison {
