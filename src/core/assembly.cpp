@@ -254,25 +254,18 @@ class TreeAssembly {
       const Eigen::VectorXd F = gap(residual(q_), 0.0);
       Eigen::MatrixXd G;
       jacobian(G);
-      // Per row: 1 of an equation not closed (whole), 0 of a closed one, -1 of a tree
-      // joint's (held by the coordinates themselves: its slope is round-off).
-      std::vector<signed char> row_open(sys_.m, -1);
+      std::vector<char> row_open(sys_.m, 0);  // (each row of an equation not closed, whole)
       for (int ci = 0; ci < sys_.numConstraints(); ++ci) {
         const ConstraintLayout& Ly = sys_.layout[ci];
         const bool open = Ly.size > 0 && F.segment(Ly.row, Ly.size).cwiseAbs().maxCoeff() > kDescriptionPrecision;
         for (int e = 0; e < Ly.size; ++e) row_open[Ly.row + e] = open;
-      }
-      for (int j = 0; j < sys_.numJoints(); ++j) {
-        if (model_.joint_link[j] < 0) continue;
-        const ConstraintLayout& Ly = sys_.layout[sys_.joint_constraint[j]];
-        for (int e = 0; e < Ly.size; ++e) row_open[Ly.row + e] = -1;
       }
       drawn.clear();
       for (int c = 0; c < model_.nv; ++c) {
         if ((limit_of[c] < 0 && !turns[c]) || !link_of[c]) continue;
         bool open = false, closed = false;
         for (int r = 0; r < sys_.m; ++r)
-          if (G(r, c) != 0 && row_open[r] >= 0) (row_open[r] ? open : closed) = true;
+          if (G(r, c) != 0) (row_open[r] ? open : closed) = true;
         if (open && !closed) drawn.push_back(c);
       }
     };

@@ -2,7 +2,7 @@
 Jansen-linkage walker shaped like Drake's strandbeest. Twelve legs (six crank phases, each
 leg and its mirror image) on one crank; each leg is a tree of six bars closed by three
 <drake:ball_constraint>s; every bar lies along its parent at the zero pose, and each leg
-joint is limited to its closed angle +- 0.8 rad, so the zero pose lies outside most limits
+joint is limited to its closed angle +- 0.5 rad, so the zero pose lies outside most limits
 and the limits pick the branch. Jansen's lengths (cm); the crank phases are ones at which
 this reading of the linkage closes."""
 import numpy as np, sys
@@ -64,7 +64,7 @@ for n, (phase, mirror) in enumerate(legs):
             W('  <joint name="%s_joint_%s" type="continuous"><parent link="crank"/><child link="%s_%s"/><origin xyz="%.9f 0 %.9f"/><axis xyz="0 1 0"/></joint>'
               % (pre, name, pre, name, jo[0], jo[1]))
         else:
-            lo, hi = q - 0.8, q + 0.8
+            lo, hi = q - 0.5, q + 0.5
             W('  <joint name="%s_joint_%s" type="revolute"><parent link="%s"/><child link="%s_%s"/><origin xyz="%.9f 0 %.9f"/><axis xyz="0 1 0"/><limit lower="%.4f" upper="%.4f" effort="0" velocity="100"/></joint>'
               % (pre, name, pname, pre, name, jo[0], jo[1], lo, hi))
     def ball(A, pA, B, pB):

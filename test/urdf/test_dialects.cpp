@@ -435,11 +435,10 @@ TEST(Dialects, DrakeWorldIsGroundWithoutALink) {
 }
 
 // A Jansen-linkage walker shaped like Drake's strandbeest: twelve legs closed by ball
-// constraints (the cut joints: the file's tree joints are the spanning tree), each leg
-// joint limited to +- 0.8 rad about its closed angle with the zero pose outside the limits.
-// From the file's pose the bound-constrained least squares stops with some legs folded the
-// other way; the legs left open start again from angles drawn within their limits (closed
-// legs kept) and every leg closes within its limits.
+// constraints, each leg joint limited to +- 0.5 rad about its closed angle with the zero
+// pose outside the limits. From the file's pose the bound-constrained least squares stops
+// with some legs folded the other way; the legs left open start again from angles drawn
+// within their limits (closed legs kept) and every leg closes within its limits.
 TEST(Dialects, LegsLimitedAwayFromTheirZeroPoseAssembleWithinTheLimits) {
   const std::string file = kDir + "/jansen_walker_drake.urdf";
   auto m = loadModelFile(file);

@@ -210,12 +210,7 @@ TreeModel::TreeModel(const System& sys, bool embed_couplers) {
   // the formulation runs, the caller applies the rest (damping as efforts, springs as
   // loads). Joints the spanning tree does not use are cut joints (cut_joints).
 
-  // The spanning forest takes the joints in their order, each one that joins two bodies not
-  // yet connected (Kruskal's order without weights): a description's tree joints come
-  // before its closures, so the closures it declares are the cut joints, as Drake and
-  // Pinocchio cut them (a closure to ground does not take the place of a tree joint, whose
-  // limits the assembly then holds as bounds of its coordinate). The links are then
-  // ordered breadth-first from ground over that forest; the bodies ground does not reach
+  // Spanning tree by breadth-first search from ground; the bodies ground does not reach
   // are free-floating (each group rooted at its lowest-numbered body by a 6-dof link).
   links.assign(nb, TreeLink());
   joint_link.assign(sys.numJoints(), -1);
@@ -227,19 +222,6 @@ TreeModel::TreeModel(const System& sys, bool embed_couplers) {
       throw ModelError("joint '" + J.name() + "': joins a body to itself");
     incident[J.bodyI()].push_back(j);
     incident[J.bodyJ()].push_back(j);
-  }
-  std::vector<char> spanning(sys.numJoints(), 0);
-  {
-    std::vector<int> root(nb + 1);
-    for (int b = 0; b <= nb; ++b) root[b] = b;
-    auto find = [&](int b) {
-      while (root[b] != b) b = root[b] = root[root[b]];
-      return b;
-    };
-    for (int j = 0; j < sys.numJoints(); ++j) {
-      const int a = find(sys.joints[j]->bodyI()), b = find(sys.joints[j]->bodyJ());
-      if (a != b) root[std::max(a, b)] = std::min(a, b), spanning[j] = 1;
-    }
   }
   order.clear();
   order.reserve(nb);
@@ -253,7 +235,7 @@ TreeModel::TreeModel(const System& sys, bool embed_couplers) {
         used[j] = 1;
         const Joint& J = *sys.joints[j];
         const int child = J.bodyI() == b ? J.bodyJ() : J.bodyI();
-        if (!spanning[j]) {  // closes a loop: a cut joint, left to the closures
+        if (reached[child]) {  // closes a loop: a cut joint, left to the closures
           cut_joints.push_back(j);
           continue;
         }
