@@ -9,7 +9,7 @@
 #include "core/absolute/evaluation.h"
 #include "core/absolute/solver.h"
 #include "core/absolute/stepper.h"
-#include "core/assembly.h"
+#include "core/assembly/assembly.h"
 #include "core/formulation.h"
 #include "core/numerics.h"
 #include "core/joint_space/joint_stepper.h"

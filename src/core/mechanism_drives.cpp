@@ -7,7 +7,7 @@
 #include "mechanism_sim/core/model/couplers.h"
 #include "mechanism_sim/core/mechanism.h"
 #include "core/absolute/stepper.h"
-#include "core/assembly.h"
+#include "core/assembly/assembly.h"
 #include "core/formulation.h"
 #include "core/reaction_solve.h"
 #include "core/joint_space/joint_stepper.h"

@@ -125,6 +125,12 @@ void jointRows(const System& sys, const Evaluation& ev, const State& s, int j, R
   jt.coordinates(ev.kin[jt.bodyI()], ev.kin[jt.bodyJ()], s.tracked[jt.id()], rows);
 }
 
+Row jointRow(const System& sys, const Evaluation& ev, const State& s, int j, int k) {
+  Row rows[kMaxJointDofs];
+  jointRows(sys, ev, s, j, rows);
+  return rows[k];
+}
+
 void coulombFriction(const std::array<double, 3>& f, bool planar, const double rate[3], const double gPg[3][3],
                      std::array<double, 3>& out) {
   out = {0.0, 0.0, 0.0};

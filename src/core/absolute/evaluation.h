@@ -111,6 +111,8 @@ void coulombFriction(const std::array<double, 3>& f, bool planar, const double r
                      std::array<double, 3>& out);
 // The coordinate rows of joint j at the loaded kinematics (Joint::coordinates).
 void jointRows(const System& sys, const Evaluation& ev, const State& s, int j, Row* rows);
+// Coordinate k's row of joint j (one of jointRows).
+Row jointRow(const System& sys, const Evaluation& ev, const State& s, int j, int k);
 // ev.Q per body: [f (global, at the centre of mass); n' (body components)] from gravity,
 // the inputs, springs, and the joints' applied efforts (damping c and friction per joint
 // coordinate).
