@@ -57,6 +57,19 @@ inline Eigen::Vector4d quatProduct(const Eigen::Vector4d& a, const Eigen::Vector
   return out;
 }
 
+// exp of a rotation vector as a quaternion stored (w, x, y, z), as the joint formulation's
+// q keeps them.
+inline Eigen::Vector4d quatExp(const Vector3d& phi) {
+  const double a = phi.norm();
+  Eigen::Vector4d out;
+  if (a < 1e-8) {
+    out << 1.0 - a * a / 8, 0.5 * phi;
+  } else {
+    out << std::cos(a / 2), std::sin(a / 2) / a * phi;
+  }
+  return out;
+}
+
 // Rigid transform with rotation R and translation t.
 inline Eigen::Isometry3d pose(const Matrix3d& R, const Vector3d& t) {
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();

@@ -1,0 +1,210 @@
+// The closures' solves (loop_closure.h): M^-1 G^T by articulated-body passes, the
+// factorization of G M^-1 G^T and its least-norm solve, and constrained forward dynamics
+// (Featherstone, RBDA 2008, 8.3, "method 2").
+#include <algorithm>
+#include <cmath>
+
+#include "core/joint_space/loop_closure.h"
+
+namespace mechanism_sim {
+
+void LoopClosures::rowsTimes(const Eigen::MatrixXd& R, const Eigen::VectorXd& v, Eigen::VectorXd& out) const {
+  for (int e = 0; e < m; ++e) {
+    if (rows_of_[cl_of_[e]] == RowsOf::kZero && &R == &G) {  // (a free limit's row: 0)
+      out(e) = 0.0;
+      continue;
+    }
+    double s = 0.0;
+    const double* r = R.data() + e;  // (row e: stride R.rows())
+    const Eigen::Index ld = R.rows();
+    for (int k : ccols_[cl_of_[e]]) s += r[k * ld] * v(k);
+    out(e) = s;
+  }
+}
+
+bool LoopClosures::rowsTransposeTimes(const Eigen::MatrixXd& R, const Eigen::VectorXd& x, Eigen::VectorXd& out) const {
+  out.setZero();
+  bool any = false;
+  for (int e = 0; e < m; ++e) {
+    if (x(e) == 0.0) continue;
+    any = true;
+    for (int k : ccols_[cl_of_[e]]) out(k) += R(e, k) * x(e);
+  }
+  return any;
+}
+
+void LoopClosures::inverseMassRowsT(const TreeModel& model, const TreeWorkspace& ws, const Eigen::MatrixXd& R,
+                                    const Eigen::VectorXd& x, Eigen::VectorXd& out) {
+  bool any = false;
+  for (int e = 0; e < m && !any; ++e) any = x(e) != 0.0;
+  if (!any) {
+    out.setZero();
+    return;
+  }
+  const ClosureSolver* rows = &R == &G ? &solver_ : &R == &p_R_ ? &p_solver_ : nullptr;
+  if (rows && rows->inwardOfRowsT(x, out.data())) {
+    outwardInverseMass(model, ws, out.data());
+    return;
+  }
+  rowsTransposeTimes(R, x, tau_);
+  applyInverseMass(model, ws, tau_.data(), out.data());
+}
+
+void LoopClosures::inverseMassGT(const Eigen::VectorXd& x, Eigen::VectorXd& out) const {
+  if (rowsTransposeTimes(G, x, out)) mass_.solve(out.data());  // (x = 0: every row dropped, the mass perhaps not factored)
+}
+
+// M^-1 tau: the articulated-body algorithm's passes 2 and 3 (RBDA table 7.1) with v = 0
+// (c = 0) and no external force, on the factors U, D^-1 of ws: the inverse-mass
+// application of RBDA 8.3.
+void LoopClosures::applyInverseMass(const TreeModel& model, const TreeWorkspace& ws, const double* tau, double* out) {
+  for (int k = 0; k < model.nb; ++k) pa_[k].setZero();
+  if (!model.ties.empty() && tau != out) {  // (ties: in place, inverseMassInward)
+    std::copy(tau, tau + model.nv, out);
+    tau = out;
+  }
+  for (int n = model.nb - 1; n >= 0; --n) inverseMassInward(model, ws, model.order[n] - 1, tau, out, pa_);  // u kept in out
+  outwardInverseMass(model, ws, out);
+}
+
+void LoopClosures::outwardInverseMass(const TreeModel& model, const TreeWorkspace& ws, double* out) {
+  for (int b : model.order) {
+    const int k = b - 1;
+    const TreeLink& L = model.links[k];
+    Vector6d ap = Vector6d::Zero();
+    if (L.parent != 0) ap = transformMotion(ws.E[k], ws.rho[k], a_[L.parent - 1]);
+    if (L.tie >= 0) {  // a tied link: r times its master's (done: an ancestor)
+      const double qdd = L.tie_mult * out[model.links[L.tie].iv];
+      out[L.iv] = qdd;
+      a_[k] = ap + ws.S[k].col(0) * qdd;
+    } else if (L.nv == 1) {
+      const double qdd = ws.Dinv[k](0, 0) * (out[L.iv] - ws.U[k].col(0).dot(ap));
+      out[L.iv] = qdd;
+      a_[k] = ap + ws.S[k].col(0) * qdd;
+    } else if (L.nv > 0) {
+      const SmallVector u = Eigen::Map<const SmallVector>(out + L.iv, L.nv);
+      const SmallVector qdd = ws.Dinv[k] * (u - ws.U[k].transpose() * ap);
+      for (int i = 0; i < L.nv; ++i) out[L.iv + i] = qdd(i);
+      a_[k] = ap + ws.S[k] * qdd;
+    } else {
+      a_[k] = ap;
+    }
+    if (L.pivot >= 0) out[L.pivot] = ws.tie_Dinv[k] * (out[L.pivot] - ws.W[k].dot(a_[k]));  // (TreeLink::pivot)
+  }
+}
+
+long LoopClosures::massFactorsGeneration(const TreeWorkspace& ws) { return ws.generation; }
+
+void LoopClosures::factor(const TreeModel& model, const TreeWorkspace& ws) {
+  info.rows = allRows();
+  if (m == 0) {
+    info.rank = 0;
+    info.dependent = idle_;
+    return;
+  }
+  // (G, Gabs and the articulated factors as at the last factorization: it stands)
+  const long ws_gen = massFactorsGeneration(ws);
+  if (fac_at_g_ == g_gen_ && fac_at_ws_ == ws_gen && (fac_Y_ || !form_Y)) {
+    info = fac_info_;
+    return;
+  }
+  factorNow(model, ws);
+  fac_at_g_ = g_gen_, fac_at_ws_ = ws_gen, fac_Y_ = form_Y, fac_info_ = info;
+}
+
+void LoopClosures::factorNow(const TreeModel& model, const TreeWorkspace& ws) {
+  // Rows whose entries are all round-off against their terms are structurally zero (a
+  // planar loop's out-of-plane rows): dropped, with lambda 0 there.
+  int zero_rows = 0;
+  for (int e = 0; e < m; ++e) {
+    const bool zero = roundoffRow(e);
+    keep_(e) = zero ? 0.0 : 1.0;
+    zero_rows += zero;
+  }
+  if (zero_rows == m) {  // every row zero (free limits): nothing to solve, lambda = 0
+    Y.setZero();
+    info.rank = 0;
+    info.dependent = allRows();
+    all_zero_ = true;
+    return;
+  }
+  all_zero_ = false;
+  // Y = M^-1 G^T and G M^-1 G^T from the factored joint-space inertia, sparse where the
+  // closures are (closure_solver.h)
+  info.rank = solver_.factor(model, ws, G, keep_, least_norm_, A_) - zero_rows;
+  if (form_Y)
+    for (int e = 0; e < m; ++e) {
+      if (!solver_.kept(e)) {
+        Y.col(e).setZero();
+        continue;
+      }
+      for (int k = 0; k < nv; ++k) tau_(k) = G(e, k);
+      applyInverseMass(model, ws, tau_.data(), Y.col(e).data());
+    }
+  info.dependent = allRows() - info.rank;  // (idle rows count as dependent ones: no motion moves them)
+}
+
+void LoopClosures::solve(const Eigen::VectorXd& b, Eigen::VectorXd& x) const {
+  if (m == 0) return;
+  if (all_zero_) {
+    x.setZero();
+    return;
+  }
+  solver_.solve(least_norm_, b, x);
+}
+
+// RBDA 8.3: q_ddot = q_ddot_free - M^-1 G^T lambda with (G M^-1 G^T) lambda =
+// G q_ddot_free - gamma_q (the seed's sign: M a + Phi_q^T lambda = Q).
+ClosureSolveInfo constrainedForwardDynamics(const TreeModel& model, const System& sys, LoopClosures& cl,
+                                            const Eigen::VectorXd& q, const Eigen::VectorXd& qdot,
+                                            const Eigen::VectorXd& tau, TreeWorkspace& ws, Eigen::VectorXd& qddot,
+                                            const Inputs* loads, bool evaluated) {
+  // (evaluated: ws's kinematics and the closures' evaluation are at (q, q_dot) already, as
+  // the stepper's projections leave them when they move nothing)
+  if (evaluated) forwardDynamicsAtKinematics(model, sys, tau, ws, qddot, loads);
+  else forwardDynamics(model, sys, q, qdot, tau, ws, qddot, loads);
+  // efforts on cut joints: q_ddot += M^-1 (q_x,k J)^T tau_k (the recursion is linear in tau)
+  if (loads && !model.cut_joints.empty()) {
+    cl.tau_.setZero();
+    if (cl.addCutJointEfforts(model, sys, ws, *loads, cl.tau_)) {
+      cl.applyInverseMass(model, ws, cl.tau_.data(), cl.qdd_cut_.data());
+      qddot += cl.qdd_cut_;
+    }
+  }
+  if (cl.m == 0) return cl.info;
+  if (cl.allFreeLimits()) {  // (zero rows: nothing acts)
+    cl.clearRows();
+    return cl.info;
+  }
+  if (!evaluated) cl.evaluate(model, sys, ws, q);
+  // (held directions across this motion: branch_passage.cpp)
+  cl.passage_rate = &qdot;
+  const bool passage = cl.passage_ref && cl.findPassage();
+  cl.passage_rate = nullptr;
+  if (!passage || cl.regular_factor) cl.factor(model, ws);
+  if (passage) {
+    // a branch passage (branch_passage.cpp): the regular directions by their equations,
+    // the held ones at passage_ref's acceleration across the branch
+    if (!cl.regular_factor) cl.info = ClosureSolveInfo{cl.allRows(), cl.p_r_, cl.allRows() - cl.p_r_};
+    cl.passageFactor(model, ws);
+    cl.passageRhs(cl.gamma_q, cl.p_g_, true);
+    cl.rowsTimes(cl.p_R_, qddot, cl.p_mu_);
+    cl.p_mu_ -= cl.p_g_;
+    cl.passageSolve(cl.p_mu_, cl.p_mu_);
+    cl.inverseMassRowsT(model, ws, cl.p_R_, cl.p_mu_, cl.qdd_cut_);
+    qddot -= cl.qdd_cut_;
+    // G^T lambda = R^T mu with R = P G: lambda = P^T mu per closure row
+    cl.passageMultipliers(cl.p_mu_);
+    cl.rowsTimes(cl.G, qddot, cl.gamma_q);
+    return cl.info;
+  }
+  cl.rowsTimes(cl.G, qddot, cl.lambda);  // (the right-hand side, solved in place)
+  cl.lambda -= cl.gamma_q;
+  cl.solve(cl.lambda, cl.lambda);
+  cl.inverseMassRowsT(model, ws, cl.G, cl.lambda, cl.qdd_cut_);
+  qddot -= cl.qdd_cut_;
+  cl.rowsTimes(cl.G, qddot, cl.gamma_q);  // G q_ddot = gamma_q for the result
+  return cl.info;
+}
+
+}  // namespace mechanism_sim
