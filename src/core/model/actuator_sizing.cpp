@@ -24,13 +24,22 @@ void ActuatorSizing::exceed(int which, double value, double t) {
 
 void ActuatorSizing::add(double t, double velocity, double torque) {
   const double power = torque * velocity;
-  if (started_) {
+  const bool first = !started_;
+  if (!first) {
     const double dt = t - t_;
     tau2_ += 0.5 * dt * (last_tau_ * last_tau_ + torque * torque);
     work_pos_ += 0.5 * dt * (std::max(last_power_, 0.0) + std::max(power, 0.0));
     work_neg_ += 0.5 * dt * (std::min(last_power_, 0.0) + std::min(power, 0.0));
   } else {
     started_ = true, t0_ = t;
+  }
+  if (electricalGiven()) {
+    const ActuatorElectrical e = electrical(ratings_, velocity, torque);
+    if (!first) copper_energy_ += 0.5 * (t - t_) * (last_copper_ + e.copper_loss);
+    last_copper_ = e.copper_loss;
+    peak_current_ = std::max(peak_current_, std::fabs(e.current));
+    peak_voltage_ = std::max(peak_voltage_, std::fabs(e.voltage));
+    peak_electrical_power_ = std::max(peak_electrical_power_, e.power);
   }
   t_ = t, last_tau_ = torque, last_power_ = power;
   if (std::fabs(torque) > peak_torque_) peak_torque_ = std::fabs(torque), peak_torque_time_ = t;
@@ -74,10 +83,14 @@ std::string ActuatorSizing::describe() const {
                 name_.c_str(), peak_torque_, peak_torque_time_, rmsTorque(), peak_speed_, peak_power_, work_pos_,
                 work_neg_);
   std::string s = buf;
+  if (electricalGiven()) {
+    std::snprintf(buf, sizeof buf,
+                  ", peak current %.4g A, peak voltage %.4g V, peak electrical power %.4g W, copper energy %.4g J",
+                  peak_current_, peak_voltage_, peak_electrical_power_, copper_energy_);
+    s += buf;
+  }
   const std::vector<Exceeded> ex = exceeded();
-  const bool rated = ratings_.peak_torque > 0 || ratings_.rated_torque > 0 || ratings_.max_speed > 0 ||
-                     ratings_.stall_torque > 0;
-  if (!rated) return s + "; no ratings given";
+  if (!rated()) return s + "; no ratings given";
   if (ex.empty()) {
     s += "; within rating (";
     std::string list;
