@@ -171,6 +171,66 @@ def test_a_run_prints_what_simulate_prints(tmp_path, path, options, kwargs):
     assert steady(m.summary()) == steady(run.stderr)
 
 
+GEARED = os.path.join(SOURCE, "test/urdf/geared_pendulum.urdf.xacro")
+
+
+def test_actuators_states_and_sizing_have_the_known_answers(tmp_path):
+    # The geared pendulum (m g L = 9.81 N m) turned one turn a second by a velocity drive
+    # behind N:1: the motor turns at 2 pi N, gives -m g L cos(q) / N (the drive holds the
+    # rate against gravity), peaks at 9.81 / N and has the RMS 9.81 / (N sqrt 2) over the
+    # turn. The motor (0.3 N m peak, 0.15 N m continuous, 400 rad/s) is enough at N = 50
+    # (RMS 0.1387), not at N = 40 (RMS 0.1734 above its continuous rating).
+    mgl = 2 * 9.81 * 0.5
+    for n, within in ((50, True), (40, False)):
+        m = mechanism_sim.load(GEARED, args={"reduction": n, "drive": "true"})
+        assert m.actuator_names() == ["motor"]
+        m.advance(0.3, 1e-3)
+        q = m.positions()[0]
+        a = m.actuator_states()
+        assert a["names"] == ["motor"]
+        assert a["position"][0] == pytest.approx(n * q, rel=1e-12)
+        assert a["velocity"][0] == pytest.approx(2 * math.pi * n, rel=1e-12)
+        assert a["torque"][0] == pytest.approx(-mgl * math.cos(q) / n, abs=1e-9 * mgl / n)
+        assert a["power"][0] == a["torque"][0] * a["velocity"][0]
+        assert math.isnan(a["current"][0])  # no torque_constant
+        m.advance(0.7, 1e-3)  # one full turn in all
+        s = m.actuator_sizing()["motor"]
+        assert s["peak_torque"] == pytest.approx(mgl / n, rel=1e-9)
+        assert s["rms_torque"] == pytest.approx(mgl / (n * math.sqrt(2)), rel=1e-9)
+        assert s["peak_speed"] == pytest.approx(2 * math.pi * n, rel=1e-12)
+        assert s["positive_work"] + s["negative_work"] == pytest.approx(0.0, abs=1e-9 * s["positive_work"])
+        assert s["within_rating"] is within
+        assert [e["rating"] for e in s["exceeded"]] == ([] if within else ["rated_torque"])
+        assert "peak_current" not in s
+    # a reset restarts the record; a snapshot restores it
+    snap = m.snapshot()
+    m.reset()
+    assert m.actuator_sizing()["motor"]["peak_speed"] == pytest.approx(2 * math.pi * 40, rel=1e-12)
+    assert m.actuator_sizing()["motor"]["rms_torque"] == pytest.approx(mgl / 40, rel=1e-12)  # the start alone
+    m.restore(snap)
+    assert m.actuator_sizing()["motor"]["within_rating"] is False
+    # without a rating to size against there is no flag
+    bare = mechanism_sim.load_string(open(os.path.join(SOURCE, "urdf/harmonic_drive_joint.urdf")).read().replace(
+        'rated_torque="0.3" peak_torque="1.2"\n                          stall_torque="2.0" no_load_speed="650" max_speed="600"',
+        ""))
+    assert bare.actuator_sizing()["shoulder_motor"]["within_rating"] is None
+
+    # what simulate writes and prints for the same run: the motor columns, the sizing line
+    out = tmp_path / "geared.csv"
+    run = simulate(GEARED, "reduction:=40", "drive:=true", "--duration", "1", "--dt", "1e-3", "--csv", str(out))
+    header, last = csv_values(out)
+    row = dict(zip(header, last))
+    for column, key in (("position", "position"), ("velocity", "velocity"), ("torque", "torque"), ("power", "power")):
+        assert "%.12g" % m.actuator_states()[key][0] == row["motor.motor_" + column], column
+    m = mechanism_sim.load(GEARED, args={"reduction": 40, "drive": "true"})
+    m.advance(1.0, 1e-3)
+
+    def steady(text):
+        return re.sub(r"in [0-9.]+ s wall \(real-time factor [0-9.inf]+\)", "in W s wall", text)
+    assert steady(m.summary()) == steady(run.stderr)
+    assert m.actuator_sizing()["motor"]["describe"] in m.summary()
+
+
 def test_set_state_holds_what_load_holds():
     # the file starts the crank at 4 rad/s: set_state with the same targets as load() lands
     # on the same state (within the assembly's tolerance: it starts from another pose)
