@@ -5,6 +5,7 @@ Run by scripts/test (cmake/python.cmake: pytest under the devel environment, its
 counted with the gtests'). MECHANISM_SIM_SIMULATE names the simulate binary.
 """
 import csv
+import json
 import math
 import os
 import re
@@ -229,6 +230,59 @@ def test_actuators_states_and_sizing_have_the_known_answers(tmp_path):
         return re.sub(r"in [0-9.]+ s wall \(real-time factor [0-9.inf]+\)", "in W s wall", text)
     assert steady(m.summary()) == steady(run.stderr)
     assert m.actuator_sizing()["motor"]["describe"] in m.summary()
+
+
+HARMONIC = os.path.join(SOURCE, "urdf/harmonic_drive_joint.urdf")
+ACTUATOR_PLOT = os.path.join(SOURCE, "scripts/actuator_plot")
+
+
+def test_actuator_plot_draws_the_run_against_the_ratings(tmp_path):
+    # simulate --actuator-plot keeps the data beside the picture: the harmonic-drive example's
+    # motor at every step, theta_dot = N A w cos(w t) (N = 100, A = 0.8, w = 2 pi), and its
+    # ratings; scripts/actuator_plot draws the line through (0, 2 N m) and (650 rad/s, 0)
+    png = tmp_path / "motor.png"
+    simulate(HARMONIC, "--duration", "1", "--quiet", "--actuator-plot", str(png))
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 20000
+    with open(str(png) + ".json") as f:
+        data = json.load(f)
+    [a] = data["actuators"]
+    assert a["name"] == "shoulder_motor"
+    assert a["ratings"] == {"rated_torque": 0.3, "peak_torque": 1.2, "stall_torque": 2.0, "no_load_speed": 650.0,
+                            "max_speed": 600.0}
+    assert len(a["points"]) == 1001  # t = 0 and every step
+    w = 2 * math.pi
+    for t, speed, torque in a["points"]:
+        assert speed == pytest.approx(100 * 0.8 * w * math.cos(w * t), abs=1e-9 * 100 * 0.8 * w)
+    m = mechanism_sim.load(HARMONIC)
+    m.advance(1.0, 1e-3)
+    s = m.actuator_sizing()["shoulder_motor"]
+    assert a["points"][-1][2] == m.actuator_states()["torque"][0]
+    assert a["rms_torque"] == s["rms_torque"] and a["within_rating"] is True and a["exceeded"] == []
+    run = subprocess.run([ACTUATOR_PLOT, str(png) + ".json", "-o", str(tmp_path / "again.png"), "--summary"],
+                         capture_output=True, text=True, timeout=120)
+    assert run.returncode == 0, run.stderr
+    [drawn] = json.loads(run.stdout)["actuators"]
+    assert drawn["points"] == 1001 and drawn["verdict"] == "within rating"
+    assert drawn["lines"]["envelope"] == {"upper": [[0.0, 2.0], [650.0, 0.0]], "lower": [[-650.0, 0.0], [0.0, -2.0]]}
+    assert drawn["lines"]["peak_torque"] == 1.2 and drawn["lines"]["rated_torque"] == 0.3
+    assert drawn["lines"]["max_speed"] == 600 and drawn["lines"]["rms_torque"] == s["rms_torque"]
+    assert drawn["speed"] == pytest.approx([-100 * 0.8 * w, 100 * 0.8 * w], rel=1e-9)
+
+    # twice as fast: the ratings it exceeds name the panel
+    fast = tmp_path / "fast.urdf"
+    fast.write_text(open(HARMONIC).read().replace('frequency="1"', 'frequency="2"'))
+    simulate(str(fast), "--duration", "1", "--quiet", "--actuator-plot", str(tmp_path / "fast.png"))
+    run = subprocess.run([ACTUATOR_PLOT, str(tmp_path / "fast.png.json"), "--summary"], capture_output=True, text=True,
+                         timeout=120)
+    assert json.loads(run.stdout)["actuators"][0]["verdict"] == "EXCEEDS max_speed, torque-speed line, rated_torque"
+
+    # a model without actuators has nothing to plot; a file that is not the data is one line
+    run = simulate(PENDULUM, "--duration", "0.1", "--actuator-plot", str(tmp_path / "none.png"), check=False)
+    assert run.returncode == 2
+    assert run.stderr == f"simulate: {PENDULUM}: --actuator-plot: the model has no actuators (no simulated <transmission>)\n"
+    (tmp_path / "bad.json").write_text("{}")
+    run = subprocess.run([ACTUATOR_PLOT, str(tmp_path / "bad.json")], capture_output=True, text=True, timeout=120)
+    assert run.returncode == 2 and run.stderr == f"actuator_plot: {tmp_path / 'bad.json'}: no actuators in it\n"
 
 
 def test_set_state_holds_what_load_holds():

@@ -273,6 +273,33 @@ TEST(Actuators, ElectricalPowerIsMechanicalPowerPlusCopperLoss) {
   EXPECT_NEAR(a.peakCurrent(), a.peakTorque() / 0.11, 1e-12 * a.peakCurrent());
 }
 
+// The points kept for --actuator-plot: all while fewer than the cap, then every second,
+// every fourth, ...: evenly spaced in steps, the first one always kept.
+TEST(Actuators, KeptOperatingPointsStayEvenlySpaced) {
+  ActuatorSizing a("m", ActuatorRatings{});
+  a.keepPoints(8);
+  for (int k = 0; k < 7; ++k) a.add(k, 10.0 * k, -k);
+  ASSERT_EQ(a.points().size(), 7u);  // below the cap: every one
+  EXPECT_EQ(a.points()[6][0], 6.0);
+  EXPECT_EQ(a.points()[6][1], 60.0);
+  EXPECT_EQ(a.points()[6][2], -6.0);
+  for (int k = 7; k < 100; ++k) a.add(k, 10.0 * k, -k);
+  // 8 reached at k = 7 (-> 0 2 4 6, stride 2), at k = 14 (-> 0 4 8 12, stride 4), at k = 28
+  // (stride 8), at k = 56 (stride 16): 0 16 32 48 64 80 96
+  ASSERT_EQ(a.points().size(), 7u);
+  for (size_t i = 0; i < a.points().size(); ++i) {
+    EXPECT_EQ(a.points()[i][0], 16.0 * i);
+    EXPECT_EQ(a.points()[i][1], 160.0 * i);
+  }
+  a.reset();  // the record restarts, still keeping points
+  a.add(0.5, 1.0, 2.0);
+  ASSERT_EQ(a.points().size(), 1u);
+  EXPECT_EQ(a.points()[0][0], 0.5);
+  ActuatorSizing none("n", ActuatorRatings{});
+  none.add(0, 1, 1);
+  EXPECT_TRUE(none.points().empty());  // not asked: nothing kept
+}
+
 TEST(Actuators, ActuatorsFile) {
   const std::string path = testing::TempDir() + "/actuators.yaml";
   {

@@ -7,7 +7,17 @@
 
 namespace mechanism_sim {
 
-void ActuatorSizing::reset() { *this = ActuatorSizing(name_, ratings_); }
+void ActuatorSizing::reset() {
+  const size_t keep = max_points_;
+  *this = ActuatorSizing(name_, ratings_);
+  keepPoints(keep);
+}
+
+void ActuatorSizing::keepPoints(size_t max_points) {
+  max_points_ = max_points == 1 ? 2 : max_points;
+  stride_ = 1, count_ = 0;
+  points_.clear();
+}
 
 double ActuatorSizing::envelope(double velocity, double torque) const {
   if (!(ratings_.stall_torque > 0.0)) return HUGE_VAL;
@@ -42,6 +52,16 @@ void ActuatorSizing::add(double t, double velocity, double torque) {
     peak_electrical_power_ = std::max(peak_electrical_power_, e.power);
   }
   t_ = t, last_tau_ = torque, last_power_ = power;
+  if (max_points_ > 0 && count_++ % stride_ == 0) {
+    points_.push_back({t, velocity, torque});
+    if (points_.size() >= max_points_) {
+      // every second one of those kept (counts multiple of 2 stride) and twice the stride
+      size_t j = 0;
+      for (size_t i = 0; i < points_.size(); i += 2) points_[j++] = points_[i];
+      points_.resize(j);
+      stride_ *= 2;
+    }
+  }
   if (std::fabs(torque) > peak_torque_) peak_torque_ = std::fabs(torque), peak_torque_time_ = t;
   peak_speed_ = std::max(peak_speed_, std::fabs(velocity));
   peak_power_ = std::max(peak_power_, power);

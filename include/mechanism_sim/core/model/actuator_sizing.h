@@ -2,6 +2,8 @@
 // ActuatorRatings; doc/actuators.md). The peak torque, RMS torque, peak speed, peak power
 // and the work done, and each rating exceeded: when first, by how much at worst.
 #pragma once
+#include <array>
+#include <cstddef>
 #include <string>
 #include <vector>
 
@@ -40,7 +42,12 @@ class ActuatorSizing {
   // record; each later one closes an interval of length t - t_previous, over which the
   // torque's square and the power are integrated by the trapezoidal rule.
   void add(double t, double velocity, double torque);
-  void reset();
+  void reset();  // the record starts again (keeping whether points are kept)
+  // Keep the operating points (t, velocity, torque) from now on, for a plot of the
+  // torque-speed plane: every one while there are fewer than max_points (>= 2), then every
+  // second, every fourth, ... (the kept ones stay evenly spaced in steps). 0: keep none.
+  void keepPoints(size_t max_points);
+  const std::vector<std::array<double, 3>>& points() const { return points_; }
 
   double peakTorque() const { return peak_torque_; }   // |torque|
   double peakTorqueTime() const { return peak_torque_time_; }
@@ -84,6 +91,8 @@ class ActuatorSizing {
 
   std::string name_;
   ActuatorRatings ratings_;
+  size_t max_points_ = 0, stride_ = 1, count_ = 0;
+  std::vector<std::array<double, 3>> points_;
   bool started_ = false;
   double t0_ = 0.0, t_ = 0.0, last_tau_ = 0.0, last_power_ = 0.0;
   double tau2_ = 0.0;  // integral of torque^2
