@@ -28,7 +28,8 @@ target_link_libraries(simulate mechanism_sim_urdf ${rosbag_storage_LIBRARIES} ${
   ${rostime_LIBRARIES})
 add_dependencies(simulate ${catkin_EXPORTED_TARGETS} ${PROJECT_NAME}_generate_messages_cpp)
 # --plot runs scripts/plot (matplotlib) from the source tree; MECHANISM_SIM_PLOT overrides it.
-target_compile_definitions(simulate PRIVATE MECHANISM_SIM_PLOT_SCRIPT="${PROJECT_SOURCE_DIR}/scripts/plot")
+target_compile_definitions(simulate PRIVATE MECHANISM_SIM_PLOT_SCRIPT="${PROJECT_SOURCE_DIR}/scripts/plot"
+  MECHANISM_SIM_ACTUATOR_PLOT_SCRIPT="${PROJECT_SOURCE_DIR}/scripts/actuator_plot")  # --actuator-plot, doc/actuators.md
 
 if(EXISTS ${PROJECT_SOURCE_DIR}/src/node/main.cpp)
   add_executable(mechanism_sim_node src/node/main.cpp src/node/sim_node.cpp src/node/pacer.cpp

@@ -20,7 +20,7 @@ import time
 KINDS = ("arg", "set", "velocity", "effort", "drive")
 # simulate's options a sweep passes on (SIMULATE_OPTIONS); the rest of simulate's are about
 # its own output
-_VALUE_FLAGS = {"--duration", "--dt", "--output-every", "--integrator", "--closures", "--formulation"}
+_VALUE_FLAGS = {"--duration", "--dt", "--output-every", "--integrator", "--closures", "--formulation", "--actuators"}
 _ASSIGN_FLAGS = {"--set": "set", "--velocity": "velocity", "--effort": "effort", "--drive": "drive"}
 _IGNORED_FLAGS = {"--reactions", "--quiet", "--poses"}
 _REFUSED_FLAGS = {"--csv", "--bag", "--plot", "--plot-columns"}
@@ -68,7 +68,8 @@ def parse_vary(text):
 
 def parse_simulate_options(argv):
     """SIMULATE_OPTIONS -> (settings, fixed {KEY: value}) with KEY as --vary names them."""
-    settings = {"duration": 10.0, "dt": 1e-3, "output_every": 10, "integrator": "", "closures": None, "formulation": ""}
+    settings = {"duration": 10.0, "dt": 1e-3, "output_every": 10, "integrator": "", "closures": None, "formulation": "",
+                "actuators": None}
     fixed = {}
     i = 0
     while i < len(argv):
@@ -87,8 +88,8 @@ def parse_simulate_options(argv):
                 settings["integrator"] = v
             elif a == "--formulation":
                 settings["formulation"] = v
-            elif a == "--closures":
-                settings["closures"] = os.path.abspath(v)
+            elif a in ("--closures", "--actuators"):
+                settings[a[2:]] = os.path.abspath(v)
             else:
                 try:
                     x = float(v)
@@ -136,7 +137,7 @@ def run(model, values, settings):
     m = None
     try:
         m = mechanism_sim.load(model, integrator=settings["integrator"], closures=settings["closures"],
-                               formulation=settings["formulation"],
+                               formulation=settings["formulation"], actuators=settings.get("actuators"),
                                **load_kwargs(values))
         peak = {}
 
@@ -164,7 +165,20 @@ def run(model, values, settings):
         row["largest_violation.velocity"] = worst["velocity"]
         for dof, (effort, _) in m.drive_peaks().items():
             row[f"{dof}.peak_effort"] = abs(effort)
+        for name, a in m.actuator_sizing().items():
+            row.update(actuator_cells(name, a))
     return row
+
+
+ACTUATOR_COLUMNS = ("peak_torque", "rms_torque", "peak_speed", "within_rating")
+
+
+def actuator_cells(name, sizing):
+    """An actuator's sizing cells (doc/actuators.md): peak and RMS torque and peak speed at
+    the motor, and 1 within its ratings, 0 not, empty without ratings."""
+    flag = sizing["within_rating"]
+    return {f"{name}.peak_torque": sizing["peak_torque"], f"{name}.rms_torque": sizing["rms_torque"],
+            f"{name}.peak_speed": sizing["peak_speed"], f"{name}.within_rating": "" if flag is None else int(flag)}
 
 
 def result_columns(model, values, settings):
@@ -173,12 +187,13 @@ def result_columns(model, values, settings):
 
     try:
         m = mechanism_sim.load(model, integrator=settings["integrator"], closures=settings["closures"],
-                               formulation=settings["formulation"],
+                               formulation=settings["formulation"], actuators=settings.get("actuators"),
                                **load_kwargs(values))
     except mechanism_sim.Error:
         return list(RESULT_PREFIX) + ["message"]
     return (list(RESULT_PREFIX) + [f"{d}.peak_effort" for d in m.driven_dofs()] +
-            [f"{j}.peak_reaction" for j in m.reaction_joints()] + ["message"])
+            [f"{j}.peak_reaction" for j in m.reaction_joints()] +
+            [f"{a}.{c}" for a in m.actuator_names() for c in ACTUATOR_COLUMNS] + ["message"])
 
 
 # ---- the CSV
@@ -412,7 +427,7 @@ def plot_results(path, keys):
         nrows = max(1, math.ceil(n / cols))
         fig, axes = plt.subplots(nrows, cols, figsize=(4.2 * cols, 3.2 * nrows), squeeze=False)
         for ax, col in zip(axes.flat, results):
-            ys = [float(r[col]) if r[col] != "" else math.nan for r in ok]
+            ys = [float(r[col]) if r.get(col, "") != "" else math.nan for r in ok]
             ax.plot(xs, ys, "o", markersize=4)
             ax.set_xlabel(key)
             ax.set_title(col, fontsize=9)

@@ -37,8 +37,11 @@ void CsvWriter::header() {
   out_ << "time";
   for (const Dof& d : model_.dofs()) out_ << ',' << d.name << ".position," << d.name << ".velocity," << d.name << ".effort";
   out_ << ",constraint.position,constraint.velocity";
-  for (const Actuator& a : model_.actuators())
+  for (const Actuator& a : model_.actuators()) {
     for (const char* c : {"motor_position", "motor_velocity", "motor_torque", "motor_power"}) out_ << ',' << a.name << '.' << c;
+    if (electricalGiven(a.ratings))
+      for (const char* c : {"motor_current", "motor_voltage", "electrical_power"}) out_ << ',' << a.name << '.' << c;
+  }
   if (reactions_)
     for (const JointReaction& r : model_.jointReactions())
       for (const char* c : {"fx", "fy", "fz", "tx", "ty", "tz"}) out_ << ',' << r.joint << '.' << c;
@@ -53,7 +56,11 @@ void CsvWriter::row(const Sample& s) {
   b.number(s.time);
   for (size_t d = 0; d < s.position.size(); ++d) b.comma(s.position[d]).comma(s.velocity[d]).comma(s.effort[d]);
   b.comma(s.position_violation).comma(s.velocity_violation);
-  for (const ActuatorState& a : s.actuators) b.comma(a.position).comma(a.velocity).comma(a.torque).comma(a.power);
+  for (size_t k = 0; k < s.actuators.size(); ++k) {
+    const ActuatorState& a = s.actuators[k];
+    b.comma(a.position).comma(a.velocity).comma(a.torque).comma(a.power);
+    if (electricalGiven(model_.actuators()[k].ratings)) b.comma(a.current).comma(a.voltage).comma(a.electrical_power);
+  }
   if (reactions_)
     for (const JointReaction& r : s.reactions)
       b.comma(r.force.x()).comma(r.force.y()).comma(r.force.z()).comma(r.torque.x()).comma(r.torque.y()).comma(r.torque.z());

@@ -33,6 +33,7 @@ const char* kUsage =
     "                [--set JOINT=POSITION]... [--velocity JOINT=VALUE]...\n"
     "                [--effort JOINT=VALUE]... [--drive JOINT=VELOCITY]...\n"
     "                [--reactions] [--bag FILE.bag] [--plot FILE.png] [--plot-columns LIST]\n"
+    "                [--actuator-plot FILE.png]\n"
     "                [--closures FILE.yaml] [--actuators FILE.yaml] [--strict-inertia] [--quiet]\n"
     "                [--trajectory FILE.csv] [--trajectory-start-tolerance X]\n";
 
@@ -65,7 +66,7 @@ bool isXacroArgument(const std::string& arg) {
 }
 
 struct Args {
-  std::string model, csv, bag, integrator, plot, plot_columns, trajectory;
+  std::string model, csv, bag, integrator, plot, plot_columns, trajectory, actuator_plot;
   double trajectory_tolerance = kTrajectoryStartTolerance;
   double duration = 10.0, dt = 1e-3;
   long every = 10;
@@ -97,6 +98,7 @@ Args parse(int argc, char** argv) {
     else if (arg == "--bag") a.bag = value();
     else if (arg == "--plot") a.plot = value();
     else if (arg == "--plot-columns") a.plot_columns = value();
+    else if (arg == "--actuator-plot") a.actuator_plot = value();  // doc/actuators.md
     else if (arg == "--closures") a.load.closures_file = value();  // doc/loop_dialects.md
     else if (arg == "--actuators") a.load.actuators_file = value();  // doc/actuators.md
     else if (arg == "--strict-inertia") a.load.strict_inertia = true;  // doc/robots.md
@@ -121,12 +123,9 @@ Args parse(int argc, char** argv) {
   return a;
 }
 
-// scripts/plot (matplotlib) on the run's CSV; its exit status, or -1 if it did not start.
-int plot(const std::string& csv, const Args& args, const std::string& title) {
-  const char* env = std::getenv("MECHANISM_SIM_PLOT");
-  const std::string script = env && *env ? env : MECHANISM_SIM_PLOT_SCRIPT;
-  std::vector<std::string> argv = {"/usr/bin/python3", script, csv, "-o", args.plot, "--title", title};
-  if (!args.plot_columns.empty()) argv.insert(argv.end(), {"--columns", args.plot_columns});
+// Debian's python3 on a script; its exit status, or -1 if it did not start.
+int runPython(std::vector<std::string> argv) {
+  argv.insert(argv.begin(), "/usr/bin/python3");
   std::vector<char*> cargv;
   for (std::string& a : argv) cargv.push_back(a.data());
   cargv.push_back(nullptr);
@@ -140,6 +139,71 @@ int plot(const std::string& csv, const Args& args, const std::string& title) {
   int status = 0;
   if (waitpid(pid, &status, 0) < 0) return -1;
   return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+// scripts/plot (matplotlib) on the run's CSV; its exit status, or -1 if it did not start.
+int plot(const std::string& csv, const Args& args, const std::string& title) {
+  const char* env = std::getenv("MECHANISM_SIM_PLOT");
+  const std::string script = env && *env ? env : MECHANISM_SIM_PLOT_SCRIPT;
+  std::vector<std::string> argv = {script, csv, "-o", args.plot, "--title", title};
+  if (!args.plot_columns.empty()) argv.insert(argv.end(), {"--columns", args.plot_columns});
+  return runPython(argv);
+}
+
+// The operating points an --actuator-plot keeps per actuator (evenly spaced in steps).
+constexpr size_t kActuatorPlotPoints = 20000;
+
+std::string jsonString(const std::string& s) {
+  std::string out = "\"";
+  for (const char c : s) {
+    if (c == '"' || c == '\\') out += '\\', out += c;
+    else if (static_cast<unsigned char>(c) < 0x20) {
+      char b[8];
+      std::snprintf(b, sizeof b, "\\u%04x", c);
+      out += b;
+    } else out += c;
+  }
+  return out + "\"";
+}
+
+std::string jsonNumber(double x) {
+  if (!std::isfinite(x)) return "null";
+  char b[32];
+  std::snprintf(b, sizeof b, "%.17g", x);
+  return b;
+}
+
+// --actuator-plot's data (doc/actuators.md), beside the picture as FILE.png.json so that
+// scripts/actuator_plot can redraw it: per actuator its ratings (0: not given), its sizing
+// and its kept operating points [t, velocity, torque].
+bool writeActuatorPlotData(const std::string& path, const std::string& title, const MechanismModel& model,
+                           const RunLoop& loop) {
+  std::ofstream f(path);
+  if (!f) return false;
+  f << "{\"title\": " << jsonString(title) << ", \"actuators\": [";
+  for (size_t a = 0; a < loop.actuatorSizing().size(); ++a) {
+    const ActuatorSizing& s = loop.actuatorSizing()[a];
+    const ActuatorRatings& r = model.actuators()[a].ratings;
+    f << (a ? ",\n" : "\n") << "{\"name\": " << jsonString(s.name()) << ", \"ratings\": {";
+    const std::pair<const char*, double> ratings[] = {{"rated_torque", r.rated_torque}, {"peak_torque", r.peak_torque},
+                                                       {"stall_torque", r.stall_torque}, {"no_load_speed", r.no_load_speed},
+                                                       {"max_speed", r.max_speed}};
+    for (size_t k = 0; k < std::size(ratings); ++k)
+      f << (k ? ", " : "") << jsonString(ratings[k].first) << ": " << jsonNumber(ratings[k].second);
+    f << "}, \"peak_torque\": " << jsonNumber(s.peakTorque()) << ", \"rms_torque\": " << jsonNumber(s.rmsTorque())
+      << ", \"peak_speed\": " << jsonNumber(s.peakSpeed())
+      << ", \"within_rating\": " << (s.rated() ? (s.withinRating() ? "true" : "false") : "null")
+      << ", \"exceeded\": [";
+    const std::vector<ActuatorSizing::Exceeded> exceeded = s.exceeded();
+    for (size_t k = 0; k < exceeded.size(); ++k) f << (k ? ", " : "") << jsonString(exceeded[k].rating);
+    f << "], \"describe\": " << jsonString(s.describe()) << ", \"points\": [";
+    const auto& p = s.points();
+    for (size_t i = 0; i < p.size(); ++i)
+      f << (i ? "," : "") << "[" << jsonNumber(p[i][0]) << "," << jsonNumber(p[i][1]) << "," << jsonNumber(p[i][2]) << "]";
+    f << "]}";
+  }
+  f << "\n]}\n";
+  return static_cast<bool>(f);
 }
 
 void progress(double fraction, double elapsed) {
@@ -170,6 +234,10 @@ int main(int argc, char** argv) {
   } catch (const std::exception& e) {
     std::cerr << "simulate: " << e.what() << "\n";
     return 1;
+  }
+  if (!args.actuator_plot.empty() && model->actuators().empty()) {
+    std::cerr << "simulate: " << args.model << ": --actuator-plot: the model has no actuators (no simulated <transmission>)\n";
+    return 2;
   }
   // --trajectory: the dofs it names follow it from t = 0; a file that cannot be followed
   // is bad input like a bad argument (exit code 2).
@@ -210,6 +278,7 @@ int main(int argc, char** argv) {
   CsvWriter csv(*out, *model, args.poses, args.reactions);
   RunLoop loop(*model, args.dt, args.every);
   loop.setReactions(args.reactions || bag);
+  if (!args.actuator_plot.empty()) loop.keepActuatorPoints(kActuatorPlotPoints);
   const bool write = !csv_path.empty() || !isatty(STDOUT_FILENO) || !args.quiet;
   // A bag that cannot be written (disk full) ends the run like a file that cannot be opened.
   auto sample = [&] {
@@ -280,6 +349,25 @@ int main(int argc, char** argv) {
     const int status = plot(csv_path, args, title);
     if (status != 0) {
       std::cerr << "simulate: " << args.model << ": plotting to '" << args.plot << "' failed"
+                << (status < 0 ? " (could not start python3)" : "") << "\n";
+      return 1;
+    }
+  }
+  // --actuator-plot: the torque-speed plane per actuator (scripts/actuator_plot), its data
+  // kept beside the picture (FILE.png.json) so that the script can redraw it
+  if (!args.actuator_plot.empty()) {
+    char title[512];
+    std::snprintf(title, sizeof title, "%s (%s): %ld steps of %g s", model->name().c_str(), args.model.c_str(), steps, args.dt);
+    const std::string data = args.actuator_plot + ".json";
+    if (!writeActuatorPlotData(data, title, *model, loop)) {
+      std::cerr << "simulate: cannot write '" << data << "'\n";
+      return 1;
+    }
+    const char* env = std::getenv("MECHANISM_SIM_ACTUATOR_PLOT");
+    const std::string script = env && *env ? env : MECHANISM_SIM_ACTUATOR_PLOT_SCRIPT;
+    const int status = runPython({script, data, "-o", args.actuator_plot});
+    if (status != 0) {
+      std::cerr << "simulate: " << args.model << ": plotting to '" << args.actuator_plot << "' failed"
                 << (status < 0 ? " (could not start python3)" : "") << "\n";
       return 1;
     }

@@ -1,5 +1,6 @@
 #include "sim_node.h"
 
+#include <algorithm>
 #include <cmath>
 #include <map>
 #include <sstream>
@@ -38,6 +39,7 @@ bool NodeParams::read(const ros::NodeHandle& pnh) {
   pnh.param<std::string>("integrator", load.integrator, "");
   pnh.param<std::string>("formulation", load.formulation, "");
   pnh.param<std::string>("closures_file", load.closures_file, "");  // doc/loop_dialects.md
+  pnh.param<std::string>("actuators_file", load.actuators_file, "");  // doc/actuators.md
   pnh.param<bool>("strict_inertia", load.strict_inertia, false);     // doc/robots.md
   std::map<std::string, double> positions, velocities;
   pnh.getParam("initial_positions", positions);
@@ -81,11 +83,14 @@ bool SimNode::init() {
     tree_links_.emplace_back(model_->linkIndex(j.parent), model_->linkIndex(j.child));
 
   joint_states_ = nh_.advertise<sensor_msgs::JointState>("joint_states", 10);
+  actuator_states_ = pnh_.advertise<sensor_msgs::JointState>("actuator_states", 10);
+  actuator_command_.assign(model_->actuators().size(), 0.0);
   violation_ = pnh_.advertise<geometry_msgs::Vector3Stamped>("constraint_violation", 10);
   reactions_ = pnh_.advertise<JointReactions>("joint_reactions", 10);
   markers_ = std::make_unique<ConstraintMarkers>(pnh_, *model_, params_.reaction_arrow_scale);
   if (params_.publish_clock) clock_ = nh_.advertise<rosgraph_msgs::Clock>("/clock", 10);
   effort_ = pnh_.subscribe("effort_command", 10, &SimNode::onEffort, this);
+  actuator_effort_ = pnh_.subscribe("actuator_effort_command", 10, &SimNode::onActuatorEffort, this);
   drive_ = pnh_.subscribe("drive_command", 10, &SimNode::onDriveCommand, this);
   trajectory_ = pnh_.subscribe("joint_trajectory", 10, &SimNode::onTrajectory, this);
   reset_ = pnh_.advertiseService("reset", &SimNode::onReset, this);
@@ -177,6 +182,18 @@ void SimNode::publish(bool paused) {
   js.velocity = s.velocity;
   js.effort = s.effort;
   joint_states_.publish(js);
+  if (!s.actuators.empty()) {
+    // by actuator: motor position, speed and torque (doc/actuators.md)
+    sensor_msgs::JointState as;
+    as.header.stamp = now;
+    for (size_t a = 0; a < s.actuators.size(); ++a) {
+      as.name.push_back(model_->actuators()[a].name);
+      as.position.push_back(s.actuators[a].position);
+      as.velocity.push_back(s.actuators[a].velocity);
+      as.effort.push_back(s.actuators[a].torque);
+    }
+    actuator_states_.publish(as);
+  }
 
   std::vector<geometry_msgs::TransformStamped> moving;
   for (size_t j = 0; j < model_->treeJoints().size(); ++j)
@@ -270,6 +287,53 @@ void SimNode::onEffort(const sensor_msgs::JointState::ConstPtr& msg) {
   for (size_t i = 0; i < n; ++i) model_->setEffort(dofs[i], msg->effort[i]);
 }
 
+// ~actuator_effort_command: torques of actuators by name, mapped to their transmissions'
+// joint efforts by virtual work, tau_q = E^T tau_theta (transmission.h). An actuator not
+// named keeps its last torque (a differential's joint efforts take both of its actuators'
+// torques); the joint efforts replace what ~effort_command last set on those joints. A
+// message with an unknown actuator, a non-finite torque, arrays of different lengths or an
+// actuator of a passive joint is rejected whole, as ~effort_command's.
+void SimNode::onActuatorEffort(const sensor_msgs::JointState::ConstPtr& msg) {
+  const size_t n = msg->name.size();
+  std::string problem;
+  if (msg->effort.size() != n) problem = "name and effort arrays differ in length";
+  if ((!msg->position.empty() && msg->position.size() != n) || (!msg->velocity.empty() && msg->velocity.size() != n))
+    problem = "position or velocity array differs in length from name";
+  const std::vector<Actuator>& actuators = model_->actuators();  // fixed after init: no lock needed
+  std::vector<int> which;
+  for (size_t i = 0; problem.empty() && i < n; ++i) {
+    int a = 0;
+    while (a < static_cast<int>(actuators.size()) && actuators[a].name != msg->name[i]) ++a;
+    if (a == static_cast<int>(actuators.size())) problem = "unknown actuator '" + msg->name[i] + "'";
+    else if (!std::isfinite(msg->effort[i])) problem = "effort for '" + msg->name[i] + "' is not finite";
+    else
+      for (int d : model_->transmissions()[actuators[a].transmission].dofs)
+        if (!model_->dofs()[d].actuated)
+          problem = "actuator '" + msg->name[i] + "' drives '" + model_->dofs()[d].name +
+                    "', which is passive (the file names its actuated joints)";
+    which.push_back(a);
+  }
+  if (!problem.empty()) {
+    ROS_WARN_THROTTLE(1.0, "mechanism_sim: actuator effort command rejected: %s", problem.c_str());
+    return;
+  }
+  std::lock_guard<std::mutex> lock(mutex_);
+  std::vector<bool> touched(model_->transmissions().size(), false);
+  for (size_t i = 0; i < n; ++i) {
+    actuator_command_[which[i]] = msg->effort[i];
+    touched[actuators[which[i]].transmission] = true;
+  }
+  for (size_t t = 0; t < touched.size(); ++t) {
+    if (!touched[t]) continue;
+    const TransmissionInfo& info = model_->transmissions()[t];
+    const int m = static_cast<int>(info.dofs.size());
+    Eigen::Vector2d tau_theta = Eigen::Vector2d::Zero();
+    for (int k = 0; k < m; ++k) tau_theta[k] = actuator_command_[info.actuators[k]];
+    const Eigen::Vector2d tau_q = info.E.transpose() * tau_theta;
+    for (int k = 0; k < m; ++k) model_->setEffort(info.dofs[k], tau_q[k]);
+  }
+}
+
 // ~drive_command: velocities of velocity-driven dofs, by name; each drive ramps to its new
 // velocity at ~drive_acceleration. A command naming an undriven dof, a profile drive, or a
 // non-finite value is rejected whole.
@@ -360,6 +424,7 @@ bool SimNode::onReset(std_srvs::Empty::Request&, std_srvs::Empty::Response&) {
   std::lock_guard<std::mutex> lock(mutex_);
   pending_.reset();
   loop_->reset();  // dofs that trajectories drove are free again
+  std::fill(actuator_command_.begin(), actuator_command_.end(), 0.0);  // as the joints' commands
   pacer_->restart(model_->time());
   if (!params_.publish_clock) anchorStampsToWall();  // stamps go on, not back
   publish();

@@ -1,8 +1,8 @@
 // mechanism_sim_node: runs a URDF mechanism in a ROS graph (doc/node.md). The node
 // reads its parameters, loads the model, and then drives the shared run loop
 // (mechanism_sim/urdf/run_loop.h) paced to wall-clock time (pacer.h), publishing each
-// sample (joint_states, tf, violation, markers in constraint_markers.h, /clock) and
-// serving effort commands, reset, pause, unpause, advance and diagnostics.
+// sample (joint_states, actuator_states, tf, violation, markers in constraint_markers.h,
+// /clock) and serving effort commands (by joint or by actuator), reset, pause, unpause, advance and diagnostics.
 #pragma once
 #include <atomic>
 #include <memory>
@@ -56,6 +56,7 @@ class SimNode {
   void publishStatic();
   geometry_msgs::TransformStamped treeTransform(size_t tree_joint, const ros::Time& time) const;
   void onEffort(const sensor_msgs::JointState::ConstPtr& msg);
+  void onActuatorEffort(const sensor_msgs::JointState::ConstPtr& msg);
   void onDriveCommand(const sensor_msgs::JointState::ConstPtr& msg);
   void onTrajectory(const trajectory_msgs::JointTrajectory::ConstPtr& msg);
   // Follows a trajectory from `start` (simulation time), or logs why not (under mutex_).
@@ -83,8 +84,11 @@ class SimNode {
   ros::Time last_stamp_{0};   // the last stamp published (under mutex_)
   ros::Time last_tf_stamp_{ros::TIME_MAX};  // of the last tf sent (TIME_MAX: none yet)
   std::vector<std::pair<int, int>> tree_links_;  // (parent, child) link of each tree joint
-  ros::Publisher joint_states_, clock_, violation_, reactions_;
-  ros::Subscriber effort_, drive_, trajectory_;
+  ros::Publisher joint_states_, actuator_states_, clock_, violation_, reactions_;
+  ros::Subscriber effort_, actuator_effort_, drive_, trajectory_;
+  // The torque last commanded on each actuator (~actuator_effort_command; under mutex_): a
+  // transmission's joint efforts follow from all its actuators' torques.
+  std::vector<double> actuator_command_;
   // A ~joint_trajectory stamped in the future waits here until its start (under mutex_).
   std::unique_ptr<Trajectory> pending_;
   double pending_start_ = 0.0;

@@ -39,7 +39,8 @@ struct LoadArgs {
 
 LoadArgs loadArgs(const py::object& args, const py::object& positions, const py::object& velocities,
                   const py::object& efforts, const py::object& drives, const std::string& integrator,
-                  const py::object& closures, const std::string& formulation, bool strict_inertia) {
+                  const py::object& closures, const std::string& formulation, bool strict_inertia,
+                  const py::object& actuators) {
   LoadArgs a;
   if (!args.is_none())
     for (const py::handle item : args.attr("items")()) {
@@ -53,6 +54,7 @@ LoadArgs loadArgs(const py::object& args, const py::object& positions, const py:
   a.options.formulation = formulation;
   a.options.strict_inertia = strict_inertia;
   if (!closures.is_none()) a.options.closures_file = py::str(closures).cast<std::string>();
+  if (!actuators.is_none()) a.options.actuators_file = py::str(actuators).cast<std::string>();
   a.efforts = values(efforts, "efforts");
   return a;
 }
@@ -89,6 +91,56 @@ py::dict solverStats(const SolverStats& st) {
   d["shortfalls"] = st.shortfalls();
   d["describe"] = st.describe();
   return d;
+}
+
+// MechanismModel::actuatorState of every actuator, as arrays.
+py::dict actuatorStates(const Simulation& s) {
+  const std::vector<Actuator>& actuators = s.model().actuators();
+  const size_t n = actuators.size();
+  std::vector<std::string> names;
+  std::vector<double> position(n), velocity(n), torque(n), power(n), current(n), voltage(n), electrical_power(n);
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  for (size_t a = 0; a < n; ++a) {
+    const ActuatorState st = s.model().actuatorState(static_cast<int>(a));
+    names.push_back(actuators[a].name);
+    position[a] = st.position, velocity[a] = st.velocity, torque[a] = st.torque, power[a] = st.power;
+    const bool given = electricalGiven(actuators[a].ratings);
+    current[a] = given ? st.current : nan, voltage[a] = given ? st.voltage : nan;
+    electrical_power[a] = given ? st.electrical_power : nan;
+  }
+  py::dict d;
+  d["names"] = names;
+  d["position"] = array(position), d["velocity"] = array(velocity), d["torque"] = array(torque), d["power"] = array(power);
+  d["current"] = array(current), d["voltage"] = array(voltage), d["electrical_power"] = array(electrical_power);
+  return d;
+}
+
+// Each actuator's ActuatorSizing as a dict, by name.
+py::dict actuatorSizing(const Simulation& s) {
+  py::dict out;
+  for (const ActuatorSizing& a : s.actuatorSizing()) {
+    py::dict d;
+    d["peak_torque"] = a.peakTorque(), d["peak_torque_time"] = a.peakTorqueTime(), d["rms_torque"] = a.rmsTorque();
+    d["peak_speed"] = a.peakSpeed(), d["peak_power"] = a.peakPower();
+    d["positive_work"] = a.positiveWork(), d["negative_work"] = a.negativeWork();
+    if (a.electricalGiven()) {
+      d["peak_current"] = a.peakCurrent(), d["peak_voltage"] = a.peakVoltage();
+      d["peak_electrical_power"] = a.peakElectricalPower(), d["copper_energy"] = a.copperEnergy();
+    }
+    py::list exceeded;
+    for (const ActuatorSizing::Exceeded& e : a.exceeded()) {
+      py::dict x;
+      x["rating"] = e.rating, x["limit"] = e.limit, x["worst"] = e.worst, x["worst_time"] = e.worst_time;
+      x["first_time"] = e.first_time;
+      exceeded.append(x);
+    }
+    // None: no rating to size against
+    d["within_rating"] = a.rated() ? py::object(py::bool_(exceeded.size() == 0)) : py::object(py::none());
+    d["exceeded"] = exceeded;
+    d["describe"] = a.describe();
+    out[py::str(a.name())] = d;
+  }
+  return out;
 }
 
 // An exception class with several bases (mechanism_sim.LoadError is also a ValueError).
@@ -249,6 +301,18 @@ PYBIND11_MODULE(_mechanism_sim, m) {
         for (const DrivePeak& p : s.drivePeaks()) d[py::str(s.model().dofs()[p.dof].name)] = py::make_tuple(p.effort, p.time);
         return d;
       }, "{driven dof: (largest |effort| signed, its time)} since loading or reset().")
+      .def("actuator_names", [](const Simulation& s) {
+        std::vector<std::string> names;
+        for (const Actuator& a : s.model().actuators()) names.push_back(a.name);
+        return names;
+      }, "The actuators the simulated <transmission>s name (doc/actuators.md).")
+      .def("actuator_states", [](const Simulation& s) { return actuatorStates(s); },
+           "Each actuator's operating point now: {'names', 'position', 'velocity', 'torque', 'power', 'current', "
+           "'voltage', 'electrical_power'} (arrays in actuator_names() order; the electrical ones NaN without a "
+           "torque_constant).")
+      .def("actuator_sizing", [](const Simulation& s) { return actuatorSizing(s); },
+           "{actuator: its peaks, RMS torque, work and ratings exceeded} since loading or reset() (simulate's "
+           "sizing lines).")
       .def("solver_stats", [](const Simulation& s) { return solverStats(s.model().solverStats()); })
       .def("summary", &Simulation::summary, "The lines simulate prints after a run of these steps.")
       .def("wall_time", &Simulation::wallTime, "Seconds spent stepping since loading or reset().")
@@ -299,14 +363,15 @@ PYBIND11_MODULE(_mechanism_sim, m) {
       "positions/velocities {dof: value} (--set/--velocity), efforts (--effort), drives {dof: velocity} "
       "(--drive), integrator 'rk4'|'rk3'|'rk2', closures: an Extended URDF YAML (--closures), "
       "formulation 'absolute'|'joint'|'auto' (--formulation), strict_inertia: refuse a body whose inertia "
-      "is not physical (--strict-inertia; by default it runs with the nearest physical one and a note). "
+      "is not physical (--strict-inertia; by default it runs with the nearest physical one and a note), "
+      "actuators: a YAML file of actuator properties (--actuators). "
       "Raises mechanism_sim.LoadError.";
   m.def("load", [](const std::string& path, const py::object& args, const py::object& positions,
                    const py::object& velocities, const py::object& efforts, const py::object& drives,
                    const std::string& integrator, const py::object& closures, const std::string& formulation,
-                   bool strict_inertia) {
-    const LoadArgs a =
-        loadArgs(args, positions, velocities, efforts, drives, integrator, closures, formulation, strict_inertia);
+                   bool strict_inertia, const py::object& actuators) {
+    const LoadArgs a = loadArgs(args, positions, velocities, efforts, drives, integrator, closures, formulation,
+                                strict_inertia, actuators);
     std::unique_ptr<MechanismModel> model;
     {
       py::gil_scoped_release release;  // xacro runs Node.js
@@ -316,13 +381,13 @@ PYBIND11_MODULE(_mechanism_sim, m) {
   }, py::arg("path"), py::kw_only(), py::arg("args") = py::none(), py::arg("positions") = py::none(),
      py::arg("velocities") = py::none(), py::arg("efforts") = py::none(), py::arg("drives") = py::none(),
      py::arg("integrator") = "", py::arg("closures") = py::none(), py::arg("formulation") = "",
-     py::arg("strict_inertia") = false, load_doc);
+     py::arg("strict_inertia") = false, py::arg("actuators") = py::none(), load_doc);
   m.def("load_string", [](const std::string& xml, const std::string& source, const py::object& positions,
                           const py::object& velocities, const py::object& efforts, const py::object& drives,
                           const std::string& integrator, const py::object& closures, const std::string& formulation,
-                          bool strict_inertia) {
-    const LoadArgs a =
-        loadArgs(py::none(), positions, velocities, efforts, drives, integrator, closures, formulation, strict_inertia);
+                          bool strict_inertia, const py::object& actuators) {
+    const LoadArgs a = loadArgs(py::none(), positions, velocities, efforts, drives, integrator, closures, formulation,
+                                strict_inertia, actuators);
     std::unique_ptr<MechanismModel> model;
     {
       py::gil_scoped_release release;
@@ -332,5 +397,5 @@ PYBIND11_MODULE(_mechanism_sim, m) {
   }, py::arg("xml"), py::arg("source") = "<string>", py::kw_only(), py::arg("positions") = py::none(),
      py::arg("velocities") = py::none(), py::arg("efforts") = py::none(), py::arg("drives") = py::none(),
      py::arg("integrator") = "", py::arg("closures") = py::none(), py::arg("formulation") = "",
-     py::arg("strict_inertia") = false, "As load(), from URDF text (no xacro).");
+     py::arg("strict_inertia") = false, py::arg("actuators") = py::none(), "As load(), from URDF text (no xacro).");
 }

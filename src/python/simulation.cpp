@@ -23,6 +23,8 @@ void Simulation::restartRecord() {
   peaks_.clear();
   for (size_t d = 0; d < model_->dofs().size(); ++d)
     if (model_->dofs()[d].drive >= 0) peaks_.push_back(DrivePeak{static_cast<int>(d), 0.0, model_->time()});
+  sizing_.clear();
+  for (const Actuator& a : model_->actuators()) sizing_.emplace_back(a.name, a.ratings);
   track();
 }
 
@@ -34,6 +36,10 @@ void Simulation::track() {
   for (DrivePeak& p : peaks_) {
     const double e = model_->effort(p.dof);
     if (std::fabs(e) > std::fabs(p.effort)) p.effort = e, p.time = model_->time();
+  }
+  for (size_t a = 0; a < sizing_.size(); ++a) {
+    const ActuatorState st = model_->actuatorState(static_cast<int>(a));
+    sizing_[a].add(model_->time(), st.velocity, st.torque);
   }
 }
 
@@ -110,6 +116,7 @@ SimulationSnapshot Simulation::snapshot() const {
   s.worst_position = worst_position_;
   s.worst_velocity = worst_velocity_;
   s.peaks = peaks_;
+  s.sizing = sizing_;
   return s;
 }
 
@@ -123,6 +130,7 @@ void Simulation::restore(const SimulationSnapshot& s) {
   worst_position_ = s.worst_position;
   worst_velocity_ = s.worst_velocity;
   peaks_ = s.peaks;
+  sizing_ = s.sizing;
 }
 
 void Simulation::reset() {
@@ -136,6 +144,14 @@ void Simulation::reset() {
 std::string Simulation::summary() const {
   const std::string line = runSummary(*model_, steps_, last_h_, wall_, worstPositionViolation(), worstVelocityViolation(), peaks_);
   std::string out = path_ + ": " + line + "\n";
+  // as simulate: each actuator described sized, the others counted
+  int undescribed = 0;
+  for (size_t a = 0; a < sizing_.size(); ++a) {
+    if (!ratingsGiven(model_->actuators()[a].ratings)) ++undescribed;
+    else out += path_ + ": " + sizing_[a].describe() + "\n";
+  }
+  if (undescribed)
+    out += path_ + ": " + std::to_string(undescribed) + " actuators without ratings (their motor_* columns are in the CSV)\n";
   for (const std::string& note : model_->notes()) out += path_ + ": " + note + "\n";
   return out;
 }

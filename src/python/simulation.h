@@ -1,7 +1,7 @@
 // What the Python module (doc/python.md) holds per loaded model: the MechanismModel, plus
 // what the simulate CLI reports about a run (src/cli/simulate.cpp): steps taken, wall
-// time, the largest violations at any step and each drive's peak effort (as RunLoop
-// tracks them), so that summary() prints the CLI's line. ROS-free and Python-free: the
+// time, the largest violations at any step, each drive's peak effort and each actuator's
+// sizing (as RunLoop tracks them), so that summary() prints the CLI's line. ROS-free and Python-free: the
 // bindings (module.cpp) only convert.
 #pragma once
 #include <algorithm>
@@ -24,6 +24,7 @@ struct SimulationSnapshot {
   long steps = 0;
   double last_h = 0.0, worst_position = 0.0, worst_velocity = 0.0;
   std::vector<DrivePeak> peaks;
+  std::vector<ActuatorSizing> sizing;
 };
 
 class Simulation {
@@ -63,8 +64,12 @@ class Simulation {
   double worstPositionViolation() const { return std::max(worst_position_, model_->positionViolation()); }
   double worstVelocityViolation() const { return std::max(worst_velocity_, model_->velocityViolation()); }
   const std::vector<DrivePeak>& drivePeaks() const { return peaks_; }
+  // Per actuator (MechanismModel::actuators()), its operating points at every step since
+  // loading or reset() against its ratings, as RunLoop's.
+  const std::vector<ActuatorSizing>& actuatorSizing() const { return sizing_; }
   // The lines simulate prints on stderr after a run of these steps: "PATH: assembled to
-  // ...; solver: ..." and "PATH: NOTE" per note (newline-terminated).
+  // ...; solver: ...", the actuators' sizing lines and "PATH: NOTE" per note
+  // (newline-terminated).
   std::string summary() const;
 
  private:
@@ -78,6 +83,7 @@ class Simulation {
   long steps_ = 0;
   double last_h_ = 0.0, wall_ = 0.0, worst_position_ = 0.0, worst_velocity_ = 0.0;
   std::vector<DrivePeak> peaks_;
+  std::vector<ActuatorSizing> sizing_;
 };
 
 }  // namespace python

@@ -1,6 +1,7 @@
 // An actuator's operating point from its transmission's joints (model.h, doc/actuators.md).
 #include <cmath>
 
+#include "mechanism_sim/core/model/actuator_sizing.h"
 #include "mechanism_sim/urdf/model.h"
 
 namespace mechanism_sim {
@@ -34,6 +35,10 @@ ActuatorState MechanismModel::actuatorState(int actuator) const {
   const double sign = s.velocity > 0 ? 1.0 : s.velocity < 0 ? -1.0 : 0.0;
   s.torque += a.ratings.damping * s.velocity + a.ratings.friction * sign;
   s.power = s.torque * s.velocity;
+  if (electricalGiven(a.ratings)) {
+    const ActuatorElectrical e = electrical(a.ratings, s.velocity, s.torque);
+    s.current = e.current, s.voltage = e.voltage, s.electrical_power = e.power;
+  }
   return s;
 }
 

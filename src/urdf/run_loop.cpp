@@ -51,7 +51,10 @@ void RunLoop::restartWorst() {
   for (size_t d = 0; d < model_.dofs().size(); ++d)
     if (model_.dofs()[d].drive >= 0) peaks_.push_back(DrivePeak{static_cast<int>(d), 0.0, model_.time()});
   sizing_.clear();
-  for (const Actuator& a : model_.actuators()) sizing_.emplace_back(a.name, a.ratings);
+  for (const Actuator& a : model_.actuators()) {
+    sizing_.emplace_back(a.name, a.ratings);
+    sizing_.back().keepPoints(keep_points_);
+  }
   trackPeaks();
 }
 

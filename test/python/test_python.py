@@ -5,6 +5,7 @@ Run by scripts/test (cmake/python.cmake: pytest under the devel environment, its
 counted with the gtests'). MECHANISM_SIM_SIMULATE names the simulate binary.
 """
 import csv
+import json
 import math
 import os
 import re
@@ -169,6 +170,119 @@ def test_a_run_prints_what_simulate_prints(tmp_path, path, options, kwargs):
     def steady(text):
         return re.sub(r"in [0-9.]+ s wall \(real-time factor [0-9.inf]+\)", "in W s wall", text)
     assert steady(m.summary()) == steady(run.stderr)
+
+
+GEARED = os.path.join(SOURCE, "test/urdf/geared_pendulum.urdf.xacro")
+
+
+def test_actuators_states_and_sizing_have_the_known_answers(tmp_path):
+    # The geared pendulum (m g L = 9.81 N m) turned one turn a second by a velocity drive
+    # behind N:1: the motor turns at 2 pi N, gives -m g L cos(q) / N (the drive holds the
+    # rate against gravity), peaks at 9.81 / N and has the RMS 9.81 / (N sqrt 2) over the
+    # turn. The motor (0.3 N m peak, 0.15 N m continuous, 400 rad/s) is enough at N = 50
+    # (RMS 0.1387), not at N = 40 (RMS 0.1734 above its continuous rating).
+    mgl = 2 * 9.81 * 0.5
+    for n, within in ((50, True), (40, False)):
+        m = mechanism_sim.load(GEARED, args={"reduction": n, "drive": "true"})
+        assert m.actuator_names() == ["motor"]
+        m.advance(0.3, 1e-3)
+        q = m.positions()[0]
+        a = m.actuator_states()
+        assert a["names"] == ["motor"]
+        assert a["position"][0] == pytest.approx(n * q, rel=1e-12)
+        assert a["velocity"][0] == pytest.approx(2 * math.pi * n, rel=1e-12)
+        assert a["torque"][0] == pytest.approx(-mgl * math.cos(q) / n, abs=1e-9 * mgl / n)
+        assert a["power"][0] == a["torque"][0] * a["velocity"][0]
+        assert math.isnan(a["current"][0])  # no torque_constant
+        m.advance(0.7, 1e-3)  # one full turn in all
+        s = m.actuator_sizing()["motor"]
+        assert s["peak_torque"] == pytest.approx(mgl / n, rel=1e-9)
+        assert s["rms_torque"] == pytest.approx(mgl / (n * math.sqrt(2)), rel=1e-9)
+        assert s["peak_speed"] == pytest.approx(2 * math.pi * n, rel=1e-12)
+        assert s["positive_work"] + s["negative_work"] == pytest.approx(0.0, abs=1e-9 * s["positive_work"])
+        assert s["within_rating"] is within
+        assert [e["rating"] for e in s["exceeded"]] == ([] if within else ["rated_torque"])
+        assert "peak_current" not in s
+    # a reset restarts the record; a snapshot restores it
+    snap = m.snapshot()
+    m.reset()
+    assert m.actuator_sizing()["motor"]["peak_speed"] == pytest.approx(2 * math.pi * 40, rel=1e-12)
+    assert m.actuator_sizing()["motor"]["rms_torque"] == pytest.approx(mgl / 40, rel=1e-12)  # the start alone
+    m.restore(snap)
+    assert m.actuator_sizing()["motor"]["within_rating"] is False
+    # without a rating to size against there is no flag
+    bare = mechanism_sim.load_string(open(os.path.join(SOURCE, "urdf/harmonic_drive_joint.urdf")).read().replace(
+        'rated_torque="0.3" peak_torque="1.2"\n                          stall_torque="2.0" no_load_speed="650" max_speed="600"',
+        ""))
+    assert bare.actuator_sizing()["shoulder_motor"]["within_rating"] is None
+
+    # what simulate writes and prints for the same run: the motor columns, the sizing line
+    out = tmp_path / "geared.csv"
+    run = simulate(GEARED, "reduction:=40", "drive:=true", "--duration", "1", "--dt", "1e-3", "--csv", str(out))
+    header, last = csv_values(out)
+    row = dict(zip(header, last))
+    for column, key in (("position", "position"), ("velocity", "velocity"), ("torque", "torque"), ("power", "power")):
+        assert "%.12g" % m.actuator_states()[key][0] == row["motor.motor_" + column], column
+    m = mechanism_sim.load(GEARED, args={"reduction": 40, "drive": "true"})
+    m.advance(1.0, 1e-3)
+
+    def steady(text):
+        return re.sub(r"in [0-9.]+ s wall \(real-time factor [0-9.inf]+\)", "in W s wall", text)
+    assert steady(m.summary()) == steady(run.stderr)
+    assert m.actuator_sizing()["motor"]["describe"] in m.summary()
+
+
+HARMONIC = os.path.join(SOURCE, "urdf/harmonic_drive_joint.urdf")
+ACTUATOR_PLOT = os.path.join(SOURCE, "scripts/actuator_plot")
+
+
+def test_actuator_plot_draws_the_run_against_the_ratings(tmp_path):
+    # simulate --actuator-plot keeps the data beside the picture: the harmonic-drive example's
+    # motor at every step, theta_dot = N A w cos(w t) (N = 100, A = 0.8, w = 2 pi), and its
+    # ratings; scripts/actuator_plot draws the line through (0, 2 N m) and (650 rad/s, 0)
+    png = tmp_path / "motor.png"
+    simulate(HARMONIC, "--duration", "1", "--quiet", "--actuator-plot", str(png))
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 20000
+    with open(str(png) + ".json") as f:
+        data = json.load(f)
+    [a] = data["actuators"]
+    assert a["name"] == "shoulder_motor"
+    assert a["ratings"] == {"rated_torque": 0.3, "peak_torque": 1.2, "stall_torque": 2.0, "no_load_speed": 650.0,
+                            "max_speed": 600.0}
+    assert len(a["points"]) == 1001  # t = 0 and every step
+    w = 2 * math.pi
+    for t, speed, torque in a["points"]:
+        assert speed == pytest.approx(100 * 0.8 * w * math.cos(w * t), abs=1e-9 * 100 * 0.8 * w)
+    m = mechanism_sim.load(HARMONIC)
+    m.advance(1.0, 1e-3)
+    s = m.actuator_sizing()["shoulder_motor"]
+    assert a["points"][-1][2] == m.actuator_states()["torque"][0]
+    assert a["rms_torque"] == s["rms_torque"] and a["within_rating"] is True and a["exceeded"] == []
+    run = subprocess.run([ACTUATOR_PLOT, str(png) + ".json", "-o", str(tmp_path / "again.png"), "--summary"],
+                         capture_output=True, text=True, timeout=120)
+    assert run.returncode == 0, run.stderr
+    [drawn] = json.loads(run.stdout)["actuators"]
+    assert drawn["points"] == 1001 and drawn["verdict"] == "within rating"
+    assert drawn["lines"]["envelope"] == {"upper": [[0.0, 2.0], [650.0, 0.0]], "lower": [[-650.0, 0.0], [0.0, -2.0]]}
+    assert drawn["lines"]["peak_torque"] == 1.2 and drawn["lines"]["rated_torque"] == 0.3
+    assert drawn["lines"]["max_speed"] == 600 and drawn["lines"]["rms_torque"] == s["rms_torque"]
+    assert drawn["speed"] == pytest.approx([-100 * 0.8 * w, 100 * 0.8 * w], rel=1e-9)
+
+    # twice as fast: the ratings it exceeds name the panel
+    fast = tmp_path / "fast.urdf"
+    fast.write_text(open(HARMONIC).read().replace('frequency="1"', 'frequency="2"'))
+    simulate(str(fast), "--duration", "1", "--quiet", "--actuator-plot", str(tmp_path / "fast.png"))
+    run = subprocess.run([ACTUATOR_PLOT, str(tmp_path / "fast.png.json"), "--summary"], capture_output=True, text=True,
+                         timeout=120)
+    assert json.loads(run.stdout)["actuators"][0]["verdict"] == "EXCEEDS max_speed, torque-speed line, rated_torque"
+
+    # a model without actuators has nothing to plot; a file that is not the data is one line
+    run = simulate(PENDULUM, "--duration", "0.1", "--actuator-plot", str(tmp_path / "none.png"), check=False)
+    assert run.returncode == 2
+    assert run.stderr == f"simulate: {PENDULUM}: --actuator-plot: the model has no actuators (no simulated <transmission>)\n"
+    (tmp_path / "bad.json").write_text("{}")
+    run = subprocess.run([ACTUATOR_PLOT, str(tmp_path / "bad.json")], capture_output=True, text=True, timeout=120)
+    assert run.returncode == 2 and run.stderr == f"actuator_plot: {tmp_path / 'bad.json'}: no actuators in it\n"
 
 
 def test_set_state_holds_what_load_holds():

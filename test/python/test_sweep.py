@@ -237,6 +237,33 @@ def test_an_interrupted_sweep_resumes_where_it_stopped(tmp_path):
     assert "0 to run" in stderr and len(read_rows(part)) == 8
 
 
+def test_a_reduction_sweep_finds_the_smallest_ratio_the_motor_is_enough_for(tmp_path):
+    # test/urdf/geared_pendulum.urdf.xacro turned a turn a second behind N:1: the motor gives
+    # at most 9.81 / N N m, RMS 9.81 / (N sqrt 2), at 2 pi N rad/s. Its 0.3 N m peak holds
+    # from N = 32.7, its 0.15 N m continuous rating from N = 46.25, its 400 rad/s up to
+    # N = 63.66: within its ratings for 47 <= N <= 63 of these.
+    geared = os.path.join(SOURCE, "test/urdf/geared_pendulum.urdf.xacro")
+    out = tmp_path / "reduction.csv"
+    ratios = [30, 40, 46, 47, 50, 60, 63, 64, 70]
+    sw = sweep(geared, "--vary", "arg:reduction=" + ",".join(map(str, ratios)), "--workers", "1", "--out", str(out),
+               "--plot", "--", "drive:=true", "--duration", "1", "--dt", "1e-3")
+    _, stderr = sw.communicate(timeout=120)
+    assert sw.returncode == 0, stderr
+    rows = sorted(read_rows(out), key=lambda r: float(r["arg:reduction"]))
+    assert [float(r["arg:reduction"]) for r in rows] == ratios
+    mgl = 2 * 9.81 * 0.5
+    for r in rows:
+        n = float(r["arg:reduction"])
+        assert float(r["motor.peak_torque"]) == pytest.approx(mgl / n, rel=1e-9)
+        assert float(r["motor.rms_torque"]) == pytest.approx(mgl / (n * math.sqrt(2)), rel=1e-9)
+        assert float(r["motor.peak_speed"]) == pytest.approx(2 * math.pi * n, rel=1e-12)
+        assert r["motor.within_rating"] == ("1" if 46.25 < n < 63.66 else "0"), r
+    smallest = min(float(r["arg:reduction"]) for r in rows if r["motor.within_rating"] == "1")
+    assert smallest == 47
+    png = tmp_path / "reduction.arg_reduction.png"
+    assert png.stat().st_size > 10000
+
+
 def test_bad_arguments_stop_before_running(tmp_path):
     out = tmp_path / "x.csv"
     for argv, message in [

@@ -193,6 +193,113 @@ TEST(Actuators, HarmonicDriveExampleSizing) {
   EXPECT_NE(d.find("EXCEEDS the torque-speed line"), std::string::npos) << d;
 }
 
+// A wheel about the vertical (gravity does no work) turned at a constant 2 rad/s by a
+// velocity drive behind a 100:1 gearbox: the motor turns at 200 rad/s and gives only its own
+// friction and damping, 0.05 + 1e-4 * 200 = 0.07 N m. With k_t = 0.05 N m/A and R = 0.8 ohm:
+// i = 0.07 / 0.05 = 1.4 A, V = 0.8 * 1.4 + 0.05 * 200 = 11.12 V, P_el = V i = 15.568 W, of
+// which R i^2 = 1.568 W is copper loss and tau omega = 14 W mechanical.
+std::string electricWheel() {
+  return "<robot name=\"wheel\" xmlns:mechanism_sim=\"https://mechanism-sim.github.io/urdf-extension\">"
+         "<link name=\"base\"/><link name=\"wheel\"><inertial><mass value=\"1\"/><inertia ixx=\"0.01\" iyy=\"0.01\" "
+         "izz=\"0.02\" ixy=\"0\" ixz=\"0\" iyz=\"0\"/></inertial></link>"
+         "<joint name=\"hinge\" type=\"continuous\"><parent link=\"base\"/><child link=\"wheel\"/><axis xyz=\"0 0 1\"/>"
+         "</joint>" +
+         std::string(kSimple) +
+         "<mechanism_sim:actuator name=\"motor\" rotor_inertia=\"1e-5\" friction=\"0.05\" damping=\"1e-4\" "
+         "torque_constant=\"0.05\" resistance=\"0.8\"/>"
+         "<mechanism_sim:drive joint=\"hinge\" velocity=\"2\"/></robot>";
+}
+
+TEST(Actuators, ElectricalQuantitiesAtAKnownTorqueAndSpeed) {
+  auto model = loadModelString(electricWheel(), "wheel.urdf");
+  RunLoop loop(*model, 1e-3, 100);
+  while (loop.steps() < 1000) loop.advance();
+  const ActuatorState s = model->actuatorState(0);
+  EXPECT_NEAR(s.velocity, 200.0, 1e-9 * 200);
+  EXPECT_NEAR(s.torque, 0.07, 1e-9 * 0.07);
+  EXPECT_NEAR(s.current, 1.4, 1e-9 * 1.4);
+  EXPECT_NEAR(s.voltage, 11.12, 1e-9 * 11.12);
+  EXPECT_NEAR(s.electrical_power, 15.568, 1e-9 * 15.568);
+  const ActuatorSizing& a = loop.actuatorSizing()[0];
+  ASSERT_TRUE(a.electricalGiven());
+  EXPECT_NEAR(a.peakCurrent(), 1.4, 1e-9 * 1.4);
+  EXPECT_NEAR(a.peakVoltage(), 11.12, 1e-9 * 11.12);
+  EXPECT_NEAR(a.peakElectricalPower(), 15.568, 1e-9 * 15.568);
+  EXPECT_NEAR(a.copperEnergy(), 1.568 * 1.0, 1e-9 * 1.568);  // R i^2 over the run's 1 s
+  EXPECT_NE(a.describe().find(", peak current 1.4 A, peak voltage 11.12 V, peak electrical power 15.57 W, copper energy "
+                              "1.568 J"),
+            std::string::npos)
+      << a.describe();
+  // without a torque_constant nothing electrical is reported; a resistance alone is refused
+  auto plain = loadModelString(pendulum(kSimple), "t.urdf");
+  EXPECT_FALSE(electricalGiven(plain->actuators()[0].ratings));
+  EXPECT_EQ(plain->actuatorState(0).current, 0.0);
+  RunLoop plain_loop(*plain, 1e-3, 10);
+  EXPECT_EQ(plain_loop.actuatorSizing()[0].describe().find("current"), std::string::npos);
+  EXPECT_EQ(loadError(pendulum(std::string(kSimple) + "<mechanism_sim:actuator name=\"motor\" resistance=\"0.8\"/>")),
+            "t.urdf:1: mechanism_sim:actuator 'motor': resistance needs torque_constant (the current follows from it)");
+}
+
+// The harmonic-drive example with a motor's k_t and R: at every step the electrical power
+// is the mechanical power plus the copper loss, P_el = tau omega + R i^2 (the back-EMF
+// k_e = k_t in SI), while the torque and speed swing through motoring and braking.
+TEST(Actuators, ElectricalPowerIsMechanicalPowerPlusCopperLoss) {
+  std::ifstream in(kSource + "/urdf/harmonic_drive_joint.urdf");
+  std::string xml((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  xml.replace(xml.find("max_speed=\"600\""), 15, "max_speed=\"600\" torque_constant=\"0.11\" resistance=\"1.3\"");
+  auto model = loadModelString(xml, "electric.urdf");
+  RunLoop loop(*model, 1e-3, 1);
+  double copper = 0.0, last = -1.0;
+  bool motoring = false, braking = false;
+  while (loop.steps() < 1000) {
+    const ActuatorState s = model->actuatorState(0);
+    const double i = s.torque / 0.11;
+    EXPECT_NEAR(s.current, i, 1e-12 * std::fabs(i) + 1e-15);
+    EXPECT_NEAR(s.voltage, 1.3 * i + 0.11 * s.velocity, 1e-12 * (1.3 * std::fabs(i) + 0.11 * std::fabs(s.velocity)));
+    const double scale = std::fabs(s.power) + 1.3 * i * i;
+    EXPECT_NEAR(s.electrical_power, s.power + 1.3 * i * i, 1e-12 * scale + 1e-15) << "t = " << model->time();
+    motoring = motoring || s.power > 1.0;
+    braking = braking || s.power < -1.0;
+    if (last >= 0) copper += 0.5 * 1e-3 * (last + 1.3 * i * i);
+    last = 1.3 * i * i;
+    loop.advance();
+  }
+  const ActuatorState s = model->actuatorState(0);
+  const double i = s.torque / 0.11;
+  copper += 0.5 * 1e-3 * (last + 1.3 * i * i);
+  EXPECT_TRUE(motoring && braking);
+  const ActuatorSizing& a = loop.actuatorSizing()[0];
+  EXPECT_NEAR(a.copperEnergy(), copper, 1e-9 * copper);
+  EXPECT_NEAR(a.peakCurrent(), a.peakTorque() / 0.11, 1e-12 * a.peakCurrent());
+}
+
+// The points kept for --actuator-plot: all while fewer than the cap, then every second,
+// every fourth, ...: evenly spaced in steps, the first one always kept.
+TEST(Actuators, KeptOperatingPointsStayEvenlySpaced) {
+  ActuatorSizing a("m", ActuatorRatings{});
+  a.keepPoints(8);
+  for (int k = 0; k < 7; ++k) a.add(k, 10.0 * k, -k);
+  ASSERT_EQ(a.points().size(), 7u);  // below the cap: every one
+  EXPECT_EQ(a.points()[6][0], 6.0);
+  EXPECT_EQ(a.points()[6][1], 60.0);
+  EXPECT_EQ(a.points()[6][2], -6.0);
+  for (int k = 7; k < 100; ++k) a.add(k, 10.0 * k, -k);
+  // 8 reached at k = 7 (-> 0 2 4 6, stride 2), at k = 14 (-> 0 4 8 12, stride 4), at k = 28
+  // (stride 8), at k = 56 (stride 16): 0 16 32 48 64 80 96
+  ASSERT_EQ(a.points().size(), 7u);
+  for (size_t i = 0; i < a.points().size(); ++i) {
+    EXPECT_EQ(a.points()[i][0], 16.0 * i);
+    EXPECT_EQ(a.points()[i][1], 160.0 * i);
+  }
+  a.reset();  // the record restarts, still keeping points
+  a.add(0.5, 1.0, 2.0);
+  ASSERT_EQ(a.points().size(), 1u);
+  EXPECT_EQ(a.points()[0][0], 0.5);
+  ActuatorSizing none("n", ActuatorRatings{});
+  none.add(0, 1, 1);
+  EXPECT_TRUE(none.points().empty());  // not asked: nothing kept
+}
+
 TEST(Actuators, ActuatorsFile) {
   const std::string path = testing::TempDir() + "/actuators.yaml";
   {

@@ -178,3 +178,46 @@ TEST(SimulateCli, KinematicModeAndStrictInertia) {
 }
 
 }  // namespace
+
+// Actuators in the CSV (doc/actuators.md): the motor's columns after constraint.velocity,
+// its electrical ones only with a torque_constant. A wheel about the vertical turned at
+// 2 rad/s behind 100:1 (no gravity work): the motor at 200 rad/s gives its friction and
+// damping, 0.05 + 1e-4 * 200 = 0.07 N m; k_t = 0.05 N m/A, R = 0.8 ohm make i = 1.4 A,
+// V = 0.8 * 1.4 + 0.05 * 200 = 11.12 V, P_el = 15.568 W.
+TEST(SimulateCli, ActuatorColumnsAndElectricalQuantities) {
+  const std::string urdf = ::testing::TempDir() + "/wheel.urdf";
+  {
+    std::ofstream out(urdf);
+    out << "<robot name=\"wheel\" xmlns:mechanism_sim=\"https://mechanism-sim.github.io/urdf-extension\">"
+           "<link name=\"base\"/><link name=\"wheel\"><inertial><mass value=\"1\"/><inertia ixx=\"0.01\" iyy=\"0.01\" "
+           "izz=\"0.02\" ixy=\"0\" ixz=\"0\" iyz=\"0\"/></inertial></link>"
+           "<joint name=\"hinge\" type=\"continuous\"><parent link=\"base\"/><child link=\"wheel\"/><axis xyz=\"0 0 1\"/>"
+           "</joint><transmission name=\"gearbox\"><type>transmission_interface/SimpleTransmission</type>"
+           "<joint name=\"hinge\"/><actuator name=\"motor\"><mechanicalReduction>100</mechanicalReduction></actuator>"
+           "</transmission><mechanism_sim:actuator name=\"motor\" rotor_inertia=\"1e-5\" friction=\"0.05\" "
+           "damping=\"1e-4\" torque_constant=\"0.05\" resistance=\"0.8\" peak_torque=\"0.1\"/>"
+           "<mechanism_sim:drive joint=\"hinge\" velocity=\"2\"/></robot>";
+  }
+  const std::string csv = ::testing::TempDir() + "/wheel.csv";
+  const Result r = run(urdf + " --duration 0.5 --dt 0.001 --output-every 100 --csv " + csv);
+  ASSERT_EQ(r.code, 0) << r.out;
+  const auto rows = readCsv(csv);
+  const std::vector<std::string> motor = {"motor.motor_position", "motor.motor_velocity", "motor.motor_torque",
+                                          "motor.motor_power",    "motor.motor_current",  "motor.motor_voltage",
+                                          "motor.electrical_power"};
+  ASSERT_EQ(rows[0].size(), 6u + motor.size());
+  for (size_t i = 0; i < motor.size(); ++i) EXPECT_EQ(rows[0][6 + i], motor[i]);
+  const std::vector<double> expected = {100 * 2 * 0.5, 200, 0.07, 14, 1.4, 11.12, 15.568};
+  for (size_t i = 0; i < expected.size(); ++i)
+    EXPECT_NEAR(std::stod(rows.back()[6 + i]), expected[i], 1e-9 * expected[i]) << motor[i];
+  EXPECT_NE(r.out.find("actuator 'motor': peak torque 0.07 N m"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("peak current 1.4 A, peak voltage 11.12 V, peak electrical power 15.57 W, copper energy 0.784 J; "
+                       "within rating (peak_torque 0.1 N m)"),
+            std::string::npos)
+      << r.out;
+  // the example has no torque_constant: its motor has the mechanical columns only
+  const std::string plain = ::testing::TempDir() + "/harmonic.csv";
+  ASSERT_EQ(run(kSource + "/urdf/harmonic_drive_joint.urdf --duration 0.01 --quiet --csv " + plain).code, 0);
+  const auto head = readCsv(plain)[0];
+  EXPECT_EQ(head.back(), "shoulder_motor.motor_power");
+}

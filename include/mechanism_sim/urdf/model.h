@@ -113,9 +113,11 @@ struct Actuator {
 };
 
 // An actuator's operating point: motor-side position, velocity, torque and mechanical
-// power (torque times velocity).
+// power (torque times velocity); with a torque_constant also its current, voltage and
+// electrical power (actuator_sizing.h's electrical(); 0 otherwise).
 struct ActuatorState {
   double position = 0.0, velocity = 0.0, torque = 0.0, power = 0.0;
+  double current = 0.0, voltage = 0.0, electrical_power = 0.0;
 };
 
 class MechanismModel {

@@ -73,6 +73,12 @@ class RunLoop {
   // Per actuator (MechanismModel::actuators()), its operating points at every step since
   // construction or reset() against its ratings.
   const std::vector<ActuatorSizing>& actuatorSizing() const { return sizing_; }
+  // Keep each actuator's operating points (ActuatorSizing::keepPoints), at most max_points
+  // each, for --actuator-plot. Restarts the record: call it before the first advance.
+  void keepActuatorPoints(size_t max_points) {
+    keep_points_ = max_points;
+    restartWorst();
+  }
   MechanismModel& model() { return model_; }
   const MechanismModel& model() const { return model_; }
 
@@ -90,6 +96,7 @@ class RunLoop {
   bool reactions_ = false;
   std::vector<DrivePeak> peaks_;
   std::vector<ActuatorSizing> sizing_;
+  size_t keep_points_ = 0;
 };
 
 }  // namespace mechanism_sim

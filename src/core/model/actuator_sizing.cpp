@@ -7,7 +7,17 @@
 
 namespace mechanism_sim {
 
-void ActuatorSizing::reset() { *this = ActuatorSizing(name_, ratings_); }
+void ActuatorSizing::reset() {
+  const size_t keep = max_points_;
+  *this = ActuatorSizing(name_, ratings_);
+  keepPoints(keep);
+}
+
+void ActuatorSizing::keepPoints(size_t max_points) {
+  max_points_ = max_points == 1 ? 2 : max_points;
+  stride_ = 1, count_ = 0;
+  points_.clear();
+}
 
 double ActuatorSizing::envelope(double velocity, double torque) const {
   if (!(ratings_.stall_torque > 0.0)) return HUGE_VAL;
@@ -24,7 +34,8 @@ void ActuatorSizing::exceed(int which, double value, double t) {
 
 void ActuatorSizing::add(double t, double velocity, double torque) {
   const double power = torque * velocity;
-  if (started_) {
+  const bool first = !started_;
+  if (!first) {
     const double dt = t - t_;
     tau2_ += 0.5 * dt * (last_tau_ * last_tau_ + torque * torque);
     work_pos_ += 0.5 * dt * (std::max(last_power_, 0.0) + std::max(power, 0.0));
@@ -32,7 +43,25 @@ void ActuatorSizing::add(double t, double velocity, double torque) {
   } else {
     started_ = true, t0_ = t;
   }
+  if (electricalGiven()) {
+    const ActuatorElectrical e = electrical(ratings_, velocity, torque);
+    if (!first) copper_energy_ += 0.5 * (t - t_) * (last_copper_ + e.copper_loss);
+    last_copper_ = e.copper_loss;
+    peak_current_ = std::max(peak_current_, std::fabs(e.current));
+    peak_voltage_ = std::max(peak_voltage_, std::fabs(e.voltage));
+    peak_electrical_power_ = std::max(peak_electrical_power_, e.power);
+  }
   t_ = t, last_tau_ = torque, last_power_ = power;
+  if (max_points_ > 0 && count_++ % stride_ == 0) {
+    points_.push_back({t, velocity, torque});
+    if (points_.size() >= max_points_) {
+      // every second one of those kept (counts multiple of 2 stride) and twice the stride
+      size_t j = 0;
+      for (size_t i = 0; i < points_.size(); i += 2) points_[j++] = points_[i];
+      points_.resize(j);
+      stride_ *= 2;
+    }
+  }
   if (std::fabs(torque) > peak_torque_) peak_torque_ = std::fabs(torque), peak_torque_time_ = t;
   peak_speed_ = std::max(peak_speed_, std::fabs(velocity));
   peak_power_ = std::max(peak_power_, power);
@@ -74,10 +103,14 @@ std::string ActuatorSizing::describe() const {
                 name_.c_str(), peak_torque_, peak_torque_time_, rmsTorque(), peak_speed_, peak_power_, work_pos_,
                 work_neg_);
   std::string s = buf;
+  if (electricalGiven()) {
+    std::snprintf(buf, sizeof buf,
+                  ", peak current %.4g A, peak voltage %.4g V, peak electrical power %.4g W, copper energy %.4g J",
+                  peak_current_, peak_voltage_, peak_electrical_power_, copper_energy_);
+    s += buf;
+  }
   const std::vector<Exceeded> ex = exceeded();
-  const bool rated = ratings_.peak_torque > 0 || ratings_.rated_torque > 0 || ratings_.max_speed > 0 ||
-                     ratings_.stall_torque > 0;
-  if (!rated) return s + "; no ratings given";
+  if (!rated()) return s + "; no ratings given";
   if (ex.empty()) {
     s += "; within rating (";
     std::string list;

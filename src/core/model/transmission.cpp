@@ -31,6 +31,8 @@ void ActuatorRatings::validate(const std::string& name) const {
       throw ModelError("actuator '" + name + "': " + what + " must be finite and not negative");
   if ((stall_torque > 0.0) != (no_load_speed > 0.0))
     throw ModelError("actuator '" + name + "': a torque-speed line needs both stall_torque and no_load_speed");
+  if (resistance > 0.0 && !(torque_constant > 0.0))
+    throw ModelError("actuator '" + name + "': resistance needs torque_constant (the current follows from it)");
   if (rated_torque > 0.0 && peak_torque > 0.0 && rated_torque > peak_torque)
     throw ModelError("actuator '" + name + "': rated_torque exceeds peak_torque");
 }
