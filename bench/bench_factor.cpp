@@ -76,8 +76,8 @@ struct Problem {
     ms::evaluateAt(sys, s, ev);
     ms::rowWeights(sys, ev, sys.all_constraints);
     if (kkt) {
-      if (!sys.tree.tree) throw std::runtime_error(label + ": not a tree");
-      auto tree = std::make_unique<ms::TreeKktSolver>(sys, stats);
+      if (!ms::kktTopology(sys).tree) throw std::runtime_error(label + ": not a tree");
+      auto tree = std::make_unique<ms::TreeKktSolver>(sys, ms::kktTopology(sys), stats);
       ch = &tree->kkt();
       tree->assembleKKT(sys, ev);  // as TreeKktSolver::factor does
       solver = std::move(tree);

@@ -77,6 +77,32 @@ void addPenalty(const System& sys, const Evaluation& ev, int ci, double kappa, B
   }
 }
 
+PenaltyForm::PenaltyForm(const System& sys) {
+  std::vector<std::pair<int, int>> edges;  // the body graph of H = M + Phi_q^T W Phi_q
+  for (const auto& c : sys.constraints)
+    for (int b1 : c->bodies())
+      for (int b2 : c->bodies())
+        if (b1 > 0 && b2 > 0 && b1 < b2) edges.push_back({b1 - 1, b2 - 1});
+  addRotorEdges(sys, edges);
+  chol_.analyze(sys.nb, edges);
+  address_.assign(sys.numConstraints(), {});
+  transposed_.assign(sys.numConstraints(), {});
+  for (int ci = 0; ci < sys.numConstraints(); ++ci) {
+    const ConstraintLayout& L = sys.layout[ci];
+    const int k = static_cast<int>(L.bodies.size());
+    address_[ci].assign(k * k, -1);
+    transposed_[ci].assign(k * k, 0);
+    for (int k1 = 0; k1 < k; ++k1)
+      for (int k2 = k1; k2 < k; ++k2) {
+        const int b1 = L.bodies[k1], b2 = L.bodies[k2];
+        if (b1 < 0 || b2 < 0) continue;
+        bool t = false;
+        address_[ci][k1 * k + k2] = chol_.address(b1, b2, &t);
+        transposed_[ci][k1 * k + k2] = t;
+      }
+  }
+}
+
 // H = mass M + shift M~ + kappa sum_c J_c^T W_c J_c, block by block into the factor's
 // storage (M~: the stand-in masses of System::Minv, used as Levenberg-Marquardt damping).
 void PenaltyForm::assemble(const System& sys, const Evaluation& ev, double kappa, double mass, double shift) {
@@ -90,7 +116,7 @@ void PenaltyForm::assemble(const System& sys, const Evaluation& ev, double kappa
     if (shift != 0.0) D.diagonal() += shift * sys.Minv[b - 1].diagonal().cwiseInverse();
   }
   for (int ci = 0; ci < sys.numConstraints(); ++ci)
-    addPenalty(sys, ev, ci, kappa, chol_, sys.layout[ci].address.data(), sys.layout[ci].transposed.data());
+    addPenalty(sys, ev, ci, kappa, chol_, address_[ci].data(), transposed_[ci].data());
   if (mass != 0.0) addRotorBlocks(sys, ev, mass, chol_);
 }
 
@@ -193,14 +219,14 @@ void PenaltySolver::factorHere(const System& sys, Evaluation& ev, const char* wh
 
 // ---- the tree KKT form
 
-TreeKktSolver::TreeKktSolver(const System& sys, SolverStats& stats) : ConstraintSolver(sys, stats) {
-  const TreeTopology& T = sys.tree;
-  kkt_.analyze(T.nodes, T.edges, T.order, T.signs);
-  z_ = Eigen::VectorXd::Zero(6 * T.nodes);
+TreeKktSolver::TreeKktSolver(const System& sys, KktTopology topology, SolverStats& stats)
+    : ConstraintSolver(sys, stats), T_(std::move(topology)) {
+  kkt_.analyze(T_.nodes, T_.edges, T_.order, T_.signs);
+  z_ = Eigen::VectorXd::Zero(6 * T_.nodes);
 }
 
 void TreeKktSolver::factorHere(const System& sys, Evaluation& ev, const char* where, double t, bool reweight) {
-  if (reweight) rowWeights(sys, ev, sys.tree.penalized);  // the tree's rows have none
+  if (reweight) rowWeights(sys, ev, T_.penalized);  // the tree's rows have none
   assembleKKT(sys, ev);
   if (kkt_.factorize(0.0, false) == 0) {
     penalty_active_ = false;
@@ -222,7 +248,7 @@ void TreeKktSolver::factorHere(const System& sys, Evaluation& ev, const char* wh
 // to (body pairs) are zeroed first, the others assigned (a tree has no fill), so the
 // storage is not swept clean before each factorization.
 void TreeKktSolver::assembleKKT(const System& sys, const Evaluation& ev) {
-  const TreeTopology& T = sys.tree;
+  const KktTopology& T = T_;
   for (int b = 1; b <= sys.nb; ++b) {
     bool t = false;
     auto& D = kkt_.block(kkt_.address(b - 1, b - 1, &t));
@@ -235,7 +261,7 @@ void TreeKktSolver::assembleKKT(const System& sys, const Evaluation& ev) {
   for (int ci = 0; ci < sys.numConstraints(); ++ci) {
     if (T.node[ci] < 0) continue;
     const ConstraintLayout& L = sys.layout[ci];
-    const std::vector<TreeTopology::NodeRow>& rows = T.node_rows[T.node[ci] - sys.nb];
+    const std::vector<KktTopology::NodeRow>& rows = T.node_rows[T.node[ci] - sys.nb];
     const std::vector<int>& address = T.address[ci];
     forEachBlock(sys, ev, ci, [&](int s, int, const auto& Jb) {
       // rows: the joint's equations (zero past its size), then its drives and limits
@@ -269,7 +295,7 @@ void TreeKktSolver::precondition(const System& sys, const Evaluation& ev, const 
     return;
   }
   // the tree blocks' rows exactly, the others (drives and limits that did not fit) weighted
-  const TreeTopology& T = sys.tree;
+  const KktTopology& T = T_;
   const std::vector<int>& pen = T.penalized;
   for (int ci : pen) {
     const ConstraintLayout& L = sys.layout[ci];
@@ -297,7 +323,8 @@ void TreeKktSolver::precondition(const System& sys, const Evaluation& ev, const 
 }
 
 std::unique_ptr<ConstraintSolver> makeSolver(const System& sys, SolverStats& stats) {
-  if (sys.tree.tree) return std::make_unique<TreeKktSolver>(sys, stats);
+  KktTopology topology = kktTopology(sys);
+  if (topology.tree) return std::make_unique<TreeKktSolver>(sys, std::move(topology), stats);
   return std::make_unique<PenaltySolver>(sys, stats);
 }
 

@@ -19,6 +19,7 @@
 #include "mechanism_sim/core/reports.h"
 #include "core/linalg/block_cholesky.h"
 #include "core/absolute/evaluation.h"
+#include "core/absolute/kkt_topology.h"
 #include "mechanism_sim/core/model/system.h"
 
 namespace mechanism_sim {
@@ -28,7 +29,9 @@ namespace mechanism_sim {
 class PenaltyForm {
  public:
   PenaltyForm() = default;
-  explicit PenaltyForm(const System& sys) { chol_.analyze(sys.nb, sys.block_edges); }
+  // Analyzes the body graph of H (the constraints' body pairs and the rotors') and finds
+  // each constraint's blocks.
+  explicit PenaltyForm(const System& sys);
   // H into the factor's storage (M~: the stand-in masses, System::Minv, as
   // Levenberg-Marquardt damping).
   void assemble(const System& sys, const Evaluation& ev, double kappa, double mass, double shift);
@@ -40,10 +43,10 @@ class PenaltyForm {
     const int k = static_cast<int>(L.bodies.size());
     for (int k1 = 0; k1 < k; ++k1)
       for (int k2 = k1; k2 < k; ++k2) {
-        const int address = L.address[k1 * k + k2];
+        const int address = address_[constraint][k1 * k + k2];
         if (address < 0) continue;
         const Mat6 B = weight * rows.template middleCols<6>(6 * k1).transpose() * rows.template middleCols<6>(6 * k2);
-        if (L.transposed[k1 * k + k2]) chol_.block(address) += B.transpose();
+        if (transposed_[constraint][k1 * k + k2]) chol_.block(address) += B.transpose();
         else chol_.block(address) += B;
       }
   }
@@ -56,6 +59,10 @@ class PenaltyForm {
 
  private:
   BlockCholesky chol_;
+  // per constraint: the block of its slot pair (k1, k2), k1 <= k2, at k1 * k + k2 (-1: the
+  // ground), and whether it is stored transposed
+  std::vector<std::vector<int>> address_;
+  std::vector<std::vector<char>> transposed_;
 };
 
 // Adds mass times the rotor inertias' G^T B G (System::rotors) into H's body blocks.
@@ -78,6 +85,9 @@ class ConstraintSolver {
   ConstraintSolver(const System& sys, SolverStats& stats);
   virtual ~ConstraintSolver() = default;
   virtual const char* name() const = 0;
+  // Whether the factorization holds constraint ci's equations exactly as block rows (a
+  // tree joint's, in the tree KKT form), so that they never depend on others.
+  virtual bool holdsExactly(int /*ci*/) const { return false; }
 
   // Factors at the evaluation (row weights taken again with reweight); throws
   // SimulationError naming `where` and t when the constrained mass matrix is singular.
@@ -149,13 +159,14 @@ class PenaltySolver : public ConstraintSolver {
 };
 
 // The tree's joints (with their drives and limits) as block rows of the quasi-definite KKT
-// matrix, eliminated leaves first (System::tree); drives and limits that do not fit in their
+// matrix, eliminated leaves first (KktTopology); drives and limits that do not fit in their
 // joint's block in penalty form. Where a tree pivot is not definite (its joint's equations
 // dependent at this configuration) that factorization takes the penalty form.
 class TreeKktSolver : public ConstraintSolver {
  public:
-  TreeKktSolver(const System& sys, SolverStats& stats);
+  TreeKktSolver(const System& sys, KktTopology topology, SolverStats& stats);
   const char* name() const override { return "tree KKT"; }
+  bool holdsExactly(int ci) const override { return T_.node[ci] >= 0; }
   void precondition(const System& sys, const Evaluation& ev, const double* r1, const double* r2,
                     bool multipliers) override;
   // The KKT matrix at the evaluation (bench_factor.cpp times its factorization).
@@ -166,11 +177,12 @@ class TreeKktSolver : public ConstraintSolver {
   void factorHere(const System& sys, Evaluation& ev, const char* where, double t, bool reweight) override;
 
  private:
+  KktTopology T_;
   BlockCholesky kkt_;
   Eigen::VectorXd z_;
 };
 
-// The implementation for this mechanism: the tree KKT form where System::tree is a tree.
+// The implementation for this mechanism: the tree KKT form where kktTopology(sys) is a tree.
 std::unique_ptr<ConstraintSolver> makeSolver(const System& sys, SolverStats& stats);
 
 // Multipliers of the equality constraints with the least weighted norm sum_e lambda_e^2 /

@@ -35,7 +35,7 @@ Stepper::Stepper(const System& sys) : ev_(sys), solver_(makeSolver(sys, stats_))
   // Rows can depend on others where equations close loops or couple joints: those outside
   // the tree (a tree's joint equations and the limits on its coordinates never do).
   for (int ci = 0; ci < sys.numConstraints(); ++ci)
-    if (sys.layout[ci].row < sys.m_eq && sys.layout[ci].size > 0 && sys.tree.node[ci] < 0) watch_dependencies_ = true;
+    if (sys.layout[ci].row < sys.m_eq && sys.layout[ci].size > 0 && !solver_->holdsExactly(ci)) watch_dependencies_ = true;
   if (watch_dependencies_) {
     dependencies_.init(sys);
     dropped_before_.assign(sys.m, 0);

@@ -12,7 +12,6 @@
 #include "mechanism_sim/core/model/couplers.h"
 #include "mechanism_sim/core/model/errors.h"
 #include "core/absolute/evaluation.h"
-#include "core/linalg/block_cholesky.h"
 #include "core/numerics.h"
 #include "mechanism_sim/core/model/tableau.h"
 
@@ -125,16 +124,6 @@ void System::finalize() {
   }
   n = 6 * nb;
 
-  // Body graph of H = M + Phi_q^T W Phi_q and the factorization's schedule.
-  block_edges.clear();
-  for (const auto& c : constraints)
-    for (int b1 : c->bodies())
-      for (int b2 : c->bodies())
-        if (b1 > 0 && b2 > 0 && b1 < b2) block_edges.push_back({b1 - 1, b2 - 1});
-  addRotorEdges(*this, block_edges);
-  BlockCholesky pattern;
-  pattern.analyze(nb, block_edges);
-
   layout.assign(constraints.size(), ConstraintLayout());
   int row = 0;
   for (size_t ci = 0; ci < constraints.size(); ++ci) {
@@ -143,21 +132,12 @@ void System::finalize() {
     L.row = row;
     L.size = c.size();
     row += L.size;
-    const int k = static_cast<int>(c.bodies().size());
     L.bodies.clear();
     for (int b : c.bodies()) L.bodies.push_back(b - 1);
-    L.address.assign(k * k, -1);
-    L.transposed.assign(k * k, 0);
-    for (int k1 = 0; k1 < k; ++k1)
-      for (int k2 = k1; k2 < k; ++k2) {
-        const int b1 = L.bodies[k1], b2 = L.bodies[k2];
-        if (b1 < 0 || b2 < 0) continue;
-        bool t = false;
-        L.address[k1 * k + k2] = pattern.address(b1, b2, &t);
-        L.transposed[k1 * k + k2] = t;
-      }
   }
   m = row;
+  all_constraints.resize(constraints.size());
+  for (int ci = 0; ci < numConstraints(); ++ci) all_constraints[ci] = ci;
 
   // Scales of the problem.
   // A body has moments when its mean moment passes 1e-9 of the largest: a point mass's
@@ -201,7 +181,6 @@ void System::finalize() {
     Minv[b - 1].topLeftCorner<3, 3>() = Matrix3d::Identity() / m;
     Minv[b - 1].bottomRightCorner<3, 3>() = Jp.inverse();
   }
-  buildTreeTopology(*this);
 }
 
 void System::updateLoadScales() {

@@ -81,35 +81,6 @@ struct DriveSpec {
 struct ConstraintLayout {
   int row = 0, size = 0;
   std::vector<int> bodies;    // moving-body index (body - 1) per slot, -1 for ground
-  std::vector<int> address;   // BlockCholesky block of slot pair (k1, k2), k1 <= k2 (-1: ground)
-  std::vector<char> transposed;
-};
-
-// The spanning tree (forest) of joints that the tree KKT solver holds exactly, computed
-// once by System::finalize (src/core/model/topology.cpp). Block rows of the KKT matrix: 0..nb-1
-// the moving bodies, nb + k the k-th tree joint (its equations, then the drives and limits
-// of its coordinates that fit in 6 rows). Empty (tree false) for a mechanism with loop
-// closures or couplers: its equations are all in penalty form.
-struct TreeTopology {
-  bool tree = false;
-  // The spanning forest (also where tree is false: the loops' cut joints are off it)
-  std::vector<int> parent;         // per moving body: its parent (moving index), -1 the ground
-  std::vector<int> parent_joint;   // per moving body: the constraint tying it to its parent, -1
-  std::vector<int> node;           // per constraint: its KKT block row, -1 when penalized
-  struct NodeRow {
-    int row, constraint, e;        // global row; its constraint and row there
-  };
-  std::vector<std::vector<NodeRow>> node_rows;  // per tree block (row nb + k): its rows
-  std::vector<int> penalized;      // constraints in penalty form
-  int nodes = 0;                   // block rows
-  std::vector<int> order;          // elimination order (post-order: leaves first)
-  std::vector<signed char> signs;  // per block row: +1 body, -1 joint
-  std::vector<std::pair<int, int>> edges;  // block pattern
-  // Per constraint: KKT blocks of its slot pairs (penalized: body-body as in
-  // ConstraintLayout; tree: (node, slot) per slot, the node's diagonal last).
-  std::vector<std::vector<int>> address;
-  std::vector<std::vector<char>> transposed;
-  std::vector<int> added;          // off-diagonal blocks the penalized equations add to
 };
 
 class System {
@@ -135,10 +106,8 @@ class System {
   int m = 0;           // rows (limits included)
   int m_eq = 0;        // rows of the equality constraints (without limits)
   std::vector<ConstraintLayout> layout;
-  std::vector<std::pair<int, int>> block_edges;  // body graph of H
   std::vector<int> rheonomic;                    // constraints with a velocity term (drives)
   std::vector<int> all_constraints;              // 0, 1, ..., numConstraints() - 1
-  TreeTopology tree;
   // Per moving body: inverse masses with stand-ins (for the row weights: a massless body
   // weighs the mean mass, a body without moments the mean moment, every moment raised by
   // 1e-3 of the body's mean moment; see finalize).
@@ -229,9 +198,6 @@ struct Inputs {
                                               // torque in body components
   std::vector<double> spring_actuation;       // per spring, added to its tension
 };
-
-// Computes sys.tree and sys.all_constraints (topology.cpp; finalize calls it).
-void buildTreeTopology(System& sys);
 
 State initialState(const System& sys);
 Inputs zeroInputs(const System& sys);

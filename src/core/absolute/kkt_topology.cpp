@@ -1,11 +1,10 @@
-// The spanning tree of joints the tree KKT solver holds exactly (system.h TreeTopology),
-// computed once per System.
+// The spanning tree of joints the tree KKT solver holds exactly (kkt_topology.h).
 #include <algorithm>
 #include <utility>
 
 #include <Eigen/Eigenvalues>
 
-#include "mechanism_sim/core/model/system.h"
+#include "core/absolute/kkt_topology.h"
 #include "core/linalg/block_cholesky.h"
 
 namespace mechanism_sim {
@@ -17,13 +16,10 @@ namespace mechanism_sim {
 // leaves first: each body, then the joint to its parent, before the parent. A joint's
 // drives and limits are rows of its block; a mechanism with loop closures or couplers
 // keeps H for everything (below).
-void buildTreeTopology(System& sys) {
-  TreeTopology& T = sys.tree;
-  T = TreeTopology();
+KktTopology kktTopology(const System& sys) {
+  KktTopology T;
   const int nc = sys.numConstraints();
   T.node.assign(nc, -1);
-  sys.all_constraints.resize(nc);
-  for (int ci = 0; ci < nc; ++ci) sys.all_constraints[ci] = ci;
   auto definite = [&](int body) {  // moving-body index
     const Body& B = sys.bodies[body + 1];
     const double tr = B.Jp.trace();
@@ -89,7 +85,7 @@ void buildTreeTopology(System& sys) {
   if (!tree) {
     std::fill(T.node.begin(), T.node.end(), -1);
     T.penalized = sys.all_constraints;
-    return;
+    return T;
   }
   // post-order: children before parents, each body followed by its parent joint
   std::vector<std::vector<int>> children(sys.nb + 1);  // [nb]: the ground's
@@ -130,7 +126,7 @@ void buildTreeTopology(System& sys) {
   auto attach = [&](int c, int joint) {
     const int node = T.node[sys.joint_constraint[joint]];
     if (node < 0) return;
-    std::vector<TreeTopology::NodeRow>& rows = T.node_rows[node - sys.nb];
+    std::vector<KktTopology::NodeRow>& rows = T.node_rows[node - sys.nb];
     const ConstraintLayout& L = sys.layout[c];
     if (static_cast<int>(rows.size()) + L.size > 6) return;
     for (int e = 0; e < L.size; ++e) rows.push_back({L.row + e, c, e});
@@ -198,6 +194,7 @@ void buildTreeTopology(System& sys) {
       if (a >= nodes) T.added.push_back(a);  // off the diagonal (the diagonal is assigned)
     }
   std::sort(T.added.begin(), T.added.end());
+  return T;
   T.added.erase(std::unique(T.added.begin(), T.added.end()), T.added.end());
   for (auto& e : edges)
     if (e.first > e.second) std::swap(e.first, e.second);

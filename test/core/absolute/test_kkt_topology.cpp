@@ -1,4 +1,5 @@
-// Limits on joints that hang from moving bodies: every ordinary arm. The tree KKT
+// The tree KKT layout (absolute/kkt_topology.cpp) with limits on joints that hang from
+// moving bodies: every ordinary arm. The tree KKT
 // factorization holds a joint's limit (and drive) as rows of the joint's block; asking
 // for a block between the two bodies of such a limit (which a tree does not have) once
 // made every limited joint below a moving link fail to build.
