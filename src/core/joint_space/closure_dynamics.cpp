@@ -68,29 +68,9 @@ void LoopClosures::applyInverseMass(const TreeModel& model, const TreeWorkspace&
 }
 
 void LoopClosures::outwardInverseMass(const TreeModel& model, const TreeWorkspace& ws, double* out) {
-  for (int b : model.order) {
-    const int k = b - 1;
-    const TreeLink& L = model.links[k];
-    Vector6d ap = Vector6d::Zero();
-    if (L.parent != 0) ap = transformMotion(ws.E[k], ws.rho[k], a_[L.parent - 1]);
-    if (L.tie >= 0) {  // a tied link: r times its master's (done: an ancestor)
-      const double qdd = L.tie_mult * out[model.links[L.tie].iv];
-      out[L.iv] = qdd;
-      a_[k] = ap + ws.S[k].col(0) * qdd;
-    } else if (L.nv == 1) {
-      const double qdd = ws.Dinv[k](0, 0) * (out[L.iv] - ws.U[k].col(0).dot(ap));
-      out[L.iv] = qdd;
-      a_[k] = ap + ws.S[k].col(0) * qdd;
-    } else if (L.nv > 0) {
-      const SmallVector u = Eigen::Map<const SmallVector>(out + L.iv, L.nv);
-      const SmallVector qdd = ws.Dinv[k] * (u - ws.U[k].transpose() * ap);
-      for (int i = 0; i < L.nv; ++i) out[L.iv + i] = qdd(i);
-      a_[k] = ap + ws.S[k] * qdd;
-    } else {
-      a_[k] = ap;
-    }
-    if (L.pivot >= 0) out[L.pivot] = ws.tie_Dinv[k] * (out[L.pivot] - ws.W[k].dot(a_[k]));  // (TreeLink::pivot)
-  }
+  articulatedOutward<false>(
+      model, ws, [&](int k) { return Eigen::Map<const SmallVector>(out + model.links[k].iv, model.links[k].nv); },
+      [&](int k) { return out[model.links[k].pivot]; }, out, a_);
 }
 
 long LoopClosures::massFactorsGeneration(const TreeWorkspace& ws) { return ws.generation; }

@@ -33,45 +33,6 @@ void coordinateTree(const TreeModel& model, std::vector<int>& order, std::vector
   }
 }
 
-// inverseMassInward (joint_space/tree.h) on two rows' columns of Z at once, in place, with their
-// forces p0 and p1: each column gets that pass's operations in its order (the same bits);
-// the link is visited once for both.
-inline void inverseMassInwardTwo(const TreeModel& model, const TreeWorkspace& ws, int k, double* z0, double* z1,
-                                 AlignedVector<Vector6d>& p0, AlignedVector<Vector6d>& p1) {
-  const TreeLink& L = model.links[k];
-  Vector6d pa = p0[k], pb = p1[k];
-  if (L.tie >= 0) {  // (inverseMassInward's tied link)
-    const double r = L.tie_mult, t0 = z0[L.iv], t1 = z1[L.iv];
-    const int m = model.links[L.tie].iv;
-    z0[L.iv] = z1[L.iv] = 0.0;
-    z0[m] += r * t0 - r * ws.S[k].col(0).dot(pa);
-    z1[m] += r * t1 - r * ws.S[k].col(0).dot(pb);
-    p0[L.parent - 1] += transformForceBack(ws.E[k], ws.rho[k], pa);
-    p1[L.parent - 1] += transformForceBack(ws.E[k], ws.rho[k], pb);
-    return;
-  }
-  if (L.pivot >= 0) {
-    pa += ws.W[k] * (ws.tie_Dinv[k] * z0[L.pivot]);
-    pb += ws.W[k] * (ws.tie_Dinv[k] * z1[L.pivot]);
-  }
-  for (int i = 0; i < L.nv; ++i) {
-    z0[L.iv + i] = z0[L.iv + i] - ws.S[k].col(i).dot(pa);
-    z1[L.iv + i] = z1[L.iv + i] - ws.S[k].col(i).dot(pb);
-  }
-  if (L.parent == 0) return;
-  if (L.nv == 1) {
-    pa += ws.U[k].col(0) * (ws.Dinv[k](0, 0) * z0[L.iv]);
-    pb += ws.U[k].col(0) * (ws.Dinv[k](0, 0) * z1[L.iv]);
-  } else if (L.nv > 0) {
-    const SmallVector ua = Eigen::Map<const SmallVector>(z0 + L.iv, L.nv);
-    const SmallVector ub = Eigen::Map<const SmallVector>(z1 + L.iv, L.nv);
-    pa += ws.U[k] * (ws.Dinv[k] * ua);
-    pb += ws.U[k] * (ws.Dinv[k] * ub);
-  }
-  p0[L.parent - 1] += transformForceBack(ws.E[k], ws.rho[k], pa);
-  p1[L.parent - 1] += transformForceBack(ws.E[k], ws.rho[k], pb);
-}
-
 }  // namespace
 
 TreeMassFactor::TreeMassFactor(const TreeModel& model) {
@@ -292,7 +253,9 @@ int ClosureSolver::factor(const TreeModel& model, const TreeWorkspace& ws, const
       double* z1 = Z_.col(e + 1).data();
       for (int v : cols_[b]) z[v] = R(e, v), z1[v] = R(e + 1, v);
       for (int k : links) pa_[k].setZero(), pb_[k].setZero();
-      for (int k : links) inverseMassInwardTwo(model, ws, k, z, z1, pa_, pb_);
+      double* const zs[2] = {z, z1};
+      AlignedVector<Vector6d>* const ps[2] = {&pa_, &pb_};
+      for (int k : links) inverseMassInwardColumns<2>(model, ws, k, zs, zs, ps);
       scale(e), scale(e + 1);
       ++e;
       continue;

@@ -229,33 +229,93 @@ long nextWorkspaceGeneration();
 // One link k of the inverse-mass inward pass (the articulated-body algorithm with zero
 // velocity and no external force, RBDA table 7.1, passes on the factors U, D^-1 in ws):
 // u_k = tau_k - S_k^T p_k into out (tau and out may be the same array), and the parent's
-// p += X^T (p_k + U_k D_k^-1 u_k). The caller visits children before parents with p zeroed
-// first: LoopClosures::applyInverseMass over every link, ClosureSolver over one row's paths.
+// p += X^T (p_k + U_k D_k^-1 u_k), on N columns at once (each column's operations in the
+// same order as alone: the same bits), the link visited once. The caller visits children
+// before parents with p zeroed first: LoopClosures::applyInverseMass over every link,
+// ClosureSolver over rows' paths, two at a time.
 // With ties (TreeLink::tie) tau and out must be the same array: a tied link adds
 // r (tau_s - S_s^T p_s) to its master's entry, which the master's own step (or the pivot's,
 // at the common ancestor) then reads as its u, and leaves 0 at its own (its coordinate is
 // not eliminated there; the master's own link, tied to itself, leaves the sum).
-inline void inverseMassInward(const TreeModel& model, const TreeWorkspace& ws, int k, const double* tau, double* out,
-                              AlignedVector<Vector6d>& p) {
+template <int N>
+inline void inverseMassInwardColumns(const TreeModel& model, const TreeWorkspace& ws, int k, const double* const* tau,
+                                     double* const* out, AlignedVector<Vector6d>* const* p) {
   const TreeLink& L = model.links[k];
-  Vector6d pa = p[k];
+  Vector6d pa[N];
+  for (int c = 0; c < N; ++c) pa[c] = (*p[c])[k];
   if (L.tie >= 0) {  // a tied link (TreeLink::tie): its effort and S^T p go to the master's u
-    const double r = L.tie_mult, ts = tau[L.iv];
-    out[L.iv] = 0.0;  // (zeroed first: the master's own link then adds to its own entry)
-    out[model.links[L.tie].iv] += r * ts - r * ws.S[k].col(0).dot(pa);
-    p[L.parent - 1] += transformForceBack(ws.E[k], ws.rho[k], pa);
+    const double r = L.tie_mult;
+    const int master = model.links[L.tie].iv;
+    for (int c = 0; c < N; ++c) {
+      const double ts = tau[c][L.iv];
+      out[c][L.iv] = 0.0;  // (zeroed first: the master's own link then adds to its own entry)
+      out[c][master] += r * ts - r * ws.S[k].col(0).dot(pa[c]);
+      (*p[c])[L.parent - 1] += transformForceBack(ws.E[k], ws.rho[k], pa[c]);
+    }
     return;
   }
-  if (L.pivot >= 0) pa += ws.W[k] * (ws.tie_Dinv[k] * out[L.pivot]);  // (the tied coordinate eliminated here first)
-  for (int i = 0; i < L.nv; ++i) out[L.iv + i] = tau[L.iv + i] - ws.S[k].col(i).dot(pa);
+  if (L.pivot >= 0)  // (the tied coordinate eliminated here first)
+    for (int c = 0; c < N; ++c) pa[c] += ws.W[k] * (ws.tie_Dinv[k] * out[c][L.pivot]);
+  for (int i = 0; i < L.nv; ++i)
+    for (int c = 0; c < N; ++c) out[c][L.iv + i] = tau[c][L.iv + i] - ws.S[k].col(i).dot(pa[c]);
   if (L.parent == 0) return;
-  if (L.nv == 1) {
-    pa += ws.U[k].col(0) * (ws.Dinv[k](0, 0) * out[L.iv]);
-  } else if (L.nv > 0) {
-    const SmallVector u = Eigen::Map<const SmallVector>(out + L.iv, L.nv);
-    pa += ws.U[k] * (ws.Dinv[k] * u);
+  for (int c = 0; c < N; ++c) {
+    if (L.nv == 1) {
+      pa[c] += ws.U[k].col(0) * (ws.Dinv[k](0, 0) * out[c][L.iv]);
+    } else if (L.nv > 0) {
+      const SmallVector u = Eigen::Map<const SmallVector>(out[c] + L.iv, L.nv);
+      pa[c] += ws.U[k] * (ws.Dinv[k] * u);
+    }
+    (*p[c])[L.parent - 1] += transformForceBack(ws.E[k], ws.rho[k], pa[c]);
   }
-  p[L.parent - 1] += transformForceBack(ws.E[k], ws.rho[k], pa);
+}
+
+// The same on one column.
+inline void inverseMassInward(const TreeModel& model, const TreeWorkspace& ws, int k, const double* tau, double* out,
+                              AlignedVector<Vector6d>& p) {
+  AlignedVector<Vector6d>* ps[1] = {&p};
+  inverseMassInwardColumns<1>(model, ws, k, &tau, &out, ps);
+}
+
+// Pass 3 of the articulated-body algorithm (RBDA table 7.1), outward over every link:
+// a'_i = X a_parent (+ c_i with Bias), q_ddot_i = D^-1 (u_i - U_i^T a'_i),
+// a_i = a'_i + S_i q_ddot_i (the ground does not accelerate); a tied link takes r times
+// its master's q_ddot (an ancestor: done), a pivot's tied coordinate
+// q_ddot_m = D^-1 (u_m - W^T a). u(k): link k's u (its nv entries), tie_u(k): the pivot's u_m;
+// qddot may hold the u themselves (each is read before its q_ddot is written).
+// forwardDynamics runs it with the velocity's bias c; the inverse-mass application
+// without (v = 0).
+template <bool Bias, class LinkU, class TieU>
+inline void articulatedOutward(const TreeModel& model, const TreeWorkspace& ws, const LinkU& u, const TieU& tie_u,
+                               double* qddot, AlignedVector<Vector6d>& a) {
+  for (int b : model.order) {
+    const int k = b - 1;
+    const TreeLink& L = model.links[k];
+    Vector6d ap;
+    if constexpr (Bias) {
+      ap = ws.c[k];
+      if (L.parent != 0) ap += transformMotion(ws.E[k], ws.rho[k], a[L.parent - 1]);
+    } else {
+      ap.setZero();
+      if (L.parent != 0) ap = transformMotion(ws.E[k], ws.rho[k], a[L.parent - 1]);
+    }
+    if (L.tie >= 0) {
+      const double qdd = L.tie_mult * qddot[model.links[L.tie].iv];
+      qddot[L.iv] = qdd;
+      a[k] = ap + ws.S[k].col(0) * qdd;
+    } else if (L.nv == 1) {
+      const double qdd = ws.Dinv[k](0, 0) * (u(k)(0) - ws.U[k].col(0).dot(ap));
+      qddot[L.iv] = qdd;
+      a[k] = ap + ws.S[k].col(0) * qdd;
+    } else if (L.nv > 0) {
+      const SmallVector qdd = ws.Dinv[k] * (u(k) - ws.U[k].transpose() * ap);
+      for (int i = 0; i < L.nv; ++i) qddot[L.iv + i] = qdd(i);
+      a[k] = ap + ws.S[k] * qdd;
+    } else {
+      a[k] = ap;
+    }
+    if (L.pivot >= 0) qddot[L.pivot] = ws.tie_Dinv[k] * (tie_u(k) - ws.W[k].dot(a[k]));
+  }
 }
 
 // Poses and velocities of the bodies for (q, q_dot) into ws (A, r, v and the per-link

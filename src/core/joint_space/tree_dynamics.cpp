@@ -219,29 +219,9 @@ void forwardDynamicsAtKinematics(const TreeModel& model, const System& sys, cons
   // Pass 3 (outward): a'_i = X a_parent + c_i, q_ddot_i = D^-1 (u_i - U_i^T a'_i),
   // a_i = a'_i + S_i q_ddot_i (ground does not accelerate: gravity is a force here).
   qddot.resize(model.nv);
-  for (int b : model.order) {
-    const int k = b - 1;
-    const TreeLink& L = model.links[k];
-    Vector6d ap = ws.c[k];
-    if (L.parent != 0) ap += transformMotion(ws.E[k], ws.rho[k], ws.a[L.parent - 1]);
-    if (L.tie >= 0) {  // (its master, an ancestor, is done)
-      const double qdd = L.tie_mult * qddot(model.links[L.tie].iv);
-      qddot(L.iv) = qdd;
-      ws.a[k] = ap + ws.S[k].col(0) * qdd;
-    } else if (L.nv == 1) {
-      const double qdd = ws.Dinv[k](0, 0) * (ws.u[k](0) - ws.U[k].col(0).dot(ap));
-      qddot(L.iv) = qdd;
-      ws.a[k] = ap + ws.S[k].col(0) * qdd;
-    } else if (L.nv > 0) {
-      const SmallVector qdd = ws.Dinv[k] * (ws.u[k] - ws.U[k].transpose() * ap);
-      qddot.segment(L.iv, L.nv) = qdd;
-      ws.a[k] = ap + ws.S[k] * qdd;
-    } else {
-      ws.a[k] = ap;
-    }
-    if (L.pivot >= 0)  // the tied coordinate (inward above): q_ddot_m = D^-1 (u - W^T a)
-      qddot(L.pivot) = ws.tie_Dinv[k] * (ws.tie_u[k] - ws.W[k].dot(ws.a[k]));
-  }
+  articulatedOutward<true>(
+      model, ws, [&](int k) -> const SmallVector& { return ws.u[k]; }, [&](int k) { return ws.tie_u[k]; },
+      qddot.data(), ws.a);
 }
 
 // Recursive Newton-Euler, RBDA 5.3, table 5.1 (gravity as a body force as above):
