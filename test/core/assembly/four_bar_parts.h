@@ -66,6 +66,16 @@ struct FourBar {
     closure = p.join("revolute", "closure", coupler, C1, Y, rocker, C2, Y * aboutZ(turn));
   }
 
+  // The rocker's angle where the four-bar, assembled with no limit and no target, closes.
+  double freeRockerAngle() const {
+    Mechanism m;
+    Parts p{m};
+    FourBar fb = *this;
+    fb.build(p);
+    m.assemble();
+    return m.jointPosition(fb.rocker_joint, 0);
+  }
+
   // The two closed poses' coupler-rocker points for the crank's end at B: the circles
   // about B (radius b) and D (radius c) meet at `up` (on the side of n, B-D turned by +90
   // degrees in x-z, side() > 0) and `down`.

@@ -108,15 +108,7 @@ TEST(Assembly, TargetsChooseTheOtherBranch) {
 // loop at the bound's side (the crank moves instead): within the limits, and nearer the
 // bound than the free closing is to it.
 TEST(Assembly, AClosingThatWouldLeaveALimitEndsAtTheBound) {
-  double q_free = 0;
-  {
-    Mechanism m;
-    Parts p{m};
-    FourBar fb;
-    fb.build(p);
-    m.assemble();
-    q_free = m.jointPosition(fb.rocker_joint, 0);
-  }
+  const double q_free = FourBar().freeRockerAngle();
   Mechanism m;
   Parts p{m};
   FourBar fb;

@@ -60,15 +60,7 @@ TEST(TreeAssembly, AFourBarSixTenthsOfAMetreApartClosesWithItsTreeJointsExact) {
 // The rocker's limits exclude both the file's pose and the free closing's rocker angle: the
 // iterates are clamped, so the pose returned has the rocker within them.
 TEST(TreeAssembly, ALimitedCoordinateEndsWithinItsLimits) {
-  double q_free = 0;
-  {
-    Mechanism m;
-    Parts p{m};
-    FourBar fb;
-    fb.build(p);
-    m.assemble();
-    q_free = m.jointPosition(fb.rocker_joint, 0);
-  }
+  const double q_free = FourBar().freeRockerAngle();
   Mechanism m;
   Parts p{m};
   FourBar fb;
