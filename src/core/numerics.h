@@ -22,6 +22,12 @@ constexpr int kMaxVelocityPasses = 8;
 // (force), so that a mechanism at rest is not judged on round-off divided by round-off.
 constexpr double kFloor = 1e-6;
 
+// The stand-in mass (and moments) a body without them gets in the penalty form's
+// preconditioner (massFloor), as a share of its stand-in (System::Minv): enough to make H
+// definite in the directions only its equations fix, too small to change a motion that
+// moves mass.
+constexpr double kMassFloor = 1e-6;
+
 // A coordinate within this fraction of its limits' and the model's scale past a bound is
 // on it (limitSlack, model/system.h): an assembled or driven position's round-off, far
 // below any motion a limit is there to stop.
@@ -155,6 +161,12 @@ constexpr double kNudge = 0.1;
 // a minimum that does not close (TreeAssembly::run), and the draws' seed.
 constexpr int kRestarts = 24;
 constexpr unsigned kRestartSeed = 20261129;
+// Closing the independent equations alone where the dependent ones disagree at the file's
+// precision (closeIndependent): Gauss-Newton steps, and the largest move of one step in
+// length scales. A file's rounding closes in two or three steps of 1e-5; a step beyond a
+// hundredth of the model is not a rounding but a pose far from closing.
+constexpr int kIndependentSteps = 8;
+constexpr double kIndependentStepSize = 1e-2;
 
 }  // namespace assembly
 

@@ -66,12 +66,11 @@ bool mirrored(const Evaluation& ev, const Joint& jt, double* cz, double* cx) {
 // length scale), bring them to the position tolerance; the dropped rows then carry the
 // whole disagreement, as they do while the mechanism runs. s is left evaluated.
 bool closeIndependent(const System& sys, State& s, Stepper& st) {
-  constexpr int kSteps = 8;
   st.analyzeDependencies(sys, s);
   Evaluation& ev = st.evaluation();
-  for (int it = 0; it <= kSteps; ++it) {
+  for (int it = 0; it <= kIndependentSteps; ++it) {
     if (positionResidual(sys, ev) <= sys.options.position_tol) return true;
-    if (it == kSteps) break;
+    if (it == kIndependentSteps) break;
     std::vector<int> rows;
     for (int e = 0; e < sys.m; ++e)
       if (!s.dropped[e]) rows.push_back(e);
@@ -87,7 +86,7 @@ bool closeIndependent(const System& sys, State& s, Stepper& st) {
       });
     }
     const Eigen::VectorXd dq = J.completeOrthogonalDecomposition().solve(r);
-    if (!dq.allFinite() || dq.cwiseAbs().maxCoeff() > 1e-2 * sys.length_scale) break;  // (not a rounding: a far pose)
+    if (!dq.allFinite() || dq.cwiseAbs().maxCoeff() > kIndependentStepSize * sys.length_scale) break;
     displace(sys, s.x, dq.data());
     st.load(sys, s.x.data(), s.u.data());
     st.trackAngles(sys, s);

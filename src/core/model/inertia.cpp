@@ -4,6 +4,8 @@
 
 #include <Eigen/Eigenvalues>
 
+#include "core/numerics.h"
+
 namespace mechanism_sim {
 
 Eigen::Vector3d nearestPhysicalMoments(const Eigen::Vector3d& l) {
@@ -47,7 +49,7 @@ Eigen::Matrix3d nearestPhysicalInertia(const Eigen::Matrix3d& J, Eigen::Vector3d
 
 Eigen::Matrix<double, 6, 1> massFloor(double m, const Eigen::Matrix3d& Jp, const Eigen::Matrix<double, 6, 1>& stand_in,
                                       double mass_scale, double inertia_scale) {
-  constexpr double kMassFloor = 1e-6;
+  using numerics::kMassFloor;
   Eigen::Matrix<double, 6, 1> floor = Eigen::Matrix<double, 6, 1>::Zero();
   if (!(m > 1e-12 * mass_scale)) floor.head<3>() = kMassFloor * stand_in.head<3>();
   Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig;
