@@ -99,6 +99,16 @@ class JointStepper final : public FormulationStepper {
   // (q, q_dot) and closures_ their evaluation in that context (project() returned true).
   void accelerations(const System& sys, const State& s, const Inputs& in, double t, const Eigen::VectorXd& q,
                      const Eigen::VectorXd& qdot, Eigen::VectorXd& qddot, bool evaluated = false);
+  // One step of h from s; on a StepFailure s is as it was (the last accepted step).
+  void stepOnce(const System& sys, State& s, const Inputs& in, double h);
+  // A step of h from s, depth halvings below the step asked: taken again as halves when it
+  // fails or leapt (at most numerics::kMaxHalvings deep).
+  void advance(const System& sys, State& s, const Inputs& in, double h, int depth);
+  // s back to `before` and the step of h from it as two halves.
+  void halve(const System& sys, State& s, const Inputs& in, double h, int depth, const State& before);
+  // Whether the step of h from `before` to s leapt over what it should follow (its error
+  // estimate past numerics::kMaxStepError of the motion's velocity scale).
+  bool leapt(const System& sys, const State& before, const State& s, double h);
   void finish(const System& sys, State& s, const Inputs& in);
   // Returns whether ws_ and closures_ are left at (s.q, s.qdot) (no velocity correction).
   bool project(const System& sys, State& s);
@@ -124,6 +134,10 @@ class JointStepper final : public FormulationStepper {
 
   TreeModel model_;
   TreeWorkspace ws_;
+  State start_;                 // the step's start (when start_valid_)
+  bool judged_ = false, start_valid_ = false;  // the step is judged by its error; start_ holds it
+  std::vector<State> backup_;   // a substep's start, by depth (advance)
+  Eigen::VectorXd acc_k4_;      // the bodies' accelerations of RK4's k4 at the step's end (leapt)
   LoopClosures closures_;  // drives, limits and couplers: equations on the tree
   std::vector<signed char> limit_side0_;
   std::vector<std::array<double, 3>> friction0_;  // s.friction at the step's start
