@@ -420,11 +420,10 @@ void JointStepper::step(const System& sys, State& s, const Inputs& in, double h)
   if (s.q.size() != model_.nq || s.qdot.size() != model_.nv)
     throw UsageError("JointStepper::step: the State's joint state is of another mechanism");
   // A step that fails leaves the State where it was (the last accepted step), not part
-  // way through its substeps. The start is copied when the step is judged by its error
-  // (leapt), else only once it fails (stepOnce leaves s there).
+  // way through its substeps: stepOnce keeps what it changes (restoreStart), and the whole
+  // State is copied only when the step is taken as halves.
   judged_ = tableau_->stages == 4 && damped_.empty() && cut_damped_.empty();
-  start_valid_ = judged_;
-  if (judged_) start_ = s;
+  start_valid_ = false;
   try {
     advance(sys, s, in, h, 0);
   } catch (...) {
@@ -448,21 +447,26 @@ void JointStepper::step(const System& sys, State& s, const Inputs& in, double h)
 // Jacobian there times the joint accelerations' difference). Not judged, as there: steps
 // that change the active limits, mechanisms with joint damping, tableaus other than RK4.
 void JointStepper::advance(const System& sys, State& s, const Inputs& in, double h, int depth) {
-  if (depth > 0) backup_[depth] = s;  // (depth 0 starts from start_)
-  const State& before = depth > 0 ? backup_[depth] : start_;
+  if (depth > 0) backup_[depth] = s;
+  const double scale0 = judged_ ? motionScale(sys, s.u) : 0.0;  // (the start's, for leapt)
   try {
     stepOnce(sys, s, in, h);
-  } catch (const StepFailure& e) {
-    if (depth == 0 && !start_valid_) start_ = s, start_valid_ = true;
+  } catch (const StepFailure& e) {  // (s is at the step's start)
     if (depth >= numerics::kMaxHalvings) {
       std::ostringstream os;
       os << e.what() << " (" << (1 << depth) << " substeps of " << fmt(h) << " s did not hold it either)";
       throw StepFailure(os.str());
     }
-    halve(sys, s, in, h, depth, before);
+    if (depth == 0) start_ = s, start_valid_ = true;
+    halve(sys, s, in, h, depth, depth > 0 ? backup_[depth] : start_);
     return;
   }
-  if (depth < numerics::kMaxHalvings && leapt(sys, before, s, h)) halve(sys, s, in, h, depth, before);
+  if (depth >= numerics::kMaxHalvings || !leapt(sys, s, h, scale0)) return;
+  if (depth == 0) {
+    restoreStart(s);
+    start_ = s, start_valid_ = true;
+  }
+  halve(sys, s, in, h, depth, depth > 0 ? backup_[depth] : start_);
 }
 
 void JointStepper::halve(const System& sys, State& s, const Inputs& in, double h, int depth, const State& before) {
@@ -473,8 +477,8 @@ void JointStepper::halve(const System& sys, State& s, const Inputs& in, double h
   advance(sys, s, in, 0.5 * h, depth + 1);
 }
 
-bool JointStepper::leapt(const System& sys, const State& before, const State& s, double h) {
-  if (!judged_ || s.limit_side != before.limit_side) return false;
+bool JointStepper::leapt(const System& sys, const State& s, double h, double scale0) {
+  if (!judged_ || s.limit_side != limit_side0_) return false;
   // (ws_ holds the end state's kinematics: finish() solved its accelerations there)
   bodyAccelerations(model_, ws_, kv_[3], acc_k4_);
   const double L = sys.length_scale;
@@ -485,7 +489,7 @@ bool JointStepper::leapt(const System& sys, const State& before, const State& s,
                       (acc_k4_.segment<3>(i + 3) - s.acc.segment<3>(i + 3)).norm() * L});
   }
   error *= h / 6.0;
-  const double scale = std::max({motionScale(sys, before.u), motionScale(sys, s.u), sys.velocity_scale});
+  const double scale = std::max({scale0, motionScale(sys, s.u), sys.velocity_scale});
   return error > numerics::kMaxStepError * scale;
 }
 
@@ -500,6 +504,7 @@ void JointStepper::stepOnce(const System& sys, State& s, const Inputs& in, doubl
     closures_.passage_ref = &a_ref_;
   }
   friction0_ = s.friction;
+  if (!model_.cut_joints.empty()) qddot_ref0_ = s.qddot_ref;
   // stage 1: the accelerations the last step (or settle) left, when they are of this state
   // under these inputs; else computed here (with friction: without it, frictionFor's)
   const bool friction = clearFriction(sys, s);
@@ -548,21 +553,26 @@ void JointStepper::stepOnce(const System& sys, State& s, const Inputs& in, doubl
     if (L.kind == TreeJointKind::kFree) s.q_round.segment<4>(L.iq + 3).setZero();
   }
   if (!stiff_list_.empty()) implicitDamping(sys, s, h);
-  const State::Clock clock0 = s.clock();
+  clock0_ = s.clock();
   s.countStep(h);
   limit_side0_ = s.limit_side;
   try {
     finish(sys, s, in);
   } catch (...) {  // the State as it was (the last accepted step)
-    s.setClock(clock0);
-    s.q = q0_, s.qdot = v0_;
-    s.limit_side = limit_side0_;
-    s.friction = friction0_;
-    s.q_round = comp_q_, s.qdot_round = comp_v_;
+    restoreStart(s);
     fresh_ = false;
     throw;
   }
   stats_.solves += T.stages;
+}
+
+void JointStepper::restoreStart(State& s) const {
+  s.setClock(clock0_);
+  s.q = q0_, s.qdot = v0_;
+  s.limit_side = limit_side0_;
+  s.friction = friction0_;
+  s.q_round = comp_q_, s.qdot_round = comp_v_;
+  if (!model_.cut_joints.empty()) s.qddot_ref = qddot_ref0_;
 }
 
 bool JointStepper::clearFriction(const System& sys, State& s) const {
