@@ -455,6 +455,7 @@ SolverStats Mechanism::solverStats() const {
     s.worst_solve = std::max(s.worst_solve, j.worst_solve);
     s.worst_position = std::max(s.worst_position, j.worst_position);
     s.worst_velocity = std::max(s.worst_velocity, j.worst_velocity);
+    s.halved_steps += j.halved_steps;
   }
   if (reactions_) {
     const SolverStats& r = reactions_->stats;
