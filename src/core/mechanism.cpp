@@ -245,6 +245,10 @@ AssemblyReport Mechanism::assemble(const std::vector<CoordinateTarget>& position
   build();
   stateChanged();
   const AssemblyReport r = mechanism_sim::assemble(*sys_, state_, *stepper_, positions, velocities, &dependencies_);
+  // (past assembly's failure residual: dependent equations it accepted as disagreeing at the
+  // file's precision; the steps are held to that)
+  const double disagreement = r.position_residual > numerics::assembly::kAssemblyFailureResidual ? r.position_residual : 0.0;
+  if (disagreement != sys_->description_residual) editable().description_residual = disagreement;
   stepper_->settle(*sys_, state_, inputs_);
   if (joint_) {  // the joint state of the assembled one
     const State assembled = state_;
@@ -254,11 +258,19 @@ AssemblyReport Mechanism::assemble(const std::vector<CoordinateTarget>& position
     // step along a direction the disagreeing rows nearly share moves it far): then the
     // absolute formulation, whose dependent rows stay dropped, runs the mechanism ("joint"
     // asked: refused).
+    // So may its velocity projection stop a motion the dependent rows allow (rows the
+    // rounding leaves independent there lock the mechanism).
     const double moved = poseDistance(*sys_, assembled.x, state_.x);
-    if (moved > numerics::assembly::kDescriptionPrecision) {
+    const double slowed = motionScale(*sys_, assembled.u - state_.u) /
+                          std::max(motionScale(*sys_, assembled.u), sys_->velocity_scale);
+    if (moved > numerics::assembly::kDescriptionPrecision || slowed > numerics::assembly::kDescriptionPrecision) {
       std::ostringstream why;
-      why << "the closures in joint coordinates move the assembled pose by " << moved
-          << " (relative): its dependent equations disagree";
+      if (moved > numerics::assembly::kDescriptionPrecision)
+        why << "the closures in joint coordinates move the assembled pose by " << moved
+            << " (relative): its dependent equations disagree";
+      else
+        why << "the closures in joint coordinates change the assembled velocities by " << slowed
+            << " (relative): its dependent equations disagree";
       if (parseFormulation(sys_->options.formulation) == Formulation::kJoint)
         throw ModelError("the joint formulation cannot run this mechanism: " + why.str() + "; use formulation 'absolute'");
       state_ = assembled;
@@ -443,6 +455,7 @@ SolverStats Mechanism::solverStats() const {
     s.worst_solve = std::max(s.worst_solve, j.worst_solve);
     s.worst_position = std::max(s.worst_position, j.worst_position);
     s.worst_velocity = std::max(s.worst_velocity, j.worst_velocity);
+    s.halved_steps += j.halved_steps;
   }
   if (reactions_) {
     const SolverStats& r = reactions_->stats;

@@ -33,6 +33,18 @@ constexpr double kMassFloor = 1e-6;
 // below any motion a limit is there to stop.
 constexpr double kLimitSlack = 1e-9;
 
+// A step that fails (a projection that cannot bring it back onto the constraints) is
+// retaken as two half steps, at most this deep (1/64 of the step), in both formulations:
+// past it the step size itself is wrong, and the run stops saying so.
+constexpr int kMaxHalvings = 6;
+// A step's estimated velocity error (h/6 |k4 - k5| of the bodies' velocities: Stepper::advance,
+// JointStepper::advance) past this share of the motion's velocity scale is taken again as
+// halves: a leap over an event (a dead point whipped through within the step, the tight
+// turn where a near-parallelogram's branches pass close), not a smooth step's error. At
+// 1e-2 a crank whipped through its dead point lost 13 % of its energy in 2 s at 1 ms, at
+// 1e-3 0.5 %.
+constexpr double kMaxStepError = 1e-3;
+
 // ---- the absolute formulation (absolute/)
 namespace absolute {
 
@@ -49,16 +61,8 @@ constexpr int kRoundoffSteps = 4;
 // Dropped rows whose relative residual passes this many times the position tolerance are no
 // longer implied by the rows kept (the stepper analyzes the dependencies again).
 constexpr double kDependentDrift = 10.0;
-// A step that fails is retaken as two half steps, at most this deep (1/64 of the step):
-// past it the step size itself is wrong, and the run stops saying which would do.
-constexpr int kMaxHalvings = 6;
 // Radians a body may turn in one step: RK4's phase error at 0.25 rad a step is below 1e-6 rad.
 constexpr double kMaxTurn = 0.25;
-// A step's estimated velocity error (Stepper::advance, h/6 |k4 - k5|) past this share of the
-// motion's velocity scale is taken again as halves: a leap over an event (a dead point
-// whipped through within the step), not a smooth step's error. At 1e-2 a crank whipped
-// through its dead point lost 13 % of its energy in 2 s at 1 ms, at 1e-3 0.5 %.
-constexpr double kMaxStepError = 1e-3;
 // The penalty form's dimensionless weight kappa in H = M + kappa Phi_q^T W Phi_q: each
 // refinement pass contracts the KKT error by about 1/(kappa sigma), sigma the smallest
 // eigenvalue of the row-scaled W^1/2 Phi_q M^-1 Phi_q^T W^1/2 (1 for one joint, about 1/N^2

@@ -20,6 +20,7 @@
 
 #include "joint_specs.h"
 #include "loop_dialects.h"
+#include "massless_gimbals.h"
 #include "mechanism_sim/core/model/inertia.h"
 #include "mechanism_sim/core/kinematic.h"
 #include "mechanism_sim/urdf/model.h"
@@ -168,7 +169,9 @@ class ModelBuilder {
     model_->mechanism_ = std::make_unique<Mechanism>();
     model_->name_ = urdf->getName();
     model_->root_link_ = urdf->getRoot()->name;
-    const JointSpecs specs = collectJointSpecs(robot, *urdf, ext, reader_);
+    JointSpecs specs = collectJointSpecs(robot, *urdf, ext, reader_);
+    const std::string balls = mergeMasslessGimbals(&specs, *urdf, ext, transmissions, options_);  // (massless_gimbals.h)
+    if (!balls.empty()) root_notes_.push_back(balls);
     const LinkTree tree(specs.tree, model_->root_link_);
     const RigidBodies bodies(tree, *urdf);
     checkInertias(robot, bodies, *urdf);

@@ -466,6 +466,90 @@ TEST(Dialects, LegsLimitedAwayFromTheirZeroPoseAssembleWithinTheLimits) {
 
 // One file per dialect and per way it can be wrong, each with its exact one-line error
 // naming the file (the URDF, or its YAML closures file) and line.
+// A ball written as three revolute joints through links without mass (an X-Y-X gimbal at
+// its lock in the zero pose) moves as the same rod on a spherical joint, in both
+// formulations, and as a ball does: an axisymmetric rod hung by its axis keeps its spin
+// about that axis (Euler's equations with I1 = I2 and gravity's moment across the axis) and
+// its energy. Started spinning about the vertical, the direction the locked gimbal as written
+// cannot turn in.
+TEST(Dialects, BallWrittenAsAGimbalOfMasslessLinksMovesAsABall) {
+  for (const char* formulation : {"joint", "absolute"}) {
+    SCOPED_TRACE(formulation);
+    LoadOptions o;
+    o.formulation = formulation;
+    o.velocities = {{"ball.x", 2.0}, {"ball.z", 3.0}};
+    auto gimbal = loadModelFile(kDir + "/ball_as_gimbal.urdf", o);
+    auto ball = loadModelFile(kDir + "/ball_as_spherical.urdf", o);
+    EXPECT_GE(gimbal->dofIndex("ball.z"), 0);
+    EXPECT_LT(gimbal->dofIndex("ball_y"), 0);
+    bool noted = false;
+    for (const std::string& n : gimbal->notes()) noted = noted || n.find("'ball' (ball_y, ball_x)") != std::string::npos;
+    EXPECT_TRUE(noted);
+    auto spin = [](const MechanismModel& m) {
+      const int rod = m.linkIndex("rod");
+      return m.linkVelocity(rod).second.dot(m.linkPose(rod).linear().col(2));
+    };
+    // (ball.x: about the joint frame's x, which is the rod's axis: z turned onto the URDF axis)
+    const double spin0 = spin(*gimbal);
+    const double E0 = gimbal->kineticEnergy() + gimbal->potentialEnergy();
+    EXPECT_NEAR(std::fabs(spin0), 2.0, 1e-12);
+    for (int k = 0; k < 1000; ++k) gimbal->step(1e-3), ball->step(1e-3);
+    const int rod = gimbal->linkIndex("rod");
+    EXPECT_LE((gimbal->linkPose(rod).matrix() - ball->linkPose(ball->linkIndex("rod")).matrix()).norm(), 1e-12);
+    EXPECT_NEAR(spin(*gimbal), spin0, 1e-6 * std::fabs(spin0));
+    EXPECT_NEAR(gimbal->kineticEnergy() + gimbal->potentialEnergy(), E0, 1e-6 * gimbal->kineticEnergy());
+    // the rod swung far from the vertical: the motion is not the start's spin alone
+    EXPECT_LT(gimbal->linkPose(rod).linear()(2, 2), 0.9);
+  }
+}
+
+// The same chain with its last axis z (X-Y-Z: its lock away from the zero pose) is a ball;
+// with mass on a middle link, or limits on a joint, it is a gimbal: kept as written.
+TEST(Dialects, GimbalsWithMassOrLimitsStayAsWritten) {
+  const std::string xyz = replaced(readText(kDir + "/ball_as_gimbal.urdf"), "<axis xyz=\"1 0 0\"/><limit",
+                                   "<axis xyz=\"0 0 1\"/><limit");
+  const std::string heavy = replaced(xyz, "<link name=\"gimbal_1\"/>",
+                                     "<link name=\"gimbal_1\"><inertial><mass value=\"0.1\"/>"
+                                     "<inertia ixx=\"1e-4\" ixy=\"0\" ixz=\"0\" iyy=\"1e-4\" iyz=\"0\" izz=\"1e-4\"/>"
+                                     "</inertial></link>");
+  const std::string limited = replaced(xyz, "<limit effort=\"1\" velocity=\"20\"/>",
+                                       "<limit lower=\"-1\" upper=\"1\" effort=\"1\" velocity=\"20\"/>");
+  LoadOptions o;
+  o.formulation = "absolute";
+  auto ball = loadModelString(xyz, "gimbal.urdf", o);
+  EXPECT_GE(ball->dofIndex("ball.z"), 0);
+  EXPECT_LT(ball->dofIndex("ball_y"), 0);
+  for (const std::string& xml : {heavy, limited}) {
+    auto m = loadModelString(xml, "gimbal.urdf", o);
+    EXPECT_GE(m->dofIndex("ball_y"), 0);
+    EXPECT_LT(m->dofIndex("ball.z"), 0);
+  }
+}
+
+// A spherical mechanism whose closing point misses the common centre by a rounding (3e-7 m
+// in 0.5 m, as placo's spherical parallel mechanism's 6-digit rpy do): its dependent
+// equations disagree at the file's precision. Assembly accepts it with a note and meets its
+// initial crank rate (to the file's precision); the joint formulation, whose closures take
+// the rounding's rows as independent and stop the crank, is refused, and auto runs it in
+// absolute coordinates, which hold the dependent rows dropped.
+TEST(Dialects, RoundedSphericalMechanismAssemblesWithItsRates) {
+  const std::string rounded = readText(kDir + "/spherical_four_bar_rounded.urdf");
+  LoadOptions joint;
+  joint.formulation = "joint";
+  try {
+    loadModelString(rounded, "spherical_four_bar_rounded.urdf", joint);
+    ADD_FAILURE() << "the joint formulation ran a mechanism its closures lock";
+  } catch (const LoadError& e) {
+    EXPECT_NE(std::string(e.what()).find("change the assembled velocities"), std::string::npos) << e.what();
+  }
+  auto a = loadModelString(rounded, "spherical_four_bar_rounded.urdf");
+  EXPECT_EQ(std::string(a->mechanism().formulation()), "absolute");
+  bool noted = false;
+  for (const std::string& n : a->notes()) noted = noted || n.find("dependent equations disagree by") != std::string::npos;
+  EXPECT_TRUE(noted);
+  EXPECT_NEAR(a->velocity(a->dofIndex("crank_joint")), 3.0, 1e-5 * 3.0);
+}
+
 TEST(Dialects, EachInvalidFileFailsWithItsMessage) {
   const std::string dir = kDir + "/invalid";
   std::set<std::string> files;

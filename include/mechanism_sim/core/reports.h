@@ -16,7 +16,7 @@ struct SolverStats {
   long position_projections = 0, position_shortfalls = 0;
   long velocity_projections = 0, velocity_shortfalls = 0;
   long evaluations = 0, factorizations = 0, solve_passes = 0;
-  long halved_steps = 0;  // steps whose projection failed, retaken as two half steps
+  long halved_steps = 0;  // steps retaken as two half steps (a projection failed, the error estimate leapt)
   double worst_solve = 0, worst_position = 0, worst_velocity = 0;
   long shortfalls() const { return solve_shortfalls + position_shortfalls + velocity_shortfalls; }
   // One projection counted; one that missed its tolerance also as a shortfall, with its

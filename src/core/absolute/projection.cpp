@@ -92,7 +92,7 @@ bool projectPositions(const System& sys, State& s, Evaluation& ev, ConstraintSol
     err = positionResidual(sys, ev);
   }
   stats.countPositionProjection(err <= tol, err);
-  if (err > tol && err > kFailureResidual) leftConstraints(sys, ev, s.t, err);
+  if (err > tol && err > failureResidual(sys)) leftConstraints(sys, ev, s.t, err);
   return it > 0;
 }
 
@@ -163,7 +163,7 @@ bool projectVelocities(const System& sys, State& s, Evaluation& ev, ConstraintSo
   }
   stats.countVelocityProjection(err <= tol, err);
   if (err <= tol) return moves;
-  if (err > kFailureResidual) {
+  if (err > failureResidual(sys)) {
     // as for positions: the step cannot be repaired (it is retaken in halves, then the run
     // stops) rather than going on with the velocity constraints visibly broken
     mulJ(sys, ev, sys.all_constraints, s.u.data(), w.query.data());

@@ -6,6 +6,7 @@
 // Both count their shortfalls in SolverStats; past kFailureResidual the step cannot be
 // repaired (StepFailure, naming the constraint).
 #pragma once
+#include <algorithm>
 #include <array>
 #include <vector>
 
@@ -20,6 +21,20 @@ namespace mechanism_sim {
 // Above this relative residual the step fails, between the tolerance and it a projection is
 // counted short (numerics.h).
 using numerics::absolute::kFailureResidual;
+
+// The relative residual past which a projection fails the step: kFailureResidual, or the
+// description's precision (kDescriptionPrecision, what assembly accepts) where its dependent
+// equations disagree at that precision (System::description_residual > 0). Which rows the
+// solves keep changes as the mechanism moves (the dependencies are analyzed again), each
+// choice has its own least-squares pose, and rows that the file's round-off leaves nearly
+// but not exactly dependent are kept where their independence shows above the analysis's
+// pivot: residuals of the disagreement's size there (positions, and velocities along the
+// nearly dependent rows) are the description's precision, not a step that left the
+// constraints. They are counted short and reported.
+inline double failureResidual(const System& sys) {
+  return sys.description_residual > 0.0 ? std::max(kFailureResidual, numerics::assembly::kDescriptionPrecision)
+                                        : kFailureResidual;
+}
 
 // The projections' scratch, sized once for a System (no allocation in a projection).
 struct Projection {

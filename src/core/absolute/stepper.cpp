@@ -10,9 +10,9 @@ namespace mechanism_sim {
 namespace {
 
 using numerics::absolute::kDependentDrift;
-using numerics::absolute::kMaxHalvings;
+using numerics::kMaxHalvings;
 using numerics::absolute::kMaxTurn;
-using numerics::absolute::kMaxStepError;
+using numerics::kMaxStepError;
 using HState = ConstraintSolver::HState;
 
 }  // namespace

@@ -80,6 +80,8 @@ JointStepper::JointStepper(const System& sys, bool embed_couplers)
   for (int k = 0; k < Tableau::kMaxStages; ++k) zeros(kq_[k], model_.nq), zeros(kv_[k], model_.nv);
   zeros(sum_q_, model_.nq), zeros(sum_v_, model_.nv);
   zeros(comp_q_, model_.nq), zeros(comp_v_, model_.nv);
+  zeros(acc_k4_, 6 * sys.nb);
+  backup_.assign(numerics::kMaxHalvings + 1, State());
   loads_ = zeroInputs(sys);
   kin_.assign(sys.bodies.size(), BodyKin());
   setDamping(sys);
@@ -322,7 +324,7 @@ bool JointStepper::project(const System& sys, State& s) {
   const ClosureProjectionReport p =
       projectClosurePositions(model_, sys, closures_, s.q, ws_, sys.options.position_tol, 20, &s.qdot);
   stats_.countPositionProjection(p.converged, p.residual);
-  if (!p.converged && p.residual > kFailureResidual) {
+  if (!p.converged && p.residual > failureResidual(sys)) {
     std::ostringstream os;
     os << "the step left the constraints on the joint coordinates (relative residual "
        << fmt(p.residual) << "); try a smaller step";
@@ -332,7 +334,7 @@ bool JointStepper::project(const System& sys, State& s) {
       projectClosureVelocities(model_, sys, closures_, s.q, s.qdot, ws_, sys.options.velocity_tol, kMaxVelocityPasses,
                                true, p.at_rates);  // (ws_ and closures_ at s.q: the position projection's last evaluation)
   stats_.countVelocityProjection(v.converged, v.residual);
-  if (!v.converged && v.residual > kFailureResidual) {
+  if (!v.converged && v.residual > failureResidual(sys)) {
     std::ostringstream os;
     os << "the velocities cannot be brought onto the constraints (relative residual "
        << fmt(v.residual) << ")";
@@ -389,6 +391,9 @@ void JointStepper::settle(const System& sys, State& s, const Inputs& in) {
   closures_.passage_hold = true;
   // (a stage 1 computed again at this state holds what these accelerations have)
   if (!model_.cut_joints.empty()) s.qddot_ref = s.qddot;
+  // the copies a step keeps (advance) sized now: a step allocates nothing
+  start_ = s;
+  for (State& b : backup_) b = s;
 }
 
 namespace {
@@ -414,6 +419,81 @@ void JointStepper::step(const System& sys, State& s, const Inputs& in, double h)
   adopt(sys, s, in);
   if (s.q.size() != model_.nq || s.qdot.size() != model_.nv)
     throw UsageError("JointStepper::step: the State's joint state is of another mechanism");
+  // A step that fails leaves the State where it was (the last accepted step), not part
+  // way through its substeps: stepOnce keeps what it changes (restoreStart), and the whole
+  // State is copied only when the step is taken as halves.
+  judged_ = tableau_->stages == 4 && damped_.empty() && cut_damped_.empty();
+  start_valid_ = false;
+  try {
+    advance(sys, s, in, h, 0);
+  } catch (...) {
+    if (start_valid_) s = start_;
+    fresh_ = false;
+    throw;
+  }
+}
+
+// A step whose projections cannot bring it back onto the closures, or whose estimated error
+// shows it leapt over what it should follow, is taken again as two half steps, each judged
+// the same way, at most kMaxHalvings deep: the absolute formulation's rule
+// (Stepper::advance). A tight turn of the motion (where a near-parallelogram's branches pass
+// close and the motion turns from one onto the other within a fraction of a step) is then
+// followed in steps that resolve it. The deepest substeps are kept unjudged; one that still
+// fails stops the run saying how small the steps were.
+//
+// The error estimate is the absolute formulation's, on the bodies' velocities: RK4's k4
+// against the derivative at the step's end (first same as last), h/6 |k4 - k5|, both as the
+// bodies' accelerations at the end state (bodyAccelerations: their difference is the
+// Jacobian there times the joint accelerations' difference). Not judged, as there: steps
+// that change the active limits, mechanisms with joint damping, tableaus other than RK4.
+void JointStepper::advance(const System& sys, State& s, const Inputs& in, double h, int depth) {
+  if (depth > 0) backup_[depth] = s;
+  const double scale0 = judged_ ? motionScale(sys, s.u) : 0.0;  // (the start's, for leapt)
+  try {
+    stepOnce(sys, s, in, h);
+  } catch (const StepFailure& e) {  // (s is at the step's start)
+    if (depth >= numerics::kMaxHalvings) {
+      std::ostringstream os;
+      os << e.what() << " (" << (1 << depth) << " substeps of " << fmt(h) << " s did not hold it either)";
+      throw StepFailure(os.str());
+    }
+    if (depth == 0) start_ = s, start_valid_ = true;
+    halve(sys, s, in, h, depth, depth > 0 ? backup_[depth] : start_);
+    return;
+  }
+  if (depth >= numerics::kMaxHalvings || !leapt(sys, s, h, scale0)) return;
+  if (depth == 0) {
+    restoreStart(s);
+    start_ = s, start_valid_ = true;
+  }
+  halve(sys, s, in, h, depth, depth > 0 ? backup_[depth] : start_);
+}
+
+void JointStepper::halve(const System& sys, State& s, const Inputs& in, double h, int depth, const State& before) {
+  s = before;
+  fresh_ = false;
+  ++stats_.halved_steps;
+  advance(sys, s, in, 0.5 * h, depth + 1);
+  advance(sys, s, in, 0.5 * h, depth + 1);
+}
+
+bool JointStepper::leapt(const System& sys, const State& s, double h, double scale0) {
+  if (!judged_ || s.limit_side != limit_side0_) return false;
+  // (ws_ holds the end state's kinematics: finish() solved its accelerations there)
+  bodyAccelerations(model_, ws_, kv_[3], acc_k4_);
+  const double L = sys.length_scale;
+  double error = 0;
+  for (int b = 0; b < sys.nb; ++b) {
+    const int i = BodyCoordinates::u(b);
+    error = std::max({error, (acc_k4_.segment<3>(i) - s.acc.segment<3>(i)).norm(),
+                      (acc_k4_.segment<3>(i + 3) - s.acc.segment<3>(i + 3)).norm() * L});
+  }
+  error *= h / 6.0;
+  const double scale = std::max({scale0, motionScale(sys, s.u), sys.velocity_scale});
+  return error > numerics::kMaxStepError * scale;
+}
+
+void JointStepper::stepOnce(const System& sys, State& s, const Inputs& in, double h) {
   const Tableau& T = *tableau_;
   q0_ = s.q;
   v0_ = s.qdot;
@@ -424,6 +504,7 @@ void JointStepper::step(const System& sys, State& s, const Inputs& in, double h)
     closures_.passage_ref = &a_ref_;
   }
   friction0_ = s.friction;
+  if (!model_.cut_joints.empty()) qddot_ref0_ = s.qddot_ref;
   // stage 1: the accelerations the last step (or settle) left, when they are of this state
   // under these inputs; else computed here (with friction: without it, frictionFor's)
   const bool friction = clearFriction(sys, s);
@@ -472,21 +553,26 @@ void JointStepper::step(const System& sys, State& s, const Inputs& in, double h)
     if (L.kind == TreeJointKind::kFree) s.q_round.segment<4>(L.iq + 3).setZero();
   }
   if (!stiff_list_.empty()) implicitDamping(sys, s, h);
-  const State::Clock clock0 = s.clock();
+  clock0_ = s.clock();
   s.countStep(h);
   limit_side0_ = s.limit_side;
   try {
     finish(sys, s, in);
   } catch (...) {  // the State as it was (the last accepted step)
-    s.setClock(clock0);
-    s.q = q0_, s.qdot = v0_;
-    s.limit_side = limit_side0_;
-    s.friction = friction0_;
-    s.q_round = comp_q_, s.qdot_round = comp_v_;
+    restoreStart(s);
     fresh_ = false;
     throw;
   }
   stats_.solves += T.stages;
+}
+
+void JointStepper::restoreStart(State& s) const {
+  s.setClock(clock0_);
+  s.q = q0_, s.qdot = v0_;
+  s.limit_side = limit_side0_;
+  s.friction = friction0_;
+  s.q_round = comp_q_, s.qdot_round = comp_v_;
+  if (!model_.cut_joints.empty()) s.qddot_ref = qddot_ref0_;
 }
 
 bool JointStepper::clearFriction(const System& sys, State& s) const {

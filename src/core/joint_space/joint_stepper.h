@@ -99,6 +99,20 @@ class JointStepper final : public FormulationStepper {
   // (q, q_dot) and closures_ their evaluation in that context (project() returned true).
   void accelerations(const System& sys, const State& s, const Inputs& in, double t, const Eigen::VectorXd& q,
                      const Eigen::VectorXd& qdot, Eigen::VectorXd& qddot, bool evaluated = false);
+  // One step of h from s; on a StepFailure s is as it was (the last accepted step).
+  void stepOnce(const System& sys, State& s, const Inputs& in, double h);
+  // A step of h from s, depth halvings below the step asked: taken again as halves when it
+  // fails or leapt (at most numerics::kMaxHalvings deep).
+  void advance(const System& sys, State& s, const Inputs& in, double h, int depth);
+  // s back to `before` and the step of h from it as two halves.
+  void halve(const System& sys, State& s, const Inputs& in, double h, int depth, const State& before);
+  // Whether the step of h that ended at s leapt over what it should follow (its error
+  // estimate past numerics::kMaxStepError of the motion's velocity scale, scale0 the
+  // start's).
+  bool leapt(const System& sys, const State& s, double h, double scale0);
+  // s back where stepOnce's last step started (what a step changes of the State; the rest
+  // is computed again: fresh_ false).
+  void restoreStart(State& s) const;
   void finish(const System& sys, State& s, const Inputs& in);
   // Returns whether ws_ and closures_ are left at (s.q, s.qdot) (no velocity correction).
   bool project(const System& sys, State& s);
@@ -124,6 +138,12 @@ class JointStepper final : public FormulationStepper {
 
   TreeModel model_;
   TreeWorkspace ws_;
+  State start_;                 // the step's start, once it is taken as halves (start_valid_)
+  State::Clock clock0_;         // stepOnce's start (restoreStart)
+  Eigen::VectorXd qddot_ref0_;
+  bool judged_ = false, start_valid_ = false;  // the step is judged by its error; start_ holds it
+  std::vector<State> backup_;   // a substep's start, by depth (advance)
+  Eigen::VectorXd acc_k4_;      // the bodies' accelerations of RK4's k4 at the step's end (leapt)
   LoopClosures closures_;  // drives, limits and couplers: equations on the tree
   std::vector<signed char> limit_side0_;
   std::vector<std::array<double, 3>> friction0_;  // s.friction at the step's start

@@ -120,6 +120,11 @@ class System {
   // mass scale) and the velocity sqrt(a L) it gives over the length scale. Residual floors
   // use them, so a mechanism at rest is not judged on round-off divided by round-off.
   double acceleration_scale = 0.0, velocity_scale = 0.0;
+  // The relative residual that the description's own round-off leaves in its dependent
+  // equations (0 unless assembly accepted ones that disagree at the file's precision:
+  // Mechanism::assemble sets it). No projection can hold them closer; the steps are held to
+  // it (failureResidual, absolute/projection.h).
+  double description_residual = 0.0;
 
   // Validates and lays out; throws ModelError naming what is wrong.
   void finalize();
