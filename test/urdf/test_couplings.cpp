@@ -6,7 +6,8 @@
 // damping 1 and 3 N m s/rad, settle where their torques are equal (an open differential),
 // 15 and 5 rad/s, the spider coupling carrying lambda = -15 N m; the pinion's drive puts in
 // the 300 W the wheels' damping takes out. Rack and pinion: q_rack = 0.01 q_column
-// throughout.
+// throughout. Two coordinates of one cylindrical joint, translation = alpha rotation, fall
+// as a screw.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -103,6 +104,48 @@ TEST(Couplings, RackFollowsThePinion) {
     }
     EXPECT_LT(worst, 1e-12);
     EXPECT_GT(steer, 0.25) << "the wheels steer";
+  }
+}
+
+// Two coordinates of one joint (dof=): a cylindrical joint whose translation is tied to its
+// rotation, t - alpha phi = 0, is a screw of lead 2 pi alpha. A 2 kg nut (I = 0.01 about the
+// axis) on a vertical one falls as one coordinate: phi'' = -m g alpha / (I + m alpha^2),
+// exactly (RK4 on a constant acceleration), the translation carrying -lambda = m (g + t'').
+// A multi-dof joint without dof= is refused, naming its dofs.
+TEST(Couplings, TwoCoordinatesOfOneJointMakeAScrew) {
+  const double m = 2.0, I = 0.01, alpha = 0.004, g = 9.81;
+  auto xml = [](const std::string& first_dof) {
+    return std::string(R"(<robot name="nut" xmlns:mechanism_sim="https://mechanism-sim.github.io/urdf-extension">
+  <link name="base"/>
+  <link name="nut"><inertial><mass value="2"/><inertia ixx="0.008" iyy="0.008" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial></link>
+  <joint name="thread" type="continuous"><parent link="base"/><child link="nut"/><origin xyz="0 0 1"/><axis xyz="0 0 1"/></joint>
+  <mechanism_sim:joint name="thread" type="cylindrical"/>
+  <mechanism_sim:coupling name="lead">
+    <joint name="thread" )") + first_dof + R"( coefficient="1"/>
+    <joint name="thread" dof="rotation" coefficient="-0.004"/>
+  </mechanism_sim:coupling>
+</robot>)";
+  };
+  const double acc = -m * g * alpha / (I + m * alpha * alpha);
+  for (const char* f : {"absolute", "joint"}) {
+    SCOPED_TRACE(f);
+    LoadOptions o;
+    o.formulation = f;
+    auto model = loadModelString(xml("dof=\"translation\""), "nut.urdf", o);
+    const int rot = model->dofIndex("thread.rotation"), tr = model->dofIndex("thread.translation");
+    for (int s = 0; s < 1000; ++s) model->step(1e-3);
+    const double t = model->time();
+    EXPECT_NEAR(model->velocity(rot), acc * t, 1e-10 * std::fabs(acc * t));
+    EXPECT_NEAR(model->position(rot), 0.5 * acc * t * t, 1e-10 * std::fabs(acc * t * t));
+    EXPECT_NEAR(model->position(tr), alpha * model->position(rot), 1e-11 * std::fabs(model->position(tr)));
+    EXPECT_NEAR(-model->couplingReactions()[0], m * (g + alpha * acc), 1e-9 * m * g);
+  }
+  try {
+    loadModelString(xml(""), "nut.urdf");
+    ADD_FAILURE() << "a multi-dof joint without dof= was accepted";
+  } catch (const LoadError& e) {
+    EXPECT_NE(std::string(e.what()).find("nut.urdf:7: joint 'thread': 2 degrees of freedom (rotation, translation)"),
+              std::string::npos) << e.what();
   }
 }
 
