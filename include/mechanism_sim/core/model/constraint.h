@@ -90,8 +90,8 @@ class Constraint {
   // b is taken about that joint's point B_j; nullptr: about b's centre of mass.
   virtual const Joint* jointOn(int /*b*/) const { return nullptr; }
   // Constraints on joint coordinates: the efforts along those coordinates their multiplier
-  // stands for (at most kMaxCoordinateEfforts, written to out; their number is returned), with the sides of
-  // the limits in ctx. Other constraints: none.
+  // stands for (at most kMaxCoordinateEfforts, written to out; their number is returned),
+  // with the sides of the limits in ctx. Other constraints: none.
   virtual int coordinateEfforts(const EvalContext& /*ctx*/, CoordinateEffort* /*out*/) const { return 0; }
   // Constraints System::finalize makes from its drive and limit lists (so each build
   // lays them out again): their entry there, or -1.
