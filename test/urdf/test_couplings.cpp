@@ -6,12 +6,14 @@
 // damping 1 and 3 N m s/rad, settle where their torques are equal (an open differential),
 // 15 and 5 rad/s, the spider coupling carrying lambda = -15 N m; the pinion's drive puts in
 // the 300 W the wheels' damping takes out. Rack and pinion: q_rack = 0.01 q_column
-// throughout. Two coordinates of one cylindrical joint, translation = alpha rotation, fall
-// as a screw.
+// throughout. A redundant mesh is a dependent equation and changes no motion. Two
+// coordinates of one cylindrical joint, translation = alpha rotation, fall as a screw.
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <cstdio>
+#include <fstream>
+#include <sstream>
 
 #include "mechanism_sim/urdf/model.h"
 
@@ -104,6 +106,38 @@ TEST(Couplings, RackFollowsThePinion) {
     }
     EXPECT_LT(worst, 1e-12);
     EXPECT_GT(steer, 0.25) << "the wheels steer";
+  }
+}
+
+// A redundant coupling (planet 0's mesh with the ring, which Willis' equation and its mesh
+// with the sun imply) is reported among the dependent equations and changes no motion; the
+// load the dependent meshes share is then not unique (each formulation reports least-norm
+// multipliers), but the drives' efforts are.
+TEST(Couplings, ARedundantCouplingIsDependentAndChangesNothing) {
+  std::ifstream in(kSource + "/urdf/planetary_gear.urdf");
+  std::stringstream text;
+  text << in.rdbuf();
+  std::string xml = text.str();
+  const std::string drives = "  <mechanism_sim:drive joint=\"ring_joint\"";
+  xml.replace(xml.find(drives), 0, R"(  <mechanism_sim:coupling name="ring_planet0">
+    <joint name="ring_joint" coefficient="72"/><joint name="carrier_joint" coefficient="-72"/>
+    <joint name="planet0_joint" coefficient="-24"/>
+  </mechanism_sim:coupling>
+)");
+  for (const char* f : {"absolute", "joint"}) {
+    SCOPED_TRACE(f);
+    LoadOptions o;
+    o.formulation = f;
+    auto m = loadModelString(xml, "planetary_redundant.urdf", o);
+    const DependencyReport& dep = m->mechanism().dependencies();
+    EXPECT_EQ(dep.dependent, 1);
+    ASSERT_EQ(dep.by_constraint.size(), 1u);
+    EXPECT_EQ(dep.by_constraint[0].first, "ring_planet0");
+    for (int s = 0; s < 500; ++s) m->step(1e-3);
+    EXPECT_NEAR(m->velocity(m->dofIndex("carrier_joint")), 2.5, 1e-12);
+    EXPECT_NEAR(m->velocity(m->dofIndex("planet0_joint")), -7.5, 1e-11);
+    EXPECT_NEAR(m->effort(m->dofIndex("sun_joint")), 0.05 * 2.5 * 24 / 96, 1e-12);
+    EXPECT_NEAR(m->effort(m->dofIndex("ring_joint")), 0.05 * 2.5 * 72 / 96, 1e-12);
   }
 }
 
