@@ -1,6 +1,6 @@
 # gtests of the loader and the simulate CLI; rostests of the node.
 catkin_add_gtest(test_loader test/urdf/test_loader.cpp test/urdf/test_drive_files.cpp test/urdf/test_real_files.cpp
-  test/urdf/test_inertias.cpp test/urdf/test_kinematic.cpp)
+  test/urdf/test_inertias.cpp test/urdf/test_kinematic.cpp test/urdf/test_couplings.cpp)
 target_link_libraries(test_loader mechanism_sim_urdf gtest_main)
 target_compile_definitions(test_loader PRIVATE MECHANISM_SIM_SOURCE_DIR="${PROJECT_SOURCE_DIR}")
 

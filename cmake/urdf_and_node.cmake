@@ -6,6 +6,7 @@ add_library(mechanism_sim_urdf
   src/urdf/loader.cpp
   src/urdf/loop_dialects.cpp
   src/urdf/massless_gimbals.cpp
+  src/urdf/couplings.cpp
   src/urdf/model.cpp
   src/urdf/run_loop.cpp
   src/urdf/trajectory.cpp

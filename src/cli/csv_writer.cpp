@@ -45,6 +45,8 @@ void CsvWriter::header() {
   if (reactions_)
     for (const JointReaction& r : model_.jointReactions())
       for (const char* c : {"fx", "fy", "fz", "tx", "ty", "tz"}) out_ << ',' << r.joint << '.' << c;
+  if (reactions_)
+    for (const CouplingInfo& c : model_.couplings()) out_ << ',' << c.name << ".reaction";
   if (poses_)
     for (const Link& l : model_.links())
       for (const char* c : {"x", "y", "z", "qw", "qx", "qy", "qz"}) out_ << ',' << l.name << '.' << c;
@@ -64,6 +66,8 @@ void CsvWriter::row(const Sample& s) {
   if (reactions_)
     for (const JointReaction& r : s.reactions)
       b.comma(r.force.x()).comma(r.force.y()).comma(r.force.z()).comma(r.torque.x()).comma(r.torque.y()).comma(r.torque.z());
+  if (reactions_)
+    for (double lambda : s.coupling_reactions) b.comma(lambda);
   if (poses_)
     for (const Eigen::Isometry3d& T : s.link_poses) {
       const Eigen::Quaterniond q(T.linear());

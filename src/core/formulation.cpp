@@ -4,6 +4,7 @@
 #include "core/joint_space/joint_stepper.h"
 #include "core/joint_space/tree.h"
 #include "mechanism_sim/core/model/couplers.h"
+#include "mechanism_sim/core/model/coupling.h"
 
 namespace mechanism_sim {
 
@@ -51,6 +52,11 @@ Formulation chooseFormulation(const System& sys, Formulation asked, std::string*
       if (tree_joint[c] || C.limit() >= 0) continue;
       if (const auto* cc = dynamic_cast<const CoordinateCoupler*>(&C))
         if (onTree(cc->jointA()) && onTree(cc->jointB())) continue;
+      if (const auto* lc = dynamic_cast<const LinearCoupling*>(&C)) {
+        bool all = true;
+        for (const CouplingTerm& t : lc->terms()) all = all && onTree(*t.joint);
+        if (all) continue;
+      }
       mapped += C.size();
     }
   }

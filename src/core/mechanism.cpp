@@ -16,6 +16,7 @@
 #include "core/joint_space/tree_reactions.h"
 #include "core/reaction_solve.h"
 #include "mechanism_sim/core/model/couplers.h"
+#include "mechanism_sim/core/model/coupling.h"
 
 namespace mechanism_sim {
 
@@ -128,6 +129,37 @@ int Mechanism::addCoupler(const std::string& name, int joint_a, int k_a, int joi
   sys_->constraints.push_back(std::make_shared<CoordinateCoupler>(
       name, *sys_->joints[joint_a], k_a, *sys_->joints[joint_b], k_b, multiplier, offset));
   return numConstraints() - 1;
+}
+
+int Mechanism::addCoupling(const std::string& name, const std::vector<CouplingCoordinate>& terms, double c0) {
+  requireUnbuilt("addCoupling");
+  const std::string what = "coupling '" + name + "': ";
+  if (terms.size() < 2 || terms.size() > static_cast<size_t>(kMaxCouplingTerms))
+    throw ModelError(what + "couples " + std::to_string(terms.size()) + " coordinates (2 to " +
+                     std::to_string(kMaxCouplingTerms) + ")");
+  if (!std::isfinite(c0)) throw ModelError(what + "its constant must be finite");
+  std::vector<CouplingTerm> made;
+  for (const CouplingCoordinate& t : terms) {
+    if (t.joint < 0 || t.joint >= numJoints() || t.k < 0 || t.k >= sys_->joints[t.joint]->dof())
+      throw ModelError(what + "no such joint coordinate");
+    const Joint& joint = *sys_->joints[t.joint];
+    if (!joint.holonomicCoordinates())
+      throw ModelError(what + "joint '" + joint.name() + "' has no position coordinate to couple");
+    if (!std::isfinite(t.c) || t.c == 0.0)
+      throw ModelError(what + "the coefficient of joint '" + joint.name() + "' must be finite and non-zero");
+    for (const CouplingTerm& m : made)
+      if (m.joint == &joint && m.k == t.k) throw ModelError(what + "joint '" + joint.name() + "' appears twice");
+    made.push_back({&joint, t.k, t.c});
+  }
+  sys_->constraints.push_back(std::make_shared<LinearCoupling>(name, std::move(made), c0));
+  return numConstraints() - 1;
+}
+
+double Mechanism::couplingReaction(int ci) const {
+  if (ci < 0 || ci >= numConstraints() || sys_->constraints[ci]->type() != "coupling")
+    throw UsageError("constraint " + std::to_string(ci) + " is not a coupling");
+  const Evaluation* ev = nullptr;
+  return multipliers(&ev)[sys_->layout.at(ci).row];
 }
 
 int Mechanism::addSpring(const SpringDamper& s) {
@@ -502,7 +534,7 @@ std::vector<Reaction> Mechanism::jointReactions() const {
       for (int e = 0; e < L.size; ++e) gen -= J.block<1, 6>(e, 6).transpose() * lambda[L.row + e];
       add(joint_of[ci], gen);
     } else {  // limits, drives, couplers: efforts along joint coordinates
-      CoordinateEffort efforts[2];
+      CoordinateEffort efforts[kMaxCoordinateEfforts];
       const int n = c.coordinateEfforts(ctx, efforts);
       for (int e = 0; e < n; ++e) along(joint_of[efforts[e].joint->id()], efforts[e].k, efforts[e].sign * lambda[L.row]);
     }

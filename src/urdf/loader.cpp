@@ -18,6 +18,7 @@
 #include <console_bridge/console.h>
 #include <urdf_parser/urdf_parser.h>
 
+#include "couplings.h"
 #include "joint_specs.h"
 #include "loop_dialects.h"
 #include "massless_gimbals.h"
@@ -188,6 +189,8 @@ class ModelBuilder {
     for (const JointSpec& s : specs.tree) addMimic(s, specs);
     for (const JointSpec& s : specs.tree) tree_joints_.push_back(s.name);
     for (const Coupling& c : resolveCouplings(ext, specs, reader_)) addCoupling(c);
+    for (int c : addLinearCouplings(ext.linear_couplings, specs, joint_index_, mech(), reader_))
+      model_->couplings_.push_back({mech().constraint(c).name(), c});
     addTransmissions(transmissions);
     model_->notes_ = ext.notes;
     model_->notes_.insert(model_->notes_.end(), root_notes_.begin(), root_notes_.end());

@@ -56,6 +56,12 @@ std::pair<Eigen::Vector3d, Eigen::Vector3d> MechanismModel::linkVelocity(int lin
   return {u_i.head<3>() + w.cross(A_Oi * l.body_T_link.translation()), w};
 }
 
+std::vector<double> MechanismModel::couplingReactions() const {
+  std::vector<double> out;
+  for (const CouplingInfo& c : couplings_) out.push_back(mechanism_->couplingReaction(c.constraint));
+  return out;
+}
+
 std::vector<JointReaction> MechanismModel::jointReactions() const {
   const std::vector<Reaction> r = mechanism_->jointReactions();
   std::vector<JointReaction> out(r.size());

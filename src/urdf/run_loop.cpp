@@ -86,8 +86,8 @@ void RunLoop::takeSample() {
   sample_.position_violation = model_.positionViolation();
   sample_.velocity_violation = model_.velocityViolation();
   for (size_t a = 0; a < sample_.actuators.size(); ++a) sample_.actuators[a] = model_.actuatorState(static_cast<int>(a));
-  if (reactions_) sample_.reactions = model_.jointReactions();
-  else sample_.reactions.clear();
+  if (reactions_) sample_.reactions = model_.jointReactions(), sample_.coupling_reactions = model_.couplingReactions();
+  else sample_.reactions.clear(), sample_.coupling_reactions.clear();
 }
 
 std::string runSummary(const MechanismModel& model, long steps, double h, double wall, double worst_position,

@@ -513,8 +513,10 @@ Extension readExtension(const XMLElement* robot, const XmlReader& r) {
       ext.gravity = r.vec3(e, "xyz", Vector3d(0, 0, -9.81), 1e4);
     } else if (what == "actuator") {
       // read with the transmissions (transmissions.cpp)
+    } else if (what == "coupling") {
+      ext.linear_couplings.push_back(readLinearCoupling(e, r));  // (couplings.h)
     } else {
-      r.fail(e, "unknown extension element (joint, spring, initial, drive, gravity, actuator)");
+      r.fail(e, "unknown extension element (joint, spring, initial, drive, gravity, actuator, coupling)");
     }
   }
   readOnshapeClosures(robot, r, &ext);

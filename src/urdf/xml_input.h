@@ -8,6 +8,8 @@
 #include <Eigen/Geometry>
 #include <tinyxml2.h>
 
+#include "couplings.h"
+
 namespace mechanism_sim {
 namespace urdf_input {
 
@@ -108,6 +110,7 @@ struct Extension {
   std::vector<ExtInitial> initial;
   std::optional<Vector3d> gravity;
   std::vector<ExtCoupling> couplings;  // URDF+ <coupling>
+  std::vector<ExtLinearCoupling> linear_couplings;  // <mechanism_sim:coupling> (couplings.h)
   std::vector<std::string> notes;      // what was read but is not simulated (MechanismModel::notes)
   // The actuated joints when a file names them (Extended-URDF name_mot): every other dof is
   // passive (no effort command, no drive). Empty: every dof is actuated.

@@ -5,6 +5,7 @@
 
 #include <sys/wait.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <fstream>
 #include <sstream>
@@ -113,6 +114,20 @@ TEST(SimulateCli, EffortDrivesTheJoint) {
   ASSERT_EQ(run(kSource + "/urdf/screw_jack.urdf --duration 0.5 --output-every 500 --quiet --effort screw_joint=2 --csv " + csv).code, 0);
   const double driven = std::stod(readCsv(csv).back()[1]);
   EXPECT_GT(driven, free_run + 1.0);
+}
+
+// --reactions writes each <mechanism_sim:coupling>'s multiplier as <name>.reaction: the
+// planetary example's Willis coupling carries the carrier's load 0.05 N m s/rad x 2.5 rad/s
+// over Z_sun + Z_ring = 96 teeth.
+TEST(SimulateCli, ReactionsIncludeEachCouplingsMultiplier) {
+  const std::string csv = ::testing::TempDir() + "/planetary.csv";
+  ASSERT_EQ(run(kSource + "/urdf/planetary_gear.urdf --duration 0.2 --output-every 100 --quiet --reactions --csv " + csv).code, 0);
+  const auto rows = readCsv(csv);
+  const auto& header = rows[0];
+  const auto at = std::find(header.begin(), header.end(), "willis.reaction");
+  ASSERT_NE(at, header.end());
+  EXPECT_EQ(header.back(), "sun_planet2.reaction") << "the couplings in file order, after the joints' reactions";
+  EXPECT_NEAR(std::stod(rows.back()[at - header.begin()]), 0.05 * 2.5 / 96, 1e-12);
 }
 
 // --formulation: a tree runs in joint coordinates (and moves as in absolute ones), the

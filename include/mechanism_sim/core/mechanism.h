@@ -55,6 +55,14 @@ class Mechanism {
   // URDF <mimic>: q_a(k_a) = multiplier * q_b(k_b) + offset, an exact constraint.
   int addCoupler(const std::string& name, int joint_a, int k_a, int joint_b, int k_b,
                  double multiplier, double offset);
+  // A coupling sum_i c_i q_i = c_0 among 2 to kMaxCouplingTerms joint coordinates (gears,
+  // racks, differentials, planetary trains; coupling.h): an exact constraint whose multiplier
+  // (couplingReaction) stands for the effort -c_i lambda along each q_i.
+  struct CouplingCoordinate {
+    int joint = 0, k = 0;
+    double c = 0.0;
+  };
+  int addCoupling(const std::string& name, const std::vector<CouplingCoordinate>& terms, double c0);
   int addSpring(const SpringDamper& spring);
   // The reflected inertia of a transmission's rotors on one or two joint coordinates
   // (transmission.h): the kinetic energy 1/2 q_dot^T B q_dot, in both formulations (a
@@ -152,6 +160,10 @@ class Mechanism {
   // formulation.
   int treeCoordinate(int joint, bool rate) const;
   Reaction reaction(int constraint) const;
+  // A coupling's multiplier lambda (addCoupling): each coupled coordinate i carries the
+  // effort -c_i lambda (the mesh's load, in the units of the coordinates' efforts per unit
+  // coefficient). Least-norm where equations are dependent, as jointReactions.
+  double couplingReaction(int constraint) const;
   // Per joint: the force and torque (global, torque about the joint point B_j) that the
   // joint exerts on its body j: its constraint, its limits, its drives, its share of the
   // couplers (along its own coordinate) and the efforts applied along its coordinates

@@ -94,6 +94,13 @@ struct JointReaction {
   Eigen::Vector3d force = Eigen::Vector3d::Zero(), torque = Eigen::Vector3d::Zero();
 };
 
+// A <mechanism_sim:coupling> of the file (sum_i c_i q_i = c_0): its name and core
+// constraint (Mechanism::addCoupling).
+struct CouplingInfo {
+  std::string name;
+  int constraint = -1;
+};
+
 // A <transmission> the model simulates (doc/actuators.md): its maps (transmission.h), the
 // dofs of its joints and its actuators, both in its roles' order.
 struct TransmissionInfo {
@@ -158,6 +165,7 @@ class MechanismModel {
 
   const std::vector<TransmissionInfo>& transmissions() const { return transmissions_; }
   const std::vector<Actuator>& actuators() const { return actuators_; }
+  const std::vector<CouplingInfo>& couplings() const { return couplings_; }
 
   // ---- where it is now
   double time() const;
@@ -187,6 +195,9 @@ class MechanismModel {
   // (two hinges on one axis, a planar loop) the least-norm reactions: the same state gives
   // the same reactions whatever the history.
   std::vector<JointReaction> jointReactions() const;
+  // Per coupling (couplings()): its multiplier lambda; each coupled coordinate i carries
+  // the effort -c_i lambda (Mechanism::couplingReaction).
+  std::vector<double> couplingReactions() const;
   // World pose of the frame jointReactions() are given in: the joint frame on the child of
   // core joint j (the order of jointReactions()).
   Eigen::Isometry3d reactionFrame(int joint) const;
@@ -233,6 +244,7 @@ class MechanismModel {
   std::vector<TreeJoint> tree_;
   std::vector<LoopJoint> loops_;
   std::vector<TransmissionInfo> transmissions_;
+  std::vector<CouplingInfo> couplings_;
   std::vector<Actuator> actuators_;
   std::vector<Eigen::Isometry3d> reaction_frames_;  // per core joint: its file frame in its child's body
   std::vector<double> command_;

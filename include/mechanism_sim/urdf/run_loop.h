@@ -23,6 +23,7 @@ struct Sample {
   std::vector<Eigen::Isometry3d> link_poses;        // by link, as MechanismModel::links(); world frame
   double position_violation = 0.0, velocity_violation = 0.0;  // largest |Phi|, |Phi_q v|
   std::vector<JointReaction> reactions;  // when RunLoop::setReactions(true)
+  std::vector<double> coupling_reactions;  // the same: per coupling, its multiplier
   std::vector<ActuatorState> actuators;  // by actuator, as MechanismModel::actuators()
 };
 

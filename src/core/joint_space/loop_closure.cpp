@@ -18,6 +18,7 @@
 #include <random>
 
 #include "mechanism_sim/core/model/couplers.h"
+#include "mechanism_sim/core/model/coupling.h"
 #include "mechanism_sim/core/model/errors.h"
 #include "core/absolute/evaluation.h"
 
@@ -125,6 +126,14 @@ LoopClosures::LoopClosures(const TreeModel& model, const System& sys) : model_(&
     } else if (const auto* cc = dynamic_cast<const CoordinateCoupler*>(&C)) {
       if (coordinate(cc->jointA(), cc->coordinateA(), d, 0) && coordinate(cc->jointB(), cc->coordinateB(), d, 1))
         d.n = 2, d.coef[0] = 1.0, d.coef[1] = -cc->multiplier(), d.offset = cc->offset();
+    } else if (const auto* lc = dynamic_cast<const LinearCoupling*>(&C)) {
+      const auto& terms = lc->terms();
+      bool all = true;
+      for (size_t t = 0; t < terms.size() && all; ++t) {
+        all = coordinate(*terms[t].joint, terms[t].k, d, static_cast<int>(t));
+        d.coef[t] = terms[t].c;
+      }
+      if (all) d.n = static_cast<int>(terms.size()), d.offset = lc->constant();
     }
     direct_[i] = d;
   }

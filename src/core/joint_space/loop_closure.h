@@ -22,17 +22,18 @@
 // kClosureRankThreshold: the least-norm lambda of the scaled system.
 //
 // Closures are every constraint of the System the tree does not hold: cut joints, and
-// couplers (URDF mimic), drives (rheonomic: Phi_q v = nu, gamma with the prescribed
-// acceleration) and position limits (a zero row while the limit's side in the context is
-// 0, dropped by the solve with lambda 0). All of them go through the same G = Phi_x J(q):
-// their absolute equations (Constraint::evaluate with the caller's EvalContext) are the
-// reference, and mapping Phi_x through J(q) reproduces them to round-off whatever the
-// joint type, the link's direction (reversed) or the coordinate's branch (tracked angles).
-// Limits and couplers on coordinates of tree links other than spherical ones (whose q
-// are the joints' own coordinates, Joint::coordinates) skip that mapping: their rows are
-// e_k^T and e_a^T - r e_b^T, gamma_q 0 (DirectRow); Phi still comes from their absolute
-// equations. A free limit (side 0) is a zero row and is not evaluated at all. Drives, and
-// rows on spherical coordinates or cut joints, go through the mapping.
+// couplers (URDF mimic), couplings (sum_i c_i q_i = c_0, coupling.h), drives (rheonomic:
+// Phi_q v = nu, gamma with the prescribed acceleration) and position limits (a zero row
+// while the limit's side in the context is 0, dropped by the solve with lambda 0). All of
+// them go through the same G = Phi_x J(q): their absolute equations (Constraint::evaluate
+// with the caller's EvalContext) are the reference, and mapping Phi_x through J(q)
+// reproduces them to round-off whatever the joint type, the link's direction (reversed) or
+// the coordinate's branch (tracked angles). Limits, couplers and couplings on coordinates
+// of tree links other than spherical ones (whose q are the joints' own coordinates,
+// Joint::coordinates) skip that mapping: their rows are e_k^T, e_a^T - r e_b^T and
+// sum_i c_i e_i^T, gamma_q 0 (DirectRow); Phi still comes from their absolute equations.
+// A free limit (side 0) is a zero row and is not evaluated at all. Drives, and rows on
+// spherical coordinates or cut joints, go through the mapping.
 // Closures are listed in System order, so closure row e is System row sys_row[e] and
 // lambda(e) is State::lambda(sys_row[e]) of the absolute formulation.
 #pragma once
@@ -278,12 +279,12 @@ class LoopClosures {
   // and gamma_q is 0, without the mapping through J(q).
   struct DirectRow {
     int n = 0;           // entries (0: not direct)
-    int col[2] = {0, 0};  // velocity coordinates
-    int qcol[2] = {0, 0};  // their position coordinates
-    double coef[2] = {0.0, 0.0};
-    double offset = 0.0;  // a coupler's: Phi = sum coef q - offset
+    int col[kMaxCoordinateEfforts] = {};   // velocity coordinates
+    int qcol[kMaxCoordinateEfforts] = {};  // their position coordinates
+    double coef[kMaxCoordinateEfforts] = {};
+    double offset = 0.0;  // a coupler's or coupling's: Phi = sum coef q - offset
     int limit = -1;       // a limit's (System limit index): Phi = q - its bound on the active side
-    bool angle[2] = {false, false};
+    bool angle[kMaxCoordinateEfforts] = {};
   };
   const Eigen::VectorXd* q_ = nullptr;  // evaluate()'s q, for the direct rows' Phi
   std::vector<DirectRow> direct_;  // per closure

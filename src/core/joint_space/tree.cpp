@@ -97,13 +97,13 @@ std::string jointSpaceUnsupported(const System& sys, bool loops_as_closures) {
   for (int c = 0; c < sys.numConstraints(); ++c) {
     if (is_joint[c]) continue;
     const std::string type = sys.constraints[c]->type();
-    const bool closure_type = type == "coupler" || type == "drive" || type == "limit";
+    const bool closure_type = type == "coupler" || type == "coupling" || type == "drive" || type == "limit";
     if (!closure_type)
       return "constraint '" + sys.constraints[c]->name() + "' (" + type +
              "): the joint-space formulation has no model of this constraint type";
     if (!loops_as_closures)
       return "constraint '" + sys.constraints[c]->name() + "' (" + type +
-             "): the caller does not take closures (couplers, drives and limits are closures, loop_closure.h)";
+             "): the caller does not take closures (couplers, couplings, drives and limits are closures, loop_closure.h)";
   }
   for (const Joint* J : sys.joints) {
     if (!treeJointKnown(*J))

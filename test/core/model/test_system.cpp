@@ -130,10 +130,10 @@ TEST(SystemValidation, EachBadDriveIsNamed) {
   }
 }
 
-// A constraint over five bodies: more than the layout takes (kMaxConstraintBodies).
-class FiveBodyTie : public Constraint {
+// A constraint over more bodies than the layout takes (kMaxConstraintBodies).
+class WideTie : public Constraint {
  public:
-  FiveBodyTie() : Constraint("tie5", {1, 2, 3, 4, 5}) {}
+  explicit WideTie(std::vector<int> bodies) : Constraint("wide", std::move(bodies)) {}
   std::string type() const override { return "tie"; }
   int size() const override { return 1; }
   void evaluate(const BodyKin* const*, const EvalContext&, Eigen::Ref<Eigen::VectorXd> Phi,
@@ -143,9 +143,16 @@ class FiveBodyTie : public Constraint {
 };
 
 TEST(SystemValidation, AConstraintOverTooManyBodiesIsNamed) {
-  Builder b = validChain();
-  b.sys->constraints.push_back(std::make_shared<FiveBodyTie>());
-  expectModelError(*b.sys, {"constraint 'tie5'", "couples more than 4 bodies"});
+  Builder b(1.0, 1.0);
+  std::vector<int> bodies;
+  for (int k = 1; k <= kMaxConstraintBodies + 1; ++k) {
+    b.addBody(k, Vector3d(0.1, 0.1, 0.1), Vector3d(k, 0, 0), Matrix3d::Identity());
+    b.addJoint("revolute", k - 1, k, Vector3d(k - 0.5, 0, 0), Matrix3d::Identity());
+    bodies.push_back(k);
+  }
+  b.sys->constraints.push_back(std::make_shared<WideTie>(bodies));
+  const std::string says = "couples more than " + std::to_string(kMaxConstraintBodies) + " bodies";
+  expectModelError(*b.sys, {"constraint 'wide'", says.c_str()});
 }
 
 // A limit is validated as a drive is: one on a joint coordinate that does not exist, or with

@@ -10,8 +10,13 @@
 
 namespace mechanism_sim {
 
-// A constraint couples at most this many bodies (a coupler: the bodies of two joints).
-constexpr int kMaxConstraintBodies = 4;
+// A constraint couples at most this many bodies (a coupler: the bodies of two joints; a
+// coupling: those of up to kMaxCouplingTerms joints). The steppers keep this many pointers
+// on the stack per evaluation, so a model without couplings pays nothing for it.
+constexpr int kMaxConstraintBodies = 16;
+// A constraint on joint coordinates names at most this many (coordinateEfforts).
+constexpr int kMaxCoordinateEfforts = 8;
+constexpr int kMaxCouplingTerms = kMaxCoordinateEfforts;
 
 // Angles a constraint tracks through turns (the branch references): part of the State.
 using Tracked = std::array<double, 2>;
@@ -85,8 +90,8 @@ class Constraint {
   // b is taken about that joint's point B_j; nullptr: about b's centre of mass.
   virtual const Joint* jointOn(int /*b*/) const { return nullptr; }
   // Constraints on joint coordinates: the efforts along those coordinates their multiplier
-  // stands for (at most 2, written to out; their number is returned), with the sides of
-  // the limits in ctx. Other constraints: none.
+  // stands for (at most kMaxCoordinateEfforts, written to out; their number is returned),
+  // with the sides of the limits in ctx. Other constraints: none.
   virtual int coordinateEfforts(const EvalContext& /*ctx*/, CoordinateEffort* /*out*/) const { return 0; }
   // Constraints System::finalize makes from its drive and limit lists (so each build
   // lays them out again): their entry there, or -1.
