@@ -1,5 +1,7 @@
 #include "massless_gimbals.h"
 
+#include "couplings.h"
+
 #include <cmath>
 #include <set>
 
@@ -54,6 +56,8 @@ Named namedElsewhere(const JointSpecs& specs, const Extension& ext, const Transm
     (c.predecessor_is_link ? n.links : n.joints).insert(c.predecessor);
     (c.successor_is_link ? n.links : n.joints).insert(c.successor);
   }
+  for (const ExtLinearCoupling& c : ext.linear_couplings)
+    for (const auto& t : c.terms) n.joints.insert(t.joint);
   for (const std::string& a : ext.actuated) n.joints.insert(a);
   for (const TransmissionSpec& t : transmissions.simulated) n.joints.insert(t.joints.begin(), t.joints.end());
   for (const auto& p : options.positions) n.dof(p.first);

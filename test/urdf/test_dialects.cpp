@@ -504,7 +504,8 @@ TEST(Dialects, BallWrittenAsAGimbalOfMasslessLinksMovesAsABall) {
 }
 
 // The same chain with its last axis z (X-Y-Z: its lock away from the zero pose) is a ball;
-// with mass on a middle link, or limits on a joint, it is a gimbal: kept as written.
+// with mass on a middle link, limits on a joint, or a joint in a coupling, it is a gimbal:
+// kept as written.
 TEST(Dialects, GimbalsWithMassOrLimitsStayAsWritten) {
   const std::string xyz = replaced(readText(kDir + "/ball_as_gimbal.urdf"), "<axis xyz=\"1 0 0\"/><limit",
                                    "<axis xyz=\"0 0 1\"/><limit");
@@ -514,12 +515,16 @@ TEST(Dialects, GimbalsWithMassOrLimitsStayAsWritten) {
                                      "</inertial></link>");
   const std::string limited = replaced(xyz, "<limit effort=\"1\" velocity=\"20\"/>",
                                        "<limit lower=\"-1\" upper=\"1\" effort=\"1\" velocity=\"20\"/>");
+  const std::string coupled = replaced(xyz, "</robot>",
+                                       "<mechanism_sim:coupling name=\"geared\" constant=\"0\">"
+                                       "<joint name=\"ball\" coefficient=\"1\"/><joint name=\"ball_x\" coefficient=\"-2\"/>"
+                                       "</mechanism_sim:coupling></robot>");
   LoadOptions o;
   o.formulation = "absolute";
   auto ball = loadModelString(xyz, "gimbal.urdf", o);
   EXPECT_GE(ball->dofIndex("ball.z"), 0);
   EXPECT_LT(ball->dofIndex("ball_y"), 0);
-  for (const std::string& xml : {heavy, limited}) {
+  for (const std::string& xml : {heavy, limited, coupled}) {
     auto m = loadModelString(xml, "gimbal.urdf", o);
     EXPECT_GE(m->dofIndex("ball_y"), 0);
     EXPECT_LT(m->dofIndex("ball.z"), 0);
