@@ -125,7 +125,7 @@ constexpr double kRoundoffStepBound = 1e-8;
 // lets a passage through unseen), kPassageGateMargin more for the LLT's own round-off.
 constexpr double kPassageGate = 0.3;
 constexpr double kPassageGateMargin = 1e-10;
-// The damping classification is held over steps (joint_stepper.cpp, classifyDamping) for at
+// The damping classification is held over steps (joint_damping.cpp, classifyDamping) for at
 // most kHoldSteps, while no body has moved more than kHoldMotion (rad, or of the length
 // scale), and only where every coordinate's h s_k is kHoldMargin away from the stability
 // bound: RK4's limit, 2.785, is 1.39 times its bound of 2, so a set held at 1.25 from it

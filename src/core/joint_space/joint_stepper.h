@@ -120,7 +120,7 @@ class JointStepper final : public FormulationStepper {
   // coordinates): which damped coordinates are stiff at this step (ws_ at s.q's factors);
   // returns whether the set changed. The others stay in the stages as efforts. The set
   // found is held in s.damping_hold for the next steps where no coordinate was near the
-  // bound (kHold* in joint_stepper.cpp).
+  // bound (kHold* in joint_damping.cpp).
   bool classifyDamping(const System& sys, State& s, double h);
   // For classifyDamping, at ws_'s articulated factors (q0): the columns of M^-1 of the
   // candidates (damp_candidates_) at the damped coordinates, and with closures

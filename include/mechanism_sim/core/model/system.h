@@ -179,7 +179,7 @@ struct State {
   // compensated summation); zero after settle
   Eigen::VectorXd q_round, qdot_round;
   // The joint formulation's damping classification, held over the next steps while the
-  // mechanism has not moved far from where it was found (joint_stepper.cpp, classifyDamping:
+  // mechanism has not moved far from where it was found (joint_damping.cpp, classifyDamping:
   // the stiff set and the decay rates h s_k found, per damped coordinate; the positions x,
   // step h, tableau bound and limit sides it was found at; how many more steps it may serve,
   // 0: none). A snapshot carries it, so a restored State classifies as the run it came from;
