@@ -4,6 +4,8 @@ add_library(mechanism_sim_urdf
   src/urdf/joint_specs.cpp
   src/urdf/rigid_bodies.cpp
   src/urdf/loader.cpp
+  src/urdf/loader_joints.cpp
+  src/urdf/loader_start.cpp
   src/urdf/loop_dialects.cpp
   src/urdf/massless_gimbals.cpp
   src/urdf/couplings.cpp
