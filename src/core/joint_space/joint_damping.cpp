@@ -1,19 +1,19 @@
-// The joint-space stepper's damping (joint_stepper.h): which damped coordinates are stiff
-// at the step (classifyDamping, against the integrator's stability bound), their
+// The joint formulation's damping (joint_damping.h): which damped coordinates are stiff
+// at the step (classify, against the integrator's stability bound), their
 // constrained inverse mass, and the implicit integration of the stiff ones.
 #include <algorithm>
 #include <cmath>
 
 #include <Eigen/Cholesky>
 
-#include "core/joint_space/joint_stepper.h"
+#include "core/joint_space/joint_damping.h"
 #include "core/absolute/evaluation.h"
 #include "core/numerics.h"
 
 namespace mechanism_sim {
 
-void JointStepper::setDamping(const System& sys) {
-  closures_.rebind(sys);  // (a Mechanism's System is copied on write)
+void JointDamping::set(const System& sys) {
+  kin_.assign(sys.bodies.size(), BodyKin());
   damped_.clear();
   cut_damped_.clear();
   for (const TreeLink& L : model_.links) {
@@ -70,7 +70,7 @@ void JointStepper::setDamping(const System& sys) {
   for (int i = 0; i < nd; ++i) damp_rc_(i) = std::sqrt(damped_[i].c);
   damp_filter_.assign(nd, 0.0);
   damp_rcb_.assign(nd, 0.0);
-  body_inverse_.clear();  // (classifyDamping's bound: the bodies' inverses once)
+  body_inverse_.clear();  // (classify's bound: the bodies' inverses once)
   for (const Body& B : sys.bodies) body_inverse_.push_back(bodyInverse(B));
   damp_p_.assign(model_.nb, Vector6d::Zero());
   damp_mark_.assign(model_.nb, 0);
@@ -95,7 +95,6 @@ void JointStepper::setDamping(const System& sys) {
   damp_least_norm_ = ScaledLeastNorm(closures_.m);
   damp_f_.assign(model_.nb, Vector6d::Zero());
   damp_rows_.assign(kMaxJointDofs, Row());
-  fresh_ = false;
 }
 
 
@@ -194,8 +193,8 @@ double motionSince(const System& sys, const Eigen::VectorXd& x0, const Eigen::Ve
 }
 }  // namespace
 
-bool JointStepper::classifyDamping(const System& sys, State& s, double h) {
-  const double bound = tableau_->stiff_bound;
+bool JointDamping::classify(const System& sys, State& s, double h, const Tableau& tableau) {
+  const double bound = tableau.stiff_bound;
   const int nd = static_cast<int>(damped_.size());
   State::DampingHold& hold = s.damping_hold;
   // (whether the hold was found under this step, bound and limit sides, and how far the
@@ -303,7 +302,7 @@ bool JointStepper::classifyDamping(const System& sys, State& s, double h) {
   return changed;
 }
 
-// What classifyDamping's entries of P are made of, at ws_'s articulated factors (q0), by the
+// What classify's entries of P are made of, at ws_'s articulated factors (q0), by the
 // sparse factorization of closure_solver.h (RBDA 8.5): with M = L^T D L as the
 // articulated-body algorithm factors it (D_k = S_k^T I^A_k S_k, ws_.Dinv), L^-T x is its
 // inward pass with zero velocity on x (inverseMassInward), which for a unit vector e_l or a
@@ -313,7 +312,7 @@ bool JointStepper::classifyDamping(const System& sys, State& s, double h) {
 //   coordinates c (a coupler's, a limit's),
 // and with closures W = (M^-1 G^T)_D (G M^-1 G^T)^+ from closures_' factorization at q0
 // (stage 1 ran there), so that P_Dk = (M^-1)_Dk - W (M^-1 G^T)_k^T.
-void JointStepper::dampedInverseMass() {
+void JointDamping::dampedInverseMass() {
   auto scaleByDinv = [&](int k, const double* z, double* x) {  // x = D_k^-1 z on link k
     const TreeLink& L = model_.links[k];
     if (L.pivot >= 0) x[L.pivot] = ws_.tie_Dinv[k] * z[L.pivot];  // (TreeLink::pivot)
@@ -425,7 +424,7 @@ void JointStepper::dampedInverseMass() {
     damp_W_.col(f).setZero();
     for (int e : damp_used_)  // (rows on other branches than f's have mu 0 exactly: skipped)
       if (damp_mu_(e) != 0.0) damp_W_.col(f) += damp_Yd_.col(e) * damp_mu_(e);
-    // where the column is not zero (classifyDamping reads it there only)
+    // where the column is not zero (classify reads it there only)
     int lo = 0, hi = nd;
     while (lo < hi && damp_W_(lo, f) == 0.0) ++lo;
     while (hi > lo && damp_W_(hi - 1, f) == 0.0) --hi;
@@ -438,7 +437,7 @@ void JointStepper::dampedInverseMass() {
 // reached) and B = E^T Y:  u' - u = -Y (C^-1 / h + B)^-1 E^T u, a small SPD solve. The
 // impulse held over the step moves the positions by h (u' - u) / 2 (stiff_damping.cpp,
 // items 3-4). It never adds energy: |u'|_M <= |u|_M.
-void JointStepper::implicitDamping(const System& sys, State& s, double h) {
+void JointDamping::implicit(const System& sys, State& s, double h) {
   const int ns = static_cast<int>(stiff_list_.size());
   // Y at the positions the stages reached (the metric the kinetic energy is measured in
   // there): articulated factors at s.q, one inverse-mass pass per stiff coordinate

@@ -71,7 +71,7 @@ std::string jointFormulationUnsupported(const System& sys) {
 }
 
 JointStepper::JointStepper(const System& sys, bool embed_couplers)
-    : model_(sys, embed_couplers), ws_(model_), closures_(model_, sys) {
+    : model_(sys, embed_couplers), ws_(model_), closures_(model_, sys), damping_(model_, ws_, closures_) {
   const std::string unsupported = jointFormulationUnsupported(sys);
   if (!unsupported.empty()) throw ModelError("the joint formulation cannot run this mechanism: " + unsupported);
   tableau_ = &tableau(parseMethod(sys.options.method));
@@ -86,8 +86,15 @@ JointStepper::JointStepper(const System& sys, bool embed_couplers)
   kin_.assign(sys.bodies.size(), BodyKin());
   setDamping(sys);
   fric_e_.setZero(model_.nv), fric_y_.setZero(model_.nv);
+  fric_r_.setZero(closures_.m), fric_mu_.setZero(closures_.m);
   for (int j : model_.cut_joints) cut_constraints_.push_back(sys.joint_constraint[j]);
-  closures_.form_Y = false;  // (only implicitDamping reads M^-1 G^T whole)
+  closures_.form_Y = false;  // (only JointDamping::implicit reads M^-1 G^T whole)
+}
+
+void JointStepper::setDamping(const System& sys) {
+  closures_.rebind(sys);  // (a Mechanism's System is copied on write)
+  damping_.set(sys);
+  fresh_ = false;
 }
 
 void JointStepper::accelerations(const System& sys, const State& s, const Inputs& in, double t,
@@ -98,14 +105,15 @@ void JointStepper::accelerations(const System& sys, const State& s, const Inputs
   // in frame i, Joint::coordinates' rates (settle() reads q_dot from them), so tau_k =
   // -c_k q_dot_k is the absolute formulation's q_x,k^T (-c_k q_x,k u) (appliedForces): one power,
   // tau . q_dot = (G^T tau) . u, on the tree's coordinates and the bodies' alike.
-  for (size_t i = 0; i < damped_.size(); ++i)  // damping that is not stiff: an effort
-    if (!stiff_[i]) tau_(damped_[i].iv) -= damped_[i].c * qdot(damped_[i].iv);
+  const std::vector<JointDamping::Damped>& damped = damping_.damped();
+  for (size_t i = 0; i < damped.size(); ++i)  // damping that is not stiff: an effort
+    if (!damping_.stiff()[i]) tau_(damped[i].iv) -= damped[i].c * qdot(damped[i].iv);
   // Coulomb friction: the step's efforts (frictionFor), held over its stages
   for (const TreeLink& L : model_.links)
     if (L.joint >= 0)
       for (int k = 0; k < L.nv; ++k) tau_(L.iv + k) += s.friction[L.joint][k];
   const Inputs* loads = &in;
-  if (!sys.springs.empty() || !cut_damped_.empty()) {
+  if (!sys.springs.empty() || !damping_.cutDamped().empty()) {
     // springs act between points of bodies: body loads at the tree's poses (appliedForces)
     if (!evaluated) forwardKinematics(model_, q, qdot, ws_);
     absoluteState(model_, ws_, spring_x_, spring_u_);
@@ -117,7 +125,7 @@ void JointStepper::accelerations(const System& sys, const State& s, const Inputs
     // bodies (Joint::coordinates, as the absolute formulation's appliedForces), acting on
     // the tree through addCutJointEfforts. Explicit only: a cut joint damped too stiffly for
     // the step fails the step (its projection), it is not integrated implicitly.
-    for (int j : cut_damped_) {
+    for (int j : damping_.cutDamped()) {
       const Joint& J = *sys.joints[j];
       Row rows[kMaxJointDofs];
       J.coordinates(kin_[J.bodyI()], kin_[J.bodyJ()], s.tracked[J.id()], rows);
@@ -336,7 +344,7 @@ void JointStepper::step(const System& sys, State& s, const Inputs& in, double h)
   // A step that fails leaves the State where it was (the last accepted step), not part
   // way through its substeps: stepOnce keeps what it changes (restoreStart), and the whole
   // State is copied only when the step is taken as halves.
-  judged_ = tableau_->stages == 4 && damped_.empty() && cut_damped_.empty();
+  judged_ = tableau_->stages == 4 && damping_.damped().empty() && damping_.cutDamped().empty();
   start_valid_ = false;
   try {
     advance(sys, s, in, h, 0);
@@ -424,7 +432,7 @@ void JointStepper::stepOnce(const System& sys, State& s, const Inputs& in, doubl
   const bool friction = clearFriction(sys, s);
   if (friction || !(fresh_ && q_end_ == s.q && v_end_ == s.qdot)) accelerations(sys, s, in, s.t, q0_, v0_, s.qddot);
   // (ws_ holds q0's articulated factors now); stage 1 again if the stiff set changed
-  if (!damped_.empty() && classifyDamping(sys, s, h)) accelerations(sys, s, in, s.t, q0_, v0_, s.qddot);
+  if (!damping_.damped().empty() && damping_.classify(sys, s, h, *tableau_)) accelerations(sys, s, in, s.t, q0_, v0_, s.qddot);
   // Coulomb friction sized for this step from those (as the absolute formulation: after the
   // stiff set, so the stages' damping is in q_ddot), then stage 1 with it
   if (friction) {
@@ -466,7 +474,7 @@ void JointStepper::stepOnce(const System& sys, State& s, const Inputs& in, doubl
     if (L.kind == TreeJointKind::kSpherical) s.q_round.segment<4>(L.iq).setZero();
     if (L.kind == TreeJointKind::kFree) s.q_round.segment<4>(L.iq + 3).setZero();
   }
-  if (!stiff_list_.empty()) implicitDamping(sys, s, h);
+  if (damping_.anyStiff()) damping_.implicit(sys, s, h);
   clock0_ = s.clock();
   s.countStep(h);
   limit_side0_ = s.limit_side;
@@ -505,7 +513,7 @@ bool JointStepper::clearFriction(const System& sys, State& s) const {
 // the absolute formulation's -gamma, is in q_ddot itself). Its effective inertia's inverse
 // is q_x,k P q_x,l^T = (P e_k)_l, P the constrained inverse mass in joint coordinates: M^-1
 // from the articulated factors at q0 (ws_), less M^-1 G^T (G M^-1 G^T)^+ G M^-1 with the
-// closures (their factorization at q0: stage 1 ran there), as classifyDamping's.
+// closures (their factorization at q0: stage 1 ran there), as JointDamping::classify's.
 void JointStepper::frictionFor(const System& sys, State& s, double h) {
   bool mass = false;  // the joint-space inertia factored at q0 (once)
   for (const TreeLink& L : model_.links) {
@@ -525,14 +533,14 @@ void JointStepper::frictionFor(const System& sys, State& s, double h) {
       if (ties) closures_.applyInverseMass(model_, ws_, fric_y_.data(), fric_y_.data());
       else closures_.inverseMass(fric_y_.data());
       if (closures_.m > 0) {
-        closures_.timesG(fric_y_, damp_r_);
-        closures_.solve(damp_r_, damp_mu_);
+        closures_.timesG(fric_y_, fric_r_);
+        closures_.solve(fric_r_, fric_mu_);
         if (ties) {
           const int m = closures_.m;
-          fric_e_.noalias() = closures_.G.topRows(m).transpose() * damp_mu_.head(m);
+          fric_e_.noalias() = closures_.G.topRows(m).transpose() * fric_mu_.head(m);
           closures_.applyInverseMass(model_, ws_, fric_e_.data(), fric_e_.data());
         } else {
-          closures_.inverseMassGT(damp_mu_, fric_e_);
+          closures_.inverseMassGT(fric_mu_, fric_e_);
         }
         fric_y_ -= fric_e_;
       }

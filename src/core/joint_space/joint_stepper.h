@@ -15,7 +15,7 @@
 // loads at the tree's poses), and joint limits, drives and mimic couplers as equations on
 // the tree (loop_closure.h: their absolute equations through G = Phi_x J(q)), and joint
 // damping (efforts in the stages; stiff ones by implicit Euler after them, the absolute
-// formulation's rule: classifyDamping; on spherical joints too, along the relative angular
+// formulation's rule: JointDamping, joint_damping.h; on spherical joints too, along the relative angular
 // velocity in frame i as there), and Coulomb friction (the absolute formulation's rule,
 // sized for each step: frictionFor), and loop closures (the cut joints' equations on the
 // tree, their branch passages held by the motion: branch_passage.cpp; with friction or
@@ -30,6 +30,7 @@
 
 #include "core/formulation.h"
 #include "core/joint_space/tree.h"
+#include "core/joint_space/joint_damping.h"
 #include "core/joint_space/loop_closure.h"
 #include "core/absolute/solver.h"
 #include "mechanism_sim/core/model/system.h"
@@ -39,25 +40,6 @@ namespace mechanism_sim {
 
 // Empty when the joint formulation runs sys, else a sentence naming what it cannot run.
 std::string jointFormulationUnsupported(const System& sys);
-
-// 1 / m and J'^-1 of a body (its mass and central inertia): inv_m +inf without mass, has_J
-// false where J' is not positive definite.
-struct BodyInverse {
-  double inv_m = HUGE_VAL;
-  Matrix3d inv_J = Matrix3d::Zero();
-  bool has_J = false;
-};
-BodyInverse bodyInverse(const Body& B);
-
-// An upper bound on (M^-1)_kk, M the joint-space inertia of the tree, for a joint coordinate
-// whose row over its joint's two bodies (Joint::coordinates) is `row`, in the configuration
-// the row was taken in: row M_b^-1 row^T with the two bodies' own masses and central
-// inertias (derivation at the definition). +inf (HUGE_VAL) where the row moves a body that
-// has no mass or no inertia along it. For a revolute joint the row, and so the bound, is the
-// same in every configuration. (JointStepper::classifyDamping.) The second form with the
-// bodies' inverses (bi, bj: of J's bodies i and j) computed once.
-double coordinateInverseMassBound(const System& sys, const Joint& J, const Row& row);
-double coordinateInverseMassBound(const Joint& J, const Row& row, const BodyInverse& bi, const BodyInverse& bj);
 
 class JointStepper final : public FormulationStepper {
  public:
@@ -116,18 +98,6 @@ class JointStepper final : public FormulationStepper {
   void finish(const System& sys, State& s, const Inputs& in);
   // Returns whether ws_ and closures_ are left at (s.q, s.qdot) (no velocity correction).
   bool project(const System& sys, State& s);
-  // Joint damping (the absolute formulation's rule, stiff_damping.cpp, in joint
-  // coordinates): which damped coordinates are stiff at this step (ws_ at s.q's factors);
-  // returns whether the set changed. The others stay in the stages as efforts. The set
-  // found is held in s.damping_hold for the next steps where no coordinate was near the
-  // bound (kHold* in joint_damping.cpp).
-  bool classifyDamping(const System& sys, State& s, double h);
-  // For classifyDamping, at ws_'s articulated factors (q0): the columns of M^-1 of the
-  // candidates (damp_candidates_) at the damped coordinates, and with closures
-  // (M^-1 G^T) and W = (M^-1 G^T) (G M^-1 G^T)^+ there (damp_Yd_, damp_W_).
-  void dampedInverseMass();
-  // The stiff ones after the stages: implicit Euler in the metric M + h C (Lie splitting).
-  void implicitDamping(const System& sys, State& s, double h);
   // Sets s.friction to 0; returns whether any joint has Coulomb friction.
   bool clearFriction(const System& sys, State& s) const;
   // s.friction for the step h (Stepper::frictionFor's rule, coulombFriction) from s.qdot and
@@ -152,58 +122,9 @@ class JointStepper final : public FormulationStepper {
   SolverStats stats_;
   Eigen::VectorXd tau_, q0_, v0_, qs_, vs_, kq_[Tableau::kMaxStages], kv_[Tableau::kMaxStages], sum_q_, sum_v_;
   Inputs loads_;  // the inputs plus the springs' body loads
-  struct Damped {
-    int j = 0, k = 0, iv = 0;  // joint, its coordinate, q_dot's index
-    double c = 0.0;
-    // A revolute joint's angle: its rows on the two bodies are the axis in each body's
-    // frame, so classifyDamping's filter and bound do not change with the configuration:
-    // kept in `bound` and `beta` once computed (-1: not yet).
-    bool revolute = false;
-    double bound = -1.0;
-    double beta = -1.0;  // coordinateInverseMassBound
-  };
-  std::vector<Damped> damped_;  // every damped tree coordinate
-  // per damped_ entry: the links of its path to the root (its own first) and their velocity
-  // coordinates; per velocity coordinate its link and its damped_ entry (-1: none)
-  std::vector<std::vector<int>> damp_path_, damp_path_v_;
-  std::vector<int> link_of_v_, damp_index_of_v_;
-  // per damped_ entry k, the entries l whose paths share coordinates with k's (their common
-  // ancestors': the tail of l's path), from damp_shared_first_[k] on: l and where in
-  // damp_path_v_[l] the shared ones begin
-  struct Shared {
-    int l = 0, from = 0;
-  };
-  std::vector<Shared> damp_shared_;
-  std::vector<int> damp_shared_first_;
-  Eigen::MatrixXd damp_Zd_, damp_Xd_;  // L^-T e_l and D^-1 L^-T e_l per damped_ entry l
-  Eigen::MatrixXd damp_Minv_;          // (M^-1)_Dk, column a for damped_ entry damp_need_[a]
-  Eigen::MatrixXd damp_Yd_, damp_W_;   // (M^-1 G^T)_D and W (damped x closure rows)
-  std::vector<int> damp_W_lo_, damp_W_hi_;  // per used closure row: W's column is zero off [lo, hi)
-  std::vector<int> damp_used_;         // closure rows whose column of damp_Yd_ is not zero
-  std::vector<int> damp_candidates_;   // damped_ entries whose P column is needed
-  std::vector<int> damp_need_;         // ... and those closure rows need
-  std::vector<int> damp_column_of_;    // per damped_ entry: its column of damp_Minv_, or -1
-  std::vector<char> damp_direct_;      // per closure row: on damped coordinates only
-  std::vector<int> damp_nz_, damp_nz_first_;  // per closure row: its nonzero entries' coordinates
-  std::vector<char> damp_touched_;     // per damped_ entry: its row of damp_Yd_ is not zero
-  Eigen::VectorXd damp_col_, damp_rc_, damp_x_;  // P e_k; sqrt(c) per damped_ entry; scratch
-  std::vector<double> damp_filter_, damp_rcb_;   // per damped_ entry, this step: the filter, sqrt(c beta)
-  std::vector<BodyInverse> body_inverse_;        // per System body (the bound's)
-  AlignedVector<Vector6d> damp_p_;     // the inward passes' forces
-  std::vector<char> damp_mark_;        // per link: on a closure row's paths
-  std::vector<int> damp_links_;        // those links, children before parents
-  std::vector<int> cut_damped_;  // cut joints with damping (efforts: accelerations())
+  JointDamping damping_;  // (after model_, ws_ and closures_, which it reads)
+  Eigen::VectorXd fric_r_, fric_mu_;  // G P e_k and its closure solve (frictionFor)
   std::vector<int> cut_constraints_;  // the cut joints' System constraints (their tracked angles)
-  std::vector<char> stiff_;     // per damped_: integrated implicitly (classifyDamping)
-  std::vector<int> stiff_list_;  // indices into damped_ of the stiff ones
-  Eigen::MatrixXd damp_Y_;       // M^-1 e_iv per damped_ entry: of the stiff ones at the stages' end
-  Eigen::MatrixXd damp_K_;       // C^-1 / h + E^T M^-1 E over the stiff ones, and its Cholesky factor
-  Eigen::VectorXd damp_e_, damp_z_, damp_du_, damp_zero_, damp_qdd_, damp_tau_;
-  AlignedVector<Vector6d> damp_v_, damp_f_;  // bodies' velocities and momenta (implicitDamping)
-  Eigen::VectorXd damp_w_, damp_c_, damp_r_, damp_mu_;  // with closures (implicitDamping)
-  Eigen::MatrixXd damp_Z_, damp_AW_;
-  ScaledLeastNorm damp_least_norm_;  // of G W^-1 G^T
-  std::vector<Row> damp_rows_;   // Joint::coordinates of a damped joint (the bound)
   // s.qddot is q_ddot at (q_end_, v_end_) under the current inputs: stage 1 of the next step
   bool fresh_ = false;
   Eigen::VectorXd q_end_, v_end_;

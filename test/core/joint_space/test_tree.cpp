@@ -482,7 +482,7 @@ TEST(JointSpace, CompositeInertiaAndItsFactorizationMatchTheRecursions) {
               worst_solve);
 }
 
-// coordinateInverseMassBound (JointStepper::classifyDamping's test 1) against the exact
+// coordinateInverseMassBound (JointDamping::classify's test 1) against the exact
 // inverse inertia: on random trees of every joint type (one floating), in metres and
 // millimetres, at random states, beta_k >= (H^-1)_kk for every joint coordinate (H by the
 // composite-rigid-body algorithm); for revolute joints beta_k is the same at every state
