@@ -17,6 +17,7 @@
 #include <string>
 
 #include "bodies.h"
+#include "coordinate_cases.h"
 #include "fd_util.h"
 #include "mechanism_sim/core/model/couplers.h"
 #include "mechanism_sim/core/models.h"
@@ -24,23 +25,10 @@
 namespace mechanism_sim {
 namespace {
 
-Matrix3d rotZ(double x) { return Eigen::AngleAxisd(x, Vector3d::UnitZ()).toRotationMatrix(); }
-
-// Joint types whose coordinates are positions (a coupler or a limit takes those), the
-// relative motion coordinate k alone makes (the others zero): a rotation about frame i's z
-// or a translation along one of its axes.
-struct CoordinateCase {
-  const char* type;
-  int dof;
-  bool (*rotation)(int k);
-  int axis[3];  // the frame axis each coordinate turns about or slides along
-};
-const CoordinateCase kCases[] = {
-    {"revolute", 1, [](int) { return true; }, {2, 0, 0}},
-    {"prismatic", 1, [](int) { return false; }, {2, 0, 0}},
-    {"cylindrical", 2, [](int k) { return k == 0; }, {2, 2, 0}},
-    {"planar", 3, [](int k) { return k == 2; }, {0, 1, 2}},
-};
+using test_util::CoordinateCase;
+using test_util::placeJ;
+using test_util::rotZ;
+const auto& kCases = test_util::kCoordinateCases;
 
 std::unique_ptr<Joint> randomJoint(const CoordinateCase& c, const std::string& name, int bi, int bj,
                                    std::mt19937& rng) {
@@ -50,18 +38,6 @@ std::unique_ptr<Joint> randomJoint(const CoordinateCase& c, const std::string& n
   fi.Rp = test::randomRotation(rng);
   fj.Rp = test::randomRotation(rng);
   return makeJoint(c.type, name, bi, fi, bj, fj);
-}
-
-// Body j placed where coordinate k of the joint reads q (its other coordinates zero).
-BodyKin placeJ(const Joint& joint, const CoordinateCase& c, int k, double q, const BodyKin& ki, BodyKin kj) {
-  Matrix3d R = Matrix3d::Identity();
-  Vector3d t = Vector3d::Zero();
-  if (c.rotation(k)) R = rotZ(q);
-  else t(c.axis[k]) = q;
-  const JointFrame &fi = joint.frameI(), &fj = joint.frameJ();
-  kj.A_Oi = ki.A_Oi * fi.Rp * R * fj.Rp.transpose();
-  kj.r = ki.r + ki.A_Oi * (fi.sp_B + fi.Rp * t) - kj.A_Oi * fj.sp_B;
-  return kj;
 }
 
 // Two joints and a coupler on them, with the bodies' states in the coupler's slot order.

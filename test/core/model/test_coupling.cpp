@@ -17,6 +17,7 @@
 #include <string>
 
 #include "bodies.h"
+#include "coordinate_cases.h"
 #include "fd_util.h"
 #include "mechanism_sim/core/model/coupling.h"
 #include "mechanism_sim/core/models.h"
@@ -24,33 +25,10 @@
 namespace mechanism_sim {
 namespace {
 
-Matrix3d rotZ(double x) { return Eigen::AngleAxisd(x, Vector3d::UnitZ()).toRotationMatrix(); }
-
-// Joint types whose coordinates are positions, the relative motion coordinate k alone makes
-// (the others zero): a rotation about frame i's z or a translation along one of its axes.
-struct CoordinateCase {
-  const char* type;
-  int dof;
-  bool (*rotation)(int k);
-  int axis[3];
-};
-const CoordinateCase kCases[] = {
-    {"revolute", 1, [](int) { return true; }, {2, 0, 0}},
-    {"prismatic", 1, [](int) { return false; }, {2, 0, 0}},
-    {"cylindrical", 2, [](int k) { return k == 0; }, {2, 2, 0}},
-    {"planar", 3, [](int k) { return k == 2; }, {0, 1, 2}},
-};
-
-BodyKin placeJ(const Joint& joint, const CoordinateCase& c, int k, double q, const BodyKin& ki, BodyKin kj) {
-  Matrix3d R = Matrix3d::Identity();
-  Vector3d t = Vector3d::Zero();
-  if (c.rotation(k)) R = rotZ(q);
-  else t(c.axis[k]) = q;
-  const JointFrame &fi = joint.frameI(), &fj = joint.frameJ();
-  kj.A_Oi = ki.A_Oi * fi.Rp * R * fj.Rp.transpose();
-  kj.r = ki.r + ki.A_Oi * (fi.sp_B + fi.Rp * t) - kj.A_Oi * fj.sp_B;
-  return kj;
-}
+using test_util::CoordinateCase;
+using test_util::placeJ;
+using test_util::rotZ;
+const auto& kCases = test_util::kCoordinateCases;
 
 // Three joints on bodies (1, 2), (3, 4), (5, 6), or sharing bodies along a chain (1, 2),
 // (2, 3), (3, 4); a coupling of one coordinate of each, the poses built from known q_i.
