@@ -137,6 +137,7 @@ RUNS = [
      dict(drives={"crank_joint": 5}, integrator="rk3")),
     (XACRO, ["length:=0.45", "tip_mass:=0.8"], dict(args={"length": 0.45, "tip_mass": "0.8"})),
     (PENDULUM, ["--formulation", "joint"], dict(formulation="joint")),
+    (PLANETARY, [], {}),
 ]
 
 
@@ -157,7 +158,8 @@ def csv_row(m):
     return mine
 
 
-@pytest.mark.parametrize("path,options,kwargs", RUNS, ids=["set-velocity-effort", "drive-rk3", "xacro-args", "joint-formulation"])
+@pytest.mark.parametrize("path,options,kwargs", RUNS,
+                         ids=["set-velocity-effort", "drive-rk3", "xacro-args", "joint-formulation", "couplings"])
 def test_a_run_prints_what_simulate_prints(tmp_path, path, options, kwargs):
     out = tmp_path / "run.csv"
     simulate(path, *options, "--duration", "0.4", "--dt", "1e-3", "--reactions", "--csv", str(out))
