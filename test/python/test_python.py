@@ -184,22 +184,15 @@ def test_a_run_prints_what_simulate_prints(tmp_path, path, options, kwargs):
     assert steady(m.summary()) == steady(run.stderr)
 
 
-def test_the_planetary_trains_coupling_reactions_are_simulates(tmp_path):
+def test_the_planetary_trains_willis_multiplier_carries_the_carriers_load():
     # ring held, sun at 10 rad/s: the carrier at 2.5 rad/s against 0.05 N m s/rad, a load of
-    # 0.125 N m it receives as -c_carrier lambda = 96 lambda through Willis' equation
-    out = tmp_path / "run.csv"
-    simulate(PLANETARY, "--duration", "0.4", "--dt", "1e-3", "--reactions", "--csv", str(out))
-    header, last = csv_values(out)
+    # 0.125 N m it receives as -c_carrier lambda = 96 lambda through Willis' equation (the
+    # run's CSV columns: test_a_run_prints_what_simulate_prints[couplings])
     m = mechanism_sim.load(PLANETARY)
     m.advance(0.4, 1e-3)
     r = m.reactions()
     assert r["couplings"] == ["willis", "sun_planet0", "sun_planet1", "sun_planet2"]
     assert r["coupling"][0] == pytest.approx(0.125 / 96, rel=1e-6)
-    mine = csv_row(m)
-    assert sorted(mine) == sorted(header)
-    # the CSV's 12 significant digits, character for character: the same steps, the same bits
-    for name, text in zip(header, last):
-        assert "%.12g" % mine[name] == text, name
 
 
 # A pinion (20 teeth, 1e-3 kg m^2) in mesh with a wheel (40 teeth, 4e-3 kg m^2), both about
