@@ -127,7 +127,7 @@ def run(model, values, settings):
     """One run, in the worker's process: the row's results (status, violations, peaks).
 
     As simulate: load with the values, then steps of dt in samples of output_every steps,
-    the reactions read at t = 0, at every sample and at the end; the largest violations and
+    the reactions (joints' and couplings') read at t = 0, at every sample and at the end; the largest violations and
     the drives' peak efforts at every step."""
     import numpy as np
 
@@ -139,12 +139,14 @@ def run(model, values, settings):
         m = mechanism_sim.load(model, integrator=settings["integrator"], closures=settings["closures"],
                                formulation=settings["formulation"], actuators=settings.get("actuators"),
                                **load_kwargs(values))
-        peak = {}
+        peak, peak_coupling = {}, {}
 
         def sample():
             r = m.reactions()
             for joint, f in zip(r["joints"], np.linalg.norm(r["force"], axis=1)):
                 peak[joint] = max(peak.get(joint, 0.0), float(f))
+            for name, lam in zip(r["couplings"], r["coupling"]):
+                peak_coupling[name] = max(peak_coupling.get(name, 0.0), abs(float(lam)))
 
         sample()
         steps = round(settings["duration"] / settings["dt"])
@@ -156,6 +158,8 @@ def run(model, values, settings):
         finally:
             for joint, f in peak.items():
                 row[f"{joint}.peak_reaction"] = f
+            for name, lam in peak_coupling.items():
+                row[f"{name}.peak_coupling_reaction"] = lam
     except mechanism_sim.Error as e:
         row["status"], row["message"] = type(e).__name__, str(e)
     if m is not None:
@@ -193,6 +197,7 @@ def result_columns(model, values, settings):
         return list(RESULT_PREFIX) + ["message"]
     return (list(RESULT_PREFIX) + [f"{d}.peak_effort" for d in m.driven_dofs()] +
             [f"{j}.peak_reaction" for j in m.reaction_joints()] +
+            [f"{c}.peak_coupling_reaction" for c in m.reaction_couplings()] +
             [f"{a}.{c}" for a in m.actuator_names() for c in ACTUATOR_COLUMNS] + ["message"])
 
 

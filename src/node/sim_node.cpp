@@ -87,6 +87,7 @@ bool SimNode::init() {
   actuator_command_.assign(model_->actuators().size(), 0.0);
   violation_ = pnh_.advertise<geometry_msgs::Vector3Stamped>("constraint_violation", 10);
   reactions_ = pnh_.advertise<JointReactions>("joint_reactions", 10);
+  coupling_reactions_ = pnh_.advertise<sensor_msgs::JointState>("coupling_reactions", 10);
   markers_ = std::make_unique<ConstraintMarkers>(pnh_, *model_, params_.reaction_arrow_scale);
   if (params_.publish_clock) clock_ = nh_.advertise<rosgraph_msgs::Clock>("/clock", 10);
   effort_ = pnh_.subscribe("effort_command", 10, &SimNode::onEffort, this);
@@ -219,6 +220,14 @@ void SimNode::publish(bool paused) {
     r.wrench.push_back(w);
   }
   reactions_.publish(r);
+  if (!model_->couplings().empty()) {
+    // by coupling: its multiplier lambda as the effort (coordinate i carries -c_i lambda)
+    sensor_msgs::JointState c;
+    c.header = v.header;
+    for (const CouplingInfo& ci : model_->couplings()) c.name.push_back(ci.name);
+    c.effort = s.coupling_reactions;
+    coupling_reactions_.publish(c);
+  }
   markers_->publish(s, v.header);
 
   if (params_.publish_clock) {

@@ -84,7 +84,7 @@ class SimNode {
   ros::Time last_stamp_{0};   // the last stamp published (under mutex_)
   ros::Time last_tf_stamp_{ros::TIME_MAX};  // of the last tf sent (TIME_MAX: none yet)
   std::vector<std::pair<int, int>> tree_links_;  // (parent, child) link of each tree joint
-  ros::Publisher joint_states_, actuator_states_, clock_, violation_, reactions_;
+  ros::Publisher joint_states_, actuator_states_, clock_, violation_, reactions_, coupling_reactions_;
   ros::Subscriber effort_, actuator_effort_, drive_, trajectory_;
   // The torque last commanded on each actuator (~actuator_effort_command; under mutex_): a
   // transmission's joint efforts follow from all its actuators' torques.

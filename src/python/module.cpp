@@ -218,6 +218,11 @@ PYBIND11_MODULE(_mechanism_sim, m) {
         for (const JointReaction& r : s.model().jointReactions()) n.push_back(r.joint);
         return n;
       }, "The joints reactions() reports, in its order.")
+      .def("reaction_couplings", [](const Simulation& s) {
+        std::vector<std::string> n;
+        for (const CouplingInfo& c : s.model().couplings()) n.push_back(c.name);
+        return n;
+      }, "The <mechanism_sim:coupling>s reactions() reports, in its order.")
       .def("num_equations", [](const Simulation& s) { return s.model().numEquations(); })
       .def("dependencies", [](const Simulation& s) { return s.model().dependencies().describe(); })
       .def("formulation", [](const Simulation& s) { return std::string(s.model().mechanism().formulation()); },
@@ -257,11 +262,16 @@ PYBIND11_MODULE(_mechanism_sim, m) {
           names.push_back(r[j].joint);
           for (int c = 0; c < 3; ++c) fw(j, c) = r[j].force[c], tw(j, c) = r[j].torque[c];
         }
+        const std::vector<double> lambda = s.model().couplingReactions();
+        std::vector<std::string> couplings;
+        for (const CouplingInfo& c : s.model().couplings()) couplings.push_back(c.name);
         py::dict d;
         d["joints"] = names, d["force"] = f, d["torque"] = t;
+        d["couplings"] = couplings, d["coupling"] = array(lambda);
         return d;
-      }, "{'joints': names, 'force': (n, 3), 'torque': (n, 3)}: what each joint exerts on its child link, "
-         "in the joint frame on the child (simulate --reactions).")
+      }, "{'joints': names, 'force': (n, 3), 'torque': (n, 3), 'couplings': names, 'coupling': (m,)}: what "
+         "each joint exerts on its child link, in the joint frame on the child, and each coupling's "
+         "multiplier lambda (coordinate i carries -c_i lambda) (simulate --reactions).")
       .def("link_pose", [](const Simulation& s, const std::string& link) {
         const int l = s.model().linkIndex(link);
         if (l < 0) throw std::invalid_argument(s.path() + ": no link '" + link + "'");

@@ -25,14 +25,19 @@ void Simulation::restartRecord() {
     if (model_->dofs()[d].drive >= 0) peaks_.push_back(DrivePeak{static_cast<int>(d), 0.0, model_->time()});
   sizing_.clear();
   for (const Actuator& a : model_->actuators()) sizing_.emplace_back(a.name, a.ratings);
-  track();
+  trackPeaks();
 }
 
-// As RunLoop::advance and trackPeaks, after every step: the equations a step can leave
-// violated (every one at the state now: worstPositionViolation(), as RunLoop's).
+// As RunLoop::advance, after every step: the equations a step can leave violated (every one
+// at the state now: worstPositionViolation(), as RunLoop's), then the peaks.
 void Simulation::track() {
   worst_position_ = std::max(worst_position_, model_->stepPositionViolation());
   worst_velocity_ = std::max(worst_velocity_, model_->stepVelocityViolation());
+  trackPeaks();
+}
+
+// As RunLoop::trackPeaks: the drives' peak efforts and the actuators' sizing.
+void Simulation::trackPeaks() {
   for (DrivePeak& p : peaks_) {
     const double e = model_->effort(p.dof);
     if (std::fabs(e) > std::fabs(p.effort)) p.effort = e, p.time = model_->time();

@@ -75,6 +75,7 @@ class Simulation {
  private:
   void restartRecord();
   void track();
+  void trackPeaks();
   std::vector<CoordinateTarget> targets(const std::vector<std::pair<std::string, double>>& values,
                                         const std::string& what) const;
 

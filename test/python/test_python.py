@@ -22,6 +22,7 @@ PENDULUM = os.path.join(SOURCE, "test/urdf/pendulum_point_mass.urdf")
 FOUR_BAR = os.path.join(SOURCE, "urdf/four_bar.urdf")
 FOUR_BAR_DRIVEN = os.path.join(SOURCE, "urdf/four_bar_driven.urdf")
 XACRO = os.path.join(SOURCE, "test/xacro/robot.urdf.xacro")
+PLANETARY = os.path.join(SOURCE, "urdf/planetary_gear.urdf")
 
 
 def simulate(*args, check=True):
@@ -136,17 +137,12 @@ RUNS = [
      dict(drives={"crank_joint": 5}, integrator="rk3")),
     (XACRO, ["length:=0.45", "tip_mass:=0.8"], dict(args={"length": 0.45, "tip_mass": "0.8"})),
     (PENDULUM, ["--formulation", "joint"], dict(formulation="joint")),
+    (PLANETARY, [], {}),
 ]
 
 
-@pytest.mark.parametrize("path,options,kwargs", RUNS, ids=["set-velocity-effort", "drive-rk3", "xacro-args", "joint-formulation"])
-def test_a_run_prints_what_simulate_prints(tmp_path, path, options, kwargs):
-    out = tmp_path / "run.csv"
-    simulate(path, *options, "--duration", "0.4", "--dt", "1e-3", "--reactions", "--csv", str(out))
-    header, last = csv_values(out)
-
-    m = mechanism_sim.load(path, **kwargs)
-    m.advance(0.4, 1e-3)
+def csv_row(m):
+    """The model's state now as simulate --reactions' CSV columns."""
     mine = {"time": m.time()}
     for name, p, v, e in zip(m.dof_names(), m.positions(), m.velocities(), m.efforts()):
         mine[name + ".position"], mine[name + ".velocity"], mine[name + ".effort"] = p, v, e
@@ -156,6 +152,22 @@ def test_a_run_prints_what_simulate_prints(tmp_path, path, options, kwargs):
     for j, joint in enumerate(r["joints"]):
         for c, comp in enumerate("xyz"):
             mine[f"{joint}.f{comp}"], mine[f"{joint}.t{comp}"] = r["force"][j, c], r["torque"][j, c]
+    assert r["couplings"] == m.reaction_couplings() and len(r["coupling"]) == len(r["couplings"])
+    for name, lam in zip(r["couplings"], r["coupling"]):
+        mine[f"{name}.reaction"] = lam
+    return mine
+
+
+@pytest.mark.parametrize("path,options,kwargs", RUNS,
+                         ids=["set-velocity-effort", "drive-rk3", "xacro-args", "joint-formulation", "couplings"])
+def test_a_run_prints_what_simulate_prints(tmp_path, path, options, kwargs):
+    out = tmp_path / "run.csv"
+    simulate(path, *options, "--duration", "0.4", "--dt", "1e-3", "--reactions", "--csv", str(out))
+    header, last = csv_values(out)
+
+    m = mechanism_sim.load(path, **kwargs)
+    m.advance(0.4, 1e-3)
+    mine = csv_row(m)
     assert sorted(mine) == sorted(header)
     # the CSV's 12 significant digits, character for character: the same steps, the same bits
     for name, text in zip(header, last):
@@ -170,6 +182,56 @@ def test_a_run_prints_what_simulate_prints(tmp_path, path, options, kwargs):
     def steady(text):
         return re.sub(r"in [0-9.]+ s wall \(real-time factor [0-9.inf]+\)", "in W s wall", text)
     assert steady(m.summary()) == steady(run.stderr)
+
+
+def test_the_planetary_trains_willis_multiplier_carries_the_carriers_load():
+    # ring held, sun at 10 rad/s: the carrier at 2.5 rad/s against 0.05 N m s/rad, a load of
+    # 0.125 N m it receives as -c_carrier lambda = 96 lambda through Willis' equation (the
+    # run's CSV columns: test_a_run_prints_what_simulate_prints[couplings])
+    m = mechanism_sim.load(PLANETARY)
+    m.advance(0.4, 1e-3)
+    r = m.reactions()
+    assert r["couplings"] == ["willis", "sun_planet0", "sun_planet1", "sun_planet2"]
+    assert r["coupling"][0] == pytest.approx(0.125 / 96, rel=1e-6)
+
+
+# A pinion (20 teeth, 1e-3 kg m^2) in mesh with a wheel (40 teeth, 4e-3 kg m^2), both about
+# vertical axes: 20 q_pinion + 40 q_wheel = 0.
+GEAR_PAIR = """<?xml version="1.0"?>
+<robot name="gear_pair" xmlns:mechanism_sim="https://mechanism-sim.github.io/urdf-extension">
+  <link name="base"/>
+  <link name="pinion">
+    <inertial><mass value="0.1"/><inertia ixx="5e-4" iyy="5e-4" izz="1e-3" ixy="0" ixz="0" iyz="0"/></inertial>
+  </link>
+  <link name="wheel">
+    <inertial><mass value="0.4"/><inertia ixx="2e-3" iyy="2e-3" izz="4e-3" ixy="0" ixz="0" iyz="0"/></inertial>
+  </link>
+  <joint name="pinion_joint" type="continuous">
+    <parent link="base"/><child link="pinion"/><origin xyz="0 0 0.1"/><axis xyz="0 0 1"/>
+  </joint>
+  <joint name="wheel_joint" type="continuous">
+    <parent link="base"/><child link="wheel"/><origin xyz="0.06 0 0.1"/><axis xyz="0 0 1"/>
+  </joint>
+  <mechanism_sim:coupling name="mesh">
+    <joint name="pinion_joint" coefficient="20"/>
+    <joint name="wheel_joint" coefficient="40"/>
+  </mechanism_sim:coupling>
+</robot>
+"""
+
+
+@pytest.mark.parametrize("formulation", ["absolute", "joint"])
+def test_a_gear_pairs_multiplier_is_the_mesh_torque_that_accelerates_the_wheel(formulation):
+    # 0.02 N m on the pinion: a = 0.02 / (I_p + I_w (20/40)^2) = 10 rad/s^2 on the pinion,
+    # -5 on the wheel; the wheel receives -40 lambda = I_w (-5) = -0.02 N m, so
+    # lambda = 5e-4 N m per tooth, and the pinion -20 lambda = -0.01 N m (its 0.02 less I_p a)
+    m = mechanism_sim.load_string(GEAR_PAIR, efforts={"pinion_joint": 0.02}, formulation=formulation)
+    m.advance(0.1, 1e-3)
+    r = m.reactions()
+    assert r["couplings"] == ["mesh"] == m.reaction_couplings()
+    assert r["coupling"][0] == pytest.approx(5e-4, rel=1e-9)
+    assert m.accelerations() == pytest.approx([10, -5], rel=1e-9)
+    assert m.velocities() == pytest.approx([1, -0.5], rel=1e-9)
 
 
 GEARED = os.path.join(SOURCE, "test/urdf/geared_pendulum.urdf.xacro")

@@ -66,6 +66,8 @@ def simulate_row(model, row, keys, options):
             joint = name[:-3]
             f = np.sqrt(col[joint + ".fx"] ** 2 + col[joint + ".fy"] ** 2 + col[joint + ".fz"] ** 2)
             result[joint + ".peak_reaction"] = f.max()
+        elif name.endswith(".reaction"):  # a coupling's multiplier
+            result[name[:-len(".reaction")] + ".peak_coupling_reaction"] = np.abs(col[name]).max()
     for line in out.stderr.splitlines():  # the driven dofs, from the summary's "drive 'X'"
         for part in line.split("; drive '")[1:]:
             dof = part.split("'")[0]
@@ -262,6 +264,24 @@ def test_a_reduction_sweep_finds_the_smallest_ratio_the_motor_is_enough_for(tmp_
     assert smallest == 47
     png = tmp_path / "reduction.arg_reduction.png"
     assert png.stat().st_size > 10000
+
+
+def test_a_planetary_sweep_carries_each_couplings_peak_reaction(tmp_path):
+    # urdf/planetary_gear.urdf, the sun driven at w: the carrier turns at w / 4 against
+    # 0.05 N m s/rad, a load Willis' equation carries as 96 lambda, lambda = 0.05 w / 384
+    planetary = os.path.join(SOURCE, "urdf/planetary_gear.urdf")
+    out = tmp_path / "planetary.csv"
+    keys = ["drive:sun_joint"]
+    options = ["--duration", "0.2", "--dt", "1e-3", "--output-every", "1"]
+    sw = sweep(planetary, "--vary", "drive:sun_joint=4,10", "--workers", "1", "--out", str(out), "--", *options)
+    _, stderr = sw.communicate(timeout=120)
+    assert sw.returncode == 0, stderr
+    rows = read_rows(out)
+    assert len(rows) == 2
+    for r in rows:
+        w = float(r["drive:sun_joint"])
+        assert float(r["willis.peak_coupling_reaction"]) == pytest.approx(0.05 * w / 384, rel=1e-6), r
+    assert_rows_equal_simulate(planetary, rows, keys, options)
 
 
 def test_bad_arguments_stop_before_running(tmp_path):
