@@ -61,13 +61,13 @@
 
 namespace mechanism_sim {
 
-// Closure c's rows that are not round-off (p_rows_), the columns that move its bodies
-// relative to each other (p_cols_), and its term-normalized rows W (p_W_, scales p_dr_).
+// Closure c's rows that are not round-off (passage_.rows), the columns that move its bodies
+// relative to each other (passage_.cols), and its term-normalized rows W (passage_.W, scales passage_.dr).
 // false: no such rows or columns.
 bool LoopClosures::closureRows(size_t c) {
   const int n = nrows_[c], r0 = row[c];
-  p_rows_.clear();
-  p_cols_.clear();
+  passage_.rows.clear();
+  passage_.cols.clear();
   // An entry is used where it is not round-off against its terms (roundoffRow's test). The
   // closure's rows are those with a used entry; its columns, those that move its bodies
   // relative to each other, are those with a used entry in one of those rows, i.e. in any
@@ -78,11 +78,11 @@ bool LoopClosures::closureRows(size_t c) {
   // closure's rows adjacent).
   if (n > 32) {  // (more rows than the mask holds: row by row)
     for (int e = r0; e < r0 + n; ++e)
-      if (!roundoffRow(e)) p_rows_.push_back(e);
+      if (!roundoffRow(e)) passage_.rows.push_back(e);
     for (int k : ccols_[c]) {
       bool used = false;
-      for (int e : p_rows_) used = used || std::fabs(G(e, k)) > kClosureZeroEntry * Gabs(e, k);
-      if (used) p_cols_.push_back(k);
+      for (int e : passage_.rows) used = used || std::fabs(G(e, k)) > kClosureZeroEntry * Gabs(e, k);
+      if (used) passage_.cols.push_back(k);
     }
   } else if (n == 2) {  // (a planar loop's two rows: both tests of a column at once)
     const Eigen::Index ld = G.rows();
@@ -92,11 +92,11 @@ bool LoopClosures::closureRows(size_t c) {
     for (int k : ccols_[c]) {
       const unsigned used = (std::fabs(g[k * ld]) > kClosureZeroEntry * a[k * ld] ? 1u : 0u) |
                             (std::fabs(g[k * ld + 1]) > kClosureZeroEntry * a[k * ld + 1] ? 2u : 0u);
-      if (used) p_cols_.push_back(k);
+      if (used) passage_.cols.push_back(k);
       rows_used |= used;
     }
-    if (rows_used & 1u) p_rows_.push_back(r0);
-    if (rows_used & 2u) p_rows_.push_back(r0 + 1);
+    if (rows_used & 1u) passage_.rows.push_back(r0);
+    if (rows_used & 2u) passage_.rows.push_back(r0 + 1);
   } else {
     const Eigen::Index ld = G.rows();
     unsigned rows_used = 0;
@@ -105,22 +105,22 @@ bool LoopClosures::closureRows(size_t c) {
       const double* a = Gabs.data() + k * ld + r0;
       unsigned used = 0;
       for (int e = 0; e < n; ++e) used |= std::fabs(g[e]) > kClosureZeroEntry * a[e] ? 1u << e : 0u;
-      if (used) p_cols_.push_back(k);
+      if (used) passage_.cols.push_back(k);
       rows_used |= used;
     }
     for (int e = 0; e < n; ++e)
-      if (rows_used >> e & 1u) p_rows_.push_back(r0 + e);
+      if (rows_used >> e & 1u) passage_.rows.push_back(r0 + e);
   }
-  const int kr = static_cast<int>(p_rows_.size()), kc = static_cast<int>(p_cols_.size());
+  const int kr = static_cast<int>(passage_.rows.size()), kc = static_cast<int>(passage_.cols.size());
   if (kr == 0 || kc == 0) return false;
-  p_W_.resize(kr, kc);
-  p_dr_.resize(kr);
+  passage_.W.resize(kr, kc);
+  passage_.dr.resize(kr);
   const Eigen::Index ld = G.rows();
-  const int* cols = p_cols_.data();
+  const int* cols = passage_.cols.data();
   const double* unit = unit_.data();
-  double* W = p_W_.data();  // (column-major, kr rows)
+  double* W = passage_.W.data();  // (column-major, kr rows)
   for (int i = 0; i < kr; ++i) {
-    const int e = p_rows_[i];
+    const int e = passage_.rows[i];
     const double* gb = Gbound.data() + e;
     const double* g = G.data() + e;
     double n2 = 0.0;
@@ -129,7 +129,7 @@ bool LoopClosures::closureRows(size_t c) {
       n2 += b * b;
     }
     const double dr = 1.0 / std::sqrt(n2);
-    p_dr_(i) = dr;
+    passage_.dr(i) = dr;
     for (int j = 0; j < kc; ++j) W[j * kr + i] = g[cols[j] * ld] / unit[cols[j]] * dr;
   }
   return true;
@@ -152,34 +152,34 @@ bool passageGateTwoRows(const Eigen::Ref<const Eigen::MatrixXd>& W, double shift
 bool LoopClosures::findPassage() {
   // (G, Gabs, Gbound and passage_hold as at the last call: its results stand)
   // (the rates matter to the held directions only: where none was held, any rates' results)
-  const bool same_rate = p_band_ == 0 || (passage_rate ? p_rate_set_ && p_rate_ == *passage_rate : !p_rate_set_);
-  if (p_at_g_ == g_gen_ && p_at_hold_ == passage_hold && same_rate) {
-    if (p_band_ > 0) ++p_met_;
-    return p_reduce_;
+  const bool same_rate = passage_.band == 0 || (passage_rate ? passage_.rate_set && passage_.rate == *passage_rate : !passage_.rate_set);
+  if (passage_.at_g == g_gen_ && passage_.at_hold == passage_hold && same_rate) {
+    if (passage_.band > 0) ++passage_.met;
+    return passage_.reduce;
   }
-  p_at_g_ = g_gen_, p_at_hold_ = passage_hold;
-  p_rate_set_ = passage_rate != nullptr;
-  if (p_rate_set_) p_rate_ = *passage_rate;
-  ++p_gen_;
+  passage_.at_g = g_gen_, passage_.at_hold = passage_hold;
+  passage_.rate_set = passage_rate != nullptr;
+  if (passage_.rate_set) passage_.rate = *passage_rate;
+  ++passage_.gen;
   return findPassageNow();
 }
 
 bool LoopClosures::findPassageNow() {
-  p_band_ = p_excl_ = 0;
-  p_near_ = false;
-  p_r_ = 0;
-  bool& reduce = p_reduce_;
+  passage_.band = passage_.excl = 0;
+  passage_.near = false;
+  passage_.r = 0;
+  bool& reduce = passage_.reduce;
   reduce = false;
   if (m == 0) return false;
-  if (p_P_.rows() != m || p_P_.cols() != m) {
-    p_P_.setZero(m, m), p_R_.setZero(m, nv), p_w_.setZero(m, m), p_z_.setZero(m, m);
-    p_held_.assign(m, 0);
-    p_excl_held_.assign(m, 0);
-    p_b_.setZero(m), p_g_.setZero(m), p_mu_.setZero(m);
-    p_A_.setZero(m, m);
-    p_least_norm_ = ScaledLeastNorm(m);
-    p_rows_.reserve(m), p_cols_.reserve(nv);
-    p_m_.setZero(nv), p_h_.setZero(nv);  // (p_rate_: findPassage() sets it)
+  if (passage_.P.rows() != m || passage_.P.cols() != m) {
+    passage_.P.setZero(m, m), passage_.R.setZero(m, nv), passage_.w.setZero(m, m), passage_.z.setZero(m, m);
+    passage_.held.assign(m, 0);
+    passage_.excl_held.assign(m, 0);
+    passage_.b.setZero(m), passage_.g.setZero(m), passage_.mu.setZero(m);
+    passage_.A.setZero(m, m);
+    passage_.least_norm = ScaledLeastNorm(m);
+    passage_.rows.reserve(m), passage_.cols.reserve(nv);
+    passage_.m.setZero(nv), passage_.h.setZero(nv);  // (passage_.rate: findPassage() sets it)
   }
   // Each closure's rows decomposed on their own (a cut joint's 1 to 6 rows over the columns
   // they touch): the crossing of a loop's branches takes a rank from that loop's rows. (Rows
@@ -187,8 +187,8 @@ bool LoopClosures::findPassageNow() {
   // least-norm solve takes them, as outside a passage.)
   // slot j of closure c: its entries are in c's rows (P) and coordinates (R) only
   auto clearSlot = [&](int j, size_t c, int n) {
-    for (int e = row[c]; e < row[c] + n; ++e) p_P_(j, e) = 0.0;
-    for (int k : ccols_[c]) p_R_(j, k) = 0.0;
+    for (int e = row[c]; e < row[c] + n; ++e) passage_.P(j, e) = 0.0;
+    for (int k : ccols_[c]) passage_.R(j, k) = 0.0;
   };
   // Away from every passage nothing reduces: each closure's smallest singular value is
   // above kPassageGate and it has no dependent rows, i.e. W W^T - kPassageGate^2 I (at most
@@ -203,26 +203,26 @@ bool LoopClosures::findPassageNow() {
     bool clear = true;
     for (size_t c = 0; c < constraints.size() && clear; ++c) {
       if (!closureRows(c)) continue;
-      if (p_W_.rows() > p_W_.cols() || p_W_.rows() > 6) {
+      if (passage_.W.rows() > passage_.W.cols() || passage_.W.rows() > 6) {
         clear = false;
         break;
       }
-      if (p_W_.rows() == 2) {  // (a planar loop's two rows: the same test written out)
-        clear = passageGateTwoRows(p_W_, kPassageGate * kPassageGate + kGateMargin);
+      if (passage_.W.rows() == 2) {  // (a planar loop's two rows: the same test written out)
+        clear = passageGateTwoRows(passage_.W, kPassageGate * kPassageGate + kGateMargin);
         continue;
       }
-      p_gram_.noalias() = p_W_ * p_W_.transpose();
-      p_gram_.diagonal().array() -= kPassageGate * kPassageGate + kGateMargin;
-      p_llt_.compute(p_gram_);
-      clear = p_llt_.info() == Eigen::Success;
+      passage_.gram.noalias() = passage_.W * passage_.W.transpose();
+      passage_.gram.diagonal().array() -= kPassageGate * kPassageGate + kGateMargin;
+      passage_.llt.compute(passage_.gram);
+      clear = passage_.llt.info() == Eigen::Success;
     }
     if (clear) {
       for (size_t c = 0; c < constraints.size(); ++c) {
         const int n = nrows_[c];
-        for (int j = row[c]; j < row[c] + p_used_[c]; ++j) clearSlot(j, c, n);
-        for (int e = row[c]; e < row[c] + n; ++e) p_keep_(e) = 0.0, p_held_[e] = 0;
-        p_used_[c] = 0;
-        p_in_band_[c] = 0;
+        for (int j = row[c]; j < row[c] + passage_.used[c]; ++j) clearSlot(j, c, n);
+        for (int e = row[c]; e < row[c] + n; ++e) passage_.keep(e) = 0.0, passage_.held[e] = 0;
+        passage_.used[c] = 0;
+        passage_.in_band[c] = 0;
       }
       return false;
     }
@@ -231,15 +231,15 @@ bool LoopClosures::findPassageNow() {
   // that R has G's block structure for the sparse solve; unused slots are zero, not kept)
   for (size_t c = 0; c < constraints.size(); ++c) {
     const int n = nrows_[c];
-    const int used_before = p_used_[c];
-    p_used_[c] = 0;
-    for (int e = row[c]; e < row[c] + n; ++e) p_keep_(e) = 0.0, p_held_[e] = 0;
+    const int used_before = passage_.used[c];
+    passage_.used[c] = 0;
+    for (int e = row[c]; e < row[c] + n; ++e) passage_.keep(e) = 0.0, passage_.held[e] = 0;
     if (!closureRows(c)) {
       for (int j = row[c]; j < row[c] + used_before; ++j) clearSlot(j, c, n);
       continue;
     }
-    const int kr = static_cast<int>(p_rows_.size()), kc = static_cast<int>(p_cols_.size());
-    const Eigen::VectorXd& dr = p_dr_;
+    const int kr = static_cast<int>(passage_.rows.size()), kc = static_cast<int>(passage_.cols.size());
+    const Eigen::VectorXd& dr = passage_.dr;
     bool in_band = false;  // a direction of c below kPassageBand (held or released)
     // the directions of the decomposition svd of W
     auto directions = [&](const auto& svd) {
@@ -255,14 +255,14 @@ bool LoopClosures::findPassageNow() {
       // 2-dof closes its loop by a ball: the out-of-plane row is round-off, 1 of 3 rows over
       // 2 columns, and the velocity projection stalled at 0.06 judging it).
       auto exclude = [&](Eigen::Index d, bool held_dir = false) {
-        p_excl_held_[p_excl_] = held_dir;
-        p_w_.row(p_excl_).setZero();
-        p_z_.row(p_excl_).setZero();
+        passage_.excl_held[passage_.excl] = held_dir;
+        passage_.w.row(passage_.excl).setZero();
+        passage_.z.row(passage_.excl).setZero();
         for (int i = 0; i < kr; ++i) {
-          p_w_(p_excl_, p_rows_[i]) = dr(i) * U(i, d);
-          p_z_(p_excl_, p_rows_[i]) = U(i, d) / dr(i);
+          passage_.w(passage_.excl, passage_.rows[i]) = dr(i) * U(i, d);
+          passage_.z(passage_.excl, passage_.rows[i]) = U(i, d) / dr(i);
         }
-        ++p_excl_;
+        ++passage_.excl;
       };
       for (Eigen::Index d = sigma.size(); d < kr; ++d) exclude(d);
       for (Eigen::Index d = 0; d < sigma.size(); ++d) {
@@ -272,33 +272,33 @@ bool LoopClosures::findPassageNow() {
           continue;
         }
         if (s < kPassageGate) reduce = true;
-        const int j = row[c] + p_used_[c]++;
-        ++p_r_;
-        p_keep_(j) = 1.0;
-        const bool held = passage_hold && s < kPassageBand && !p_release_[c];
+        const int j = row[c] + passage_.used[c]++;
+        ++passage_.r;
+        passage_.keep(j) = 1.0;
+        const bool held = passage_hold && s < kPassageBand && !passage_.release[c];
         in_band = in_band || s < kPassageBand;
-        p_near_ = p_near_ || s < kPassageNear;
-        p_held_[j] = held;
+        passage_.near = passage_.near || s < kPassageNear;
+        passage_.held[j] = held;
         // R_j = (1/s) u^T D_r G = (v o unit)^T, P(j, e) = D_r(e) u_e / s
         clearSlot(j, c, n);
-        for (int i = 0; i < kr; ++i) p_P_(j, p_rows_[i]) = dr(i) * U(i, d) / s;
-        for (int q = 0; q < kc; ++q) p_R_(j, p_cols_[q]) = V(q, d) * unit_(p_cols_[q]);
-        if (held && p_rate_set_) {  // across the motion (the header comment)
-          auto mv = p_m_.head(kc);
-          auto hv = p_h_.head(kc);
-          for (int q = 0; q < kc; ++q) mv(q) = p_rate_(p_cols_[q]) * unit_(p_cols_[q]), hv(q) = V(q, d);
+        for (int i = 0; i < kr; ++i) passage_.P(j, passage_.rows[i]) = dr(i) * U(i, d) / s;
+        for (int q = 0; q < kc; ++q) passage_.R(j, passage_.cols[q]) = V(q, d) * unit_(passage_.cols[q]);
+        if (held && passage_.rate_set) {  // across the motion (the header comment)
+          auto mv = passage_.m.head(kc);
+          auto hv = passage_.h.head(kc);
+          for (int q = 0; q < kc; ++q) mv(q) = passage_.rate(passage_.cols[q]) * unit_(passage_.cols[q]), hv(q) = V(q, d);
           const double mn = mv.norm();
           if (mn > 0.0) {
             mv /= mn;
             hv -= mv.dot(hv) * mv;
             const double hn = hv.norm();
             if (hn > 0.0)
-              for (int q = 0; q < kc; ++q) p_R_(j, p_cols_[q]) = hv(q) / hn * unit_(p_cols_[q]);
+              for (int q = 0; q < kc; ++q) passage_.R(j, passage_.cols[q]) = hv(q) / hn * unit_(passage_.cols[q]);
           }
         }
         if (held) {
           exclude(d, true);
-          ++p_band_;
+          ++passage_.band;
         }
       }
     };
@@ -306,42 +306,42 @@ bool LoopClosures::findPassageNow() {
     // Up to 6 x 6, as a cut joint's rows over a planar loop's or a short spatial loop's
     // columns, in fixed-capacity storage: no dynamic-size overhead.)
     if (kr == 2 && kc == 3) {
-      const Eigen::Matrix<double, 2, 3> W = p_W_;
-      p_svd23_.compute(W, Eigen::ComputeFullU | Eigen::ComputeFullV);
-      directions(p_svd23_);
+      const Eigen::Matrix<double, 2, 3> W = passage_.W;
+      passage_.svd23.compute(W, Eigen::ComputeFullU | Eigen::ComputeFullV);
+      directions(passage_.svd23);
     } else if (kr <= 6 && kc <= 6) {
-      p_svd6_.compute(p_W_, Eigen::ComputeFullU | Eigen::ComputeThinV);
-      directions(p_svd6_);
+      passage_.svd6.compute(passage_.W, Eigen::ComputeFullU | Eigen::ComputeThinV);
+      directions(passage_.svd6);
     } else {
-      p_svd_.compute(p_W_, Eigen::ComputeFullU | Eigen::ComputeThinV);
-      directions(p_svd_);
+      passage_.svd.compute(passage_.W, Eigen::ComputeFullU | Eigen::ComputeThinV);
+      directions(passage_.svd);
     }
-    for (int j = row[c] + p_used_[c]; j < row[c] + used_before; ++j) clearSlot(j, c, n);
-    p_in_band_[c] = in_band;
+    for (int j = row[c] + passage_.used[c]; j < row[c] + used_before; ++j) clearSlot(j, c, n);
+    passage_.in_band[c] = in_band;
   }
-  if (p_band_ > 0) ++p_met_;
+  if (passage_.band > 0) ++passage_.met;
   return reduce;
 }
 
 void LoopClosures::passageFactor(const TreeModel& model, const TreeWorkspace& ws) {
   // (R and the articulated factors as at the last call: its factorization stands)
   const long ws_gen = massFactorsGeneration(ws);
-  if (pfac_at_p_ == p_gen_ && pfac_at_ws_ == ws_gen) return;
+  if (passage_.fac_at_p == passage_.gen && passage_.fac_at_ws == ws_gen) return;
   // R M^-1 R^T over the kept slots (closure_solver.h); the others are held at mu = 0
-  p_solver_.factor(model, ws, p_R_, p_keep_, p_least_norm_, p_A_);
-  pfac_at_p_ = p_gen_, pfac_at_ws_ = ws_gen;
+  passage_.solver.factor(model, ws, passage_.R, passage_.keep, passage_.least_norm, passage_.A);
+  passage_.fac_at_p = passage_.gen, passage_.fac_at_ws = ws_gen;
 }
 
 void LoopClosures::passageRhs(const Eigen::VectorXd& b, Eigen::VectorXd& g, bool accel) const {
   g.setZero();
   for (int j = 0; j < m; ++j) {
-    if (p_keep_(j) == 0.0) continue;
+    if (passage_.keep(j) == 0.0) continue;
     const int c = cl_of_[j];
     double s = 0.0;
-    if (!p_held_[j]) {
-      for (int e = row[c]; e < row[c] + nrows_[c]; ++e) s += p_P_(j, e) * b(e);
+    if (!passage_.held[j]) {
+      for (int e = row[c]; e < row[c] + nrows_[c]; ++e) s += passage_.P(j, e) * b(e);
     } else if (accel && passage_ref) {
-      for (int k : ccols_[c]) s += p_R_(j, k) * (*passage_ref)(k);
+      for (int k : ccols_[c]) s += passage_.R(j, k) * (*passage_ref)(k);
     }
     g(j) = s;
   }
@@ -352,15 +352,15 @@ void LoopClosures::passageMultipliers(const Eigen::VectorXd& mu) {
   for (int j = 0; j < m; ++j) {
     if (mu(j) == 0.0) continue;
     const int c = cl_of_[j];
-    for (int e = row[c]; e < row[c] + nrows_[c]; ++e) lambda(e) += p_P_(j, e) * mu(j);
+    for (int e = row[c]; e < row[c] + nrows_[c]; ++e) lambda(e) += passage_.P(j, e) * mu(j);
   }
 }
 
 double LoopClosures::passageResidual(const Eigen::VectorXd& b, const Eigen::VectorXd& scale_e) {
-  p_b_ = b;
-  for (int h = 0; h < p_excl_; ++h) p_b_ -= p_z_.row(h).transpose() * p_w_.row(h).dot(b);
+  passage_.b = b;
+  for (int h = 0; h < passage_.excl; ++h) passage_.b -= passage_.z.row(h).transpose() * passage_.w.row(h).dot(b);
   double worst = 0.0;
-  for (int e = 0; e < m; ++e) worst = std::max(worst, relative(p_b_(e), scale_e(e)));
+  for (int e = 0; e < m; ++e) worst = std::max(worst, relative(passage_.b(e), scale_e(e)));
   return worst;
 }
 
@@ -375,28 +375,28 @@ double LoopClosures::passageResidual(const Eigen::VectorXd& b, const Eigen::Vect
 // held by their equations until an accepted state finds them out of the band
 // (endPassageSpells).
 double LoopClosures::heldResidual(const Eigen::VectorXd& b, const Eigen::VectorXd& scale_e) {
-  p_b_.setZero();
+  passage_.b.setZero();
   bool any = false;
-  for (int h = 0; h < p_excl_; ++h)
-    if (p_excl_held_[h]) p_b_ += p_z_.row(h).transpose() * p_w_.row(h).dot(b), any = true;
+  for (int h = 0; h < passage_.excl; ++h)
+    if (passage_.excl_held[h]) passage_.b += passage_.z.row(h).transpose() * passage_.w.row(h).dot(b), any = true;
   if (!any) return 0.0;
   double worst = 0.0;
-  for (int e = 0; e < m; ++e) worst = std::max(worst, relative(p_b_(e), scale_e(e)));
+  for (int e = 0; e < m; ++e) worst = std::max(worst, relative(passage_.b(e), scale_e(e)));
   return worst;
 }
 
 bool LoopClosures::releaseHeld() {
   bool any = false;
   for (size_t c = 0; c < constraints.size(); ++c)
-    for (int j = row[c]; j < row[c] + p_used_[c]; ++j)
-      if (p_held_[j]) p_release_[c] = 1, any = true;
-  if (any) p_at_g_ = -1;  // (findPassage() decides again)
+    for (int j = row[c]; j < row[c] + passage_.used[c]; ++j)
+      if (passage_.held[j]) passage_.release[c] = 1, any = true;
+  if (any) passage_.at_g = -1;  // (findPassage() decides again)
   return any;
 }
 
 void LoopClosures::endPassageSpells() {
   for (size_t c = 0; c < constraints.size(); ++c)
-    if (!p_in_band_[c]) p_release_[c] = 0;
+    if (!passage_.in_band[c]) passage_.release[c] = 0;
 }
 
 }  // namespace mechanism_sim

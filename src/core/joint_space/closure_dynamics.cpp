@@ -41,7 +41,7 @@ void LoopClosures::inverseMassRowsT(const TreeModel& model, const TreeWorkspace&
     out.setZero();
     return;
   }
-  const ClosureSolver* rows = &R == &G ? &solver_ : &R == &p_R_ ? &p_solver_ : nullptr;
+  const ClosureSolver* rows = &R == &G ? &solver_ : &R == &passage_.R ? &passage_.solver : nullptr;
   if (rows && rows->inwardOfRowsT(x, out.data())) {
     outwardInverseMass(model, ws, out.data());
     return;
@@ -165,16 +165,16 @@ ClosureSolveInfo constrainedForwardDynamics(const TreeModel& model, const System
   if (passage) {
     // a branch passage (branch_passage.cpp): the regular directions by their equations,
     // the held ones at passage_ref's acceleration across the branch
-    if (!cl.regular_factor) cl.info = ClosureSolveInfo{cl.allRows(), cl.p_r_, cl.allRows() - cl.p_r_};
+    if (!cl.regular_factor) cl.info = ClosureSolveInfo{cl.allRows(), cl.passage_.r, cl.allRows() - cl.passage_.r};
     cl.passageFactor(model, ws);
-    cl.passageRhs(cl.gamma_q, cl.p_g_, true);
-    cl.rowsTimes(cl.p_R_, qddot, cl.p_mu_);
-    cl.p_mu_ -= cl.p_g_;
-    cl.passageSolve(cl.p_mu_, cl.p_mu_);
-    cl.inverseMassRowsT(model, ws, cl.p_R_, cl.p_mu_, cl.qdd_cut_);
+    cl.passageRhs(cl.gamma_q, cl.passage_.g, true);
+    cl.rowsTimes(cl.passage_.R, qddot, cl.passage_.mu);
+    cl.passage_.mu -= cl.passage_.g;
+    cl.passageSolve(cl.passage_.mu, cl.passage_.mu);
+    cl.inverseMassRowsT(model, ws, cl.passage_.R, cl.passage_.mu, cl.qdd_cut_);
     qddot -= cl.qdd_cut_;
     // G^T lambda = R^T mu with R = P G: lambda = P^T mu per closure row
-    cl.passageMultipliers(cl.p_mu_);
+    cl.passageMultipliers(cl.passage_.mu);
     cl.rowsTimes(cl.G, qddot, cl.gamma_q);
     return cl.info;
   }

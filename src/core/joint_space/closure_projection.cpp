@@ -69,11 +69,11 @@ ClosureProjectionReport projectClosurePositions(const TreeModel& model, const Sy
     forwardDynamicsAtKinematics(model, sys, zero, ws, qdd);
     if (passage) {
       cl.passageFactor(model, ws);
-      cl.passageRhs(cl.Phi, cl.p_g_);
-      cl.passageSolve(cl.p_g_, cl.p_mu_);
-      cl.inverseMassRowsT(model, ws, cl.p_R_, cl.p_mu_, dv);
+      cl.passageRhs(cl.Phi, cl.passage_.g);
+      cl.passageSolve(cl.passage_.g, cl.passage_.mu);
+      cl.inverseMassRowsT(model, ws, cl.passage_.R, cl.passage_.mu, dv);
       dv = -dv;
-      rep.dependent = cl.allRows() - cl.p_r_;
+      rep.dependent = cl.allRows() - cl.passage_.r;
     } else {
       cl.factor(model, ws);
       rep.dependent = cl.info.dependent;
@@ -134,7 +134,7 @@ ClosureProjectionReport projectClosureVelocities(const TreeModel& model, const S
       forwardDynamicsAtKinematics(model, sys, zero, ws, qdd);  // M's factors at q (the same kinematics)
       if (passage) {
         cl.passageFactor(model, ws);
-        rep.dependent = cl.allRows() - cl.p_r_;
+        rep.dependent = cl.allRows() - cl.passage_.r;
       } else {
         cl.factor(model, ws);
         rep.dependent = cl.info.dependent;
@@ -142,9 +142,9 @@ ClosureProjectionReport projectClosureVelocities(const TreeModel& model, const S
       factored = true;
     }
     if (passage) {
-      cl.passageRhs(r, cl.p_g_);
-      cl.passageSolve(cl.p_g_, cl.p_mu_);
-      cl.inverseMassRowsT(model, ws, cl.p_R_, cl.p_mu_, dv);
+      cl.passageRhs(r, cl.passage_.g);
+      cl.passageSolve(cl.passage_.g, cl.passage_.mu);
+      cl.inverseMassRowsT(model, ws, cl.passage_.R, cl.passage_.mu, dv);
     } else {
       cl.rowsTimes(cl.G, qdot, r);
       r -= cl.nu;

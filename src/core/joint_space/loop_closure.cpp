@@ -248,11 +248,11 @@ void LoopClosures::layout(const TreeModel& model, const System& sys, const std::
     ccols_[i] = solver_.blockCols(static_cast<int>(i));
     for (int e = first[i]; e < first[i + 1]; ++e) cl_of_[e] = static_cast<int>(i);
   }
-  p_solver_ = solver_;
-  p_keep_.setZero(m);
-  p_used_.assign(constraints.size(), 0);
-  p_release_.assign(constraints.size(), 0);
-  p_in_band_.assign(constraints.size(), 0);
+  passage_.solver = solver_;
+  passage_.keep.setZero(m);
+  passage_.used.assign(constraints.size(), 0);
+  passage_.release.assign(constraints.size(), 0);
+  passage_.in_band.assign(constraints.size(), 0);
 }
 
 // Idle rows. A row of a closure's equations whose G = Phi_x J(q) row is zero at every q is

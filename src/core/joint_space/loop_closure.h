@@ -80,6 +80,47 @@ struct ClosureProjectionReport {
   bool at_rates = false;
 };
 
+// The branch passages' state and scratch (branch_passage.cpp, LoopClosures::findPassage):
+// the closures' decompositions at the last evaluation, the directions held by the motion,
+// and the factorization of the reduced rows R M^-1 R^T.
+struct BranchPassageWork {
+  using Small6 = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 6, 6>;
+  // Per reduced row j (one per direction of a
+  // closure's decomposition that is not dependent): R_j = sum_e P(j, e) G_e (= (v_j o unit)^T),
+  // held_[j] whether it is held by the motion. Per held or dependent direction: w = D_r u,
+  // z = D_r^-1 u over the System rows (the component b' = b - z (w . b) is not judged).
+  Eigen::MatrixXd P, R, A, w, z;
+  std::vector<char> held;
+  Eigen::VectorXd b, g, mu, dr;
+  Eigen::MatrixXd W;  // one closure's normalized rows, over its columns
+  Small6 gram;        // W W^T - kPassageGate^2 I and its Cholesky factor (findPassage's
+  Eigen::LLT<Small6> llt;  // test away from passages)
+  std::vector<int> rows, cols;
+  Eigen::VectorXd m, h;  // a closure's rates and held direction over its columns
+  Eigen::VectorXd rate;     // passage_rate at the last findPassage() (rate_set)
+  bool rate_set = false;
+  Eigen::JacobiSVD<Eigen::MatrixXd> svd;
+  Eigen::JacobiSVD<Small6> svd6;  // (the same up to 6 x 6)
+  // (and a planar loop's two rows over three columns, a four-bar's, in fixed-size storage:
+  // the same operations, bit for bit, for less work; V in full, its first two
+  // columns the thin V's)
+  Eigen::JacobiSVD<Eigen::Matrix<double, 2, 3>> svd23;
+  int r = 0, band = 0;
+  int excl = 0;  // rows of w, z: the held directions and the dependent ones
+  std::vector<char> excl_held;  // per row of w: a held direction (else dependent)
+  std::vector<char> release;    // per closure: its passage released (held by the equations)
+  std::vector<char> in_band;    // per closure: a direction below kPassageBand at the last findPassage()
+  bool near = false, reduce = false;
+  long met = 0;
+  ScaledLeastNorm least_norm;  // of R M^-1 R^T (rows of different closures may depend)
+  ClosureSolver solver;            // the sparse solve of the passages' rows R (slot e: the closure of row e of G)
+  Eigen::VectorXd keep;            // per slot of R: 1 for a direction kept
+  std::vector<int> used;           // per closure: its slots used at the last findPassage()
+  long gen = 0;                    // findPassage()'s results
+  long at_g = -1, fac_at_p = -1, fac_at_ws = -1;  // the generations they were made at
+  bool at_hold = true;
+};
+
 // The closures of a tree and the scratch of their solves: sized once by the constructor.
 class LoopClosures {
  public:
@@ -251,11 +292,11 @@ class LoopClosures {
   bool findPassage();
   // Directions held by the motion at the last findPassage(), and how many passages were met
   // (findPassage() calls that found one) since construction.
-  int passageDirections() const { return p_band_; }
-  long passagesMet() const { return p_met_; }
+  int passageDirections() const { return passage_.band; }
+  long passagesMet() const { return passage_.met; }
   // Whether the last findPassage() saw a direction below kPassageNear (a passage, or one
   // close): the projections then go on to round-off past their tolerance.
-  bool passageNear() const { return p_near_; }
+  bool passageNear() const { return passage_.near; }
   // max_e |b''_e| / scale_e, b'' = b's components on the held directions (0: none held)
   double heldResidual(const Eigen::VectorXd& b, const Eigen::VectorXd& scale_e);
   // The closures with a held direction at the last findPassage() are released: held by
@@ -265,7 +306,7 @@ class LoopClosures {
   // end their spell (the next passage is held again).
   void endPassageSpells();
   // What the last findPassage() returned (at the last evaluate()).
-  bool passageFound() const { return p_reduce_; }
+  bool passageFound() const { return passage_.reduce; }
 
   // The tracked angles of the System constraints `which` (tracked: indexed by System
   // constraint, e.g. State::tracked) moved to ws's kinematics (Constraint::trackAngles, reading
@@ -328,38 +369,10 @@ class LoopClosures {
   bool cleared_ = false;            // clearRows() ran since the last evaluate()
   Eigen::VectorXd tau_, qdd_cut_;
   Eigen::VectorXd zero_v_, qdd_v_, dv_v_, ref_v_, r_m_, x_m_;  // the projections' scratch
-  // branch passages (branch_passage.cpp). Per reduced row j (one per direction of a
-  // closure's decomposition that is not dependent): R_j = sum_e P(j, e) G_e (= (v_j o unit)^T),
-  // held_[j] whether it is held by the motion. Per held or dependent direction: w = D_r u,
-  // z = D_r^-1 u over the System rows (the component b' = b - z (w . b) is not judged).
-  Eigen::MatrixXd p_P_, p_R_, p_A_, p_w_, p_z_;
-  std::vector<char> p_held_;
-  Eigen::VectorXd p_b_, p_g_, p_mu_, p_dr_;
-  Eigen::MatrixXd p_W_;  // one closure's normalized rows, over its columns
-  using Small6 = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 6, 6>;
-  Small6 p_gram_;        // W W^T - kPassageGate^2 I and its Cholesky factor (findPassage's
-  Eigen::LLT<Small6> p_llt_;  // test away from passages)
   bool closureRows(size_t c);
-  std::vector<int> p_rows_, p_cols_;
-  Eigen::VectorXd p_m_, p_h_;  // a closure's rates and held direction over its columns
-  Eigen::VectorXd p_rate_;     // passage_rate at the last findPassage() (p_rate_set_)
-  bool p_rate_set_ = false;
-  Eigen::JacobiSVD<Eigen::MatrixXd> p_svd_;
-  Eigen::JacobiSVD<Small6> p_svd6_;  // (the same up to 6 x 6)
-  // (and a planar loop's two rows over three columns, a four-bar's, in fixed-size storage:
-  // the same operations, bit for bit, for less work; V in full, its first two
-  // columns the thin V's)
-  Eigen::JacobiSVD<Eigen::Matrix<double, 2, 3>> p_svd23_;
-  int p_r_ = 0, p_band_ = 0;
-  int p_excl_ = 0;  // rows of p_w_, p_z_: the held directions and the dependent ones
-  std::vector<char> p_excl_held_;  // per row of p_w_: a held direction (else dependent)
-  std::vector<char> p_release_;    // per closure: its passage released (held by the equations)
-  std::vector<char> p_in_band_;    // per closure: a direction below kPassageBand at the last findPassage()
-  bool p_near_ = false, p_reduce_ = false;
   // max_k |dv_k| unit_k: a correction's size as a length (positions) or speed (rates)
   double correctionSize(const Eigen::VectorXd& dv) const;
-  long p_met_ = 0;
-  ScaledLeastNorm p_least_norm_;  // of R M^-1 R^T (rows of different closures may depend)
+  BranchPassageWork passage_;  // branch_passage.cpp
   // R, M^-1 R^T and the factor of R M^-1 R^T at ws (after findPassage() > 0)
   void passageFactor(const TreeModel& model, const TreeWorkspace& ws);
   // per closure row: r = G q_dot - nu and the size of its terms t (velocityResidual's)
@@ -377,9 +390,7 @@ class LoopClosures {
   // the joint-space inertia factored (factorMass); the sparse solves of G and of the
   // passages' rows R (slot e of R: the closure of row e of G)
   TreeMassFactor mass_;
-  ClosureSolver solver_, p_solver_;
-  Eigen::VectorXd p_keep_;          // per slot of R: 1 for a direction kept
-  std::vector<int> p_used_;         // per closure: its slots used at the last findPassage()
+  ClosureSolver solver_;
   std::vector<std::vector<int>> ccols_;  // per closure: the coordinates its rows can touch
   std::vector<int> cl_of_;               // per row: its closure
   // out = G v over each row's coordinates (G is zero elsewhere)
@@ -393,13 +404,13 @@ class LoopClosures {
     return true;
   }
   // out = M^-1 R^T x, R laid out as G (rows in the closures' slots), at ws: R = G or the
-  // passages' p_R_ right after their factorization (factor(), passageFactor() at the same
+  // passages' passage_.R right after their factorization (factor(), passageFactor() at the same
   // G or R and ws: every caller) from its passes on the rows (ClosureSolver::inwardOfRowsT)
   // and the outward pass; any other R by an inverse-mass pass (applyInverseMass)
   void inverseMassRowsT(const TreeModel& model, const TreeWorkspace& ws, const Eigen::MatrixXd& R,
                         const Eigen::VectorXd& x, Eigen::VectorXd& out);
   void passageSolve(const Eigen::VectorXd& b, Eigen::VectorXd& x) const {
-    p_solver_.solve(p_least_norm_, b, x);
+    passage_.solver.solve(passage_.least_norm, b, x);
   }
   // Work on inputs that hold the bits of the last call's is not done again (the stepper
   // evaluates each accepted q at rest for its projections, then in motion for the
@@ -417,9 +428,8 @@ class LoopClosures {
   Eigen::VectorXd pose_q_;                  // or the tree's q there (evaluate(..., q))
   bool pose_by_q_ = false, pose_by_x_ = false;  // which of the two the last mapping kept
   long g_gen_ = 0;   // G, Gabs, Gbound
-  long p_gen_ = 0;   // findPassage()'s results
-  long p_at_g_ = -1, fac_at_g_ = -1, fac_at_ws_ = -1, pfac_at_p_ = -1, pfac_at_ws_ = -1;
-  bool p_at_hold_ = true, fac_Y_ = false;
+  long fac_at_g_ = -1, fac_at_ws_ = -1;
+  bool fac_Y_ = false;
   ClosureSolveInfo fac_info_;
   // ws's articulated factors' generation (TreeWorkspace::generation)
   long massFactorsGeneration(const TreeWorkspace& ws);
