@@ -1,6 +1,7 @@
-// Mechanisms built part by part at a file's pose, for the assembly tests: bodies at their
-// centres, joints given by points and axes in global components at that pose (where they
-// differ the joint starts open); the planar four-bar with its two closed branches.
+// Mechanisms built part by part at a file's pose, for the assembly tests and the coupler
+// embedding's: bodies at their centres, joints given by points and axes in global
+// components at that pose (where they differ the joint starts open); the planar four-bar
+// with its two closed branches.
 #pragma once
 #include <cmath>
 #include <vector>
@@ -22,7 +23,8 @@ inline Matrix3d aboutZ(double a) { return Eigen::AngleAxisd(a, Vector3d::UnitZ()
 
 // Bodies at their centres with identity orientations. A joint's frames are given by a
 // point and axes on each body (in global components at the file's pose): where they differ,
-// the file's pose leaves the joint open.
+// the file's pose leaves the joint open; or by one point P and one axis on both bodies, so
+// that the joint starts at 0.
 struct Parts {
   Mechanism& m;
   std::vector<Vector3d> r{Vector3d::Zero()};
@@ -33,6 +35,10 @@ struct Parts {
   int join(const char* type, const char* name, int parent, const Vector3d& Pp, const Matrix3d& Rp, int child,
            const Vector3d& Pc, const Matrix3d& Rc) {
     return m.addJoint(makeJoint(type, name, parent, frame(Pp - r[parent], Rp), child, frame(Pc - r[child], Rc)));
+  }
+  int join(const char* type, const char* name, int parent, int child, const Vector3d& P, const Vector3d& axis) {
+    const Matrix3d R = axisTo(axis);
+    return join(type, name, parent, P, R, child, P, R);
   }
   // Where a point of body b (given at the file's pose) is now.
   Vector3d now(int b, const Vector3d& P) const { return m.position(b) + m.rotation(b) * (P - r[b]); }

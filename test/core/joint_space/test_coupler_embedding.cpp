@@ -16,6 +16,7 @@
 #include <string>
 #include <vector>
 
+#include "assembly/four_bar_parts.h"
 #include "bodies.h"
 #include "core/joint_space/joint_stepper.h"
 #include "mechanism_sim/core/mechanism.h"
@@ -26,24 +27,7 @@ namespace {
 
 using test_util::frame;
 
-Matrix3d axisTo(const Vector3d& z) {  // a rotation whose z column is z
-  return Eigen::Quaterniond::FromTwoVectors(Vector3d::UnitZ(), z.normalized()).toRotationMatrix();
-}
-
-// Bodies at their centres with identity orientations; a joint at point P about (or along)
-// `axis` on both bodies, so every joint starts at 0.
-struct Parts {
-  Mechanism& m;
-  std::vector<Vector3d> r{Vector3d::Zero()};
-  int add(const char* name, double mass, const Vector3d& at) {
-    r.push_back(at);
-    return m.addBody(test_util::body(name, mass, mass * Vector3d(0.004, 0.005, 0.006), at));
-  }
-  int join(const char* type, const char* name, int parent, int child, const Vector3d& P, const Vector3d& axis) {
-    const Matrix3d R = axisTo(axis);
-    return m.addJoint(makeJoint(type, name, parent, frame(P - r[parent], R), child, frame(P - r[child], R)));
-  }
-};
+using test_util::assembly::Parts;
 
 IntegratorOptions withFormulation(const char* f) {
   IntegratorOptions io;

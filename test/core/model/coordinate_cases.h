@@ -1,5 +1,5 @@
 // Joint types whose coordinates are positions (a coupler, a coupling or a limit takes
-// those) and bodies placed where a coordinate reads a known value, for the coordinate
+// those), random joints of them, and bodies placed where a coordinate reads a known value, for the coordinate
 // constraints' tests (test_couplers.cpp, test_coupling.cpp).
 #pragma once
 #include <memory>
@@ -28,6 +28,17 @@ inline const CoordinateCase kCoordinateCases[] = {
     {"cylindrical", 2, [](int k) { return k == 0; }, {2, 2, 0}},
     {"planar", 3, [](int k) { return k == 2; }, {0, 1, 2}},
 };
+
+// A joint of case c between bodies bi and bj, its frames at random (offsets within 0.8).
+inline std::unique_ptr<Joint> randomJoint(const CoordinateCase& c, const std::string& name, int bi, int bj,
+                                          std::mt19937& rng) {
+  JointFrame fi, fj;
+  fi.sp_B = test::randomVector(rng, 0.8);
+  fj.sp_B = test::randomVector(rng, 0.8);
+  fi.Rp = test::randomRotation(rng);
+  fj.Rp = test::randomRotation(rng);
+  return makeJoint(c.type, name, bi, fi, bj, fj);
+}
 
 // Body j placed where coordinate k of the joint reads q (its other coordinates zero).
 inline BodyKin placeJ(const Joint& joint, const CoordinateCase& c, int k, double q, const BodyKin& ki, BodyKin kj) {

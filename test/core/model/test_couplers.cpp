@@ -27,18 +27,9 @@ namespace {
 
 using test_util::CoordinateCase;
 using test_util::placeJ;
+using test_util::randomJoint;
 using test_util::rotZ;
 const auto& kCases = test_util::kCoordinateCases;
-
-std::unique_ptr<Joint> randomJoint(const CoordinateCase& c, const std::string& name, int bi, int bj,
-                                   std::mt19937& rng) {
-  JointFrame fi, fj;
-  fi.sp_B = test::randomVector(rng, 0.8);
-  fj.sp_B = test::randomVector(rng, 0.8);
-  fi.Rp = test::randomRotation(rng);
-  fj.Rp = test::randomRotation(rng);
-  return makeJoint(c.type, name, bi, fi, bj, fj);
-}
 
 // Two joints and a coupler on them, with the bodies' states in the coupler's slot order.
 struct CoupledPair {

@@ -27,6 +27,7 @@ namespace {
 
 using test_util::CoordinateCase;
 using test_util::placeJ;
+using test_util::randomJoint;
 using test_util::rotZ;
 const auto& kCases = test_util::kCoordinateCases;
 
@@ -49,10 +50,7 @@ Coupled coupled(std::mt19937& rng, bool chain, std::vector<BodyKin>& kin) {
   for (int i = 0; i < 3; ++i) {
     const CoordinateCase& cc = kCases[std::uniform_int_distribution<int>(0, 3)(rng)];
     const int bi = chain ? i + 1 : 2 * i + 1, bj = bi + 1;
-    JointFrame fi, fj;
-    fi.sp_B = test::randomVector(rng, 0.8), fj.sp_B = test::randomVector(rng, 0.8);
-    fi.Rp = test::randomRotation(rng), fj.Rp = test::randomRotation(rng);
-    p.joints.push_back(makeJoint(cc.type, "j" + std::to_string(i), bi, fi, bj, fj));
+    p.joints.push_back(randomJoint(cc, "j" + std::to_string(i), bi, bj, rng));
     Joint& J = *p.joints.back();
     J.setId(i);
     const int k = std::uniform_int_distribution<int>(0, cc.dof - 1)(rng);
