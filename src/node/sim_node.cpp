@@ -285,7 +285,7 @@ void SimNode::onEffort(const sensor_msgs::JointState::ConstPtr& msg) {
     const int d = model_->dofIndex(msg->name[i]);  // dofs are fixed after init: no lock needed
     if (d < 0) problem = "unknown joint '" + msg->name[i] + "'";
     else if (!std::isfinite(msg->effort[i])) problem = "effort for '" + msg->name[i] + "' is not finite";
-    else if (!model_->dofs()[d].actuated) problem = "'" + msg->name[i] + "' is passive (the file names its actuated joints)";
+    else if (!model_->dofs()[d].actuated) problem = model_->whyPassive(d);
     dofs.push_back(d);
   }
   if (!problem.empty()) {
@@ -317,9 +317,7 @@ void SimNode::onActuatorEffort(const sensor_msgs::JointState::ConstPtr& msg) {
     else if (!std::isfinite(msg->effort[i])) problem = "effort for '" + msg->name[i] + "' is not finite";
     else
       for (int d : model_->transmissions()[actuators[a].transmission].dofs)
-        if (!model_->dofs()[d].actuated)
-          problem = "actuator '" + msg->name[i] + "' drives '" + model_->dofs()[d].name +
-                    "', which is passive (the file names its actuated joints)";
+        if (!model_->dofs()[d].actuated) problem = "actuator '" + msg->name[i] + "' drives " + model_->whyPassive(d);
     which.push_back(a);
   }
   if (!problem.empty()) {

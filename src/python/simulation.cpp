@@ -88,6 +88,9 @@ std::vector<CoordinateTarget> Simulation::targets(const std::vector<std::pair<st
   std::vector<CoordinateTarget> out;
   for (const auto& v : values) {
     const Dof& d = model_->dofs()[dof(v.first, what)];
+    if (d.gimbal >= 0)
+      throw std::invalid_argument(path_ + ": " + what + " of '" + v.first + "': " +
+                                  model_->whyPassive(dof(v.first, what)) + " (its ball is placed at load, by its first joint's name with .x, .y, .z: doc/robots.md)");
     if (!std::isfinite(v.second)) throw std::invalid_argument(path_ + ": " + what + " of '" + v.first + "' is not finite");
     out.push_back(CoordinateTarget{d.joint_index, d.k, v.second});
   }

@@ -139,8 +139,8 @@ std::unique_ptr<MechanismModel> ModelBuilder::build() {
   model_->name_ = urdf->getName();
   model_->root_link_ = urdf->getRoot()->name;
   JointSpecs specs = collectJointSpecs(robot, *urdf, ext, reader_);
-  const std::string balls = mergeMasslessGimbals(&specs, *urdf, ext, transmissions, options_);  // (massless_gimbals.h)
-  if (!balls.empty()) root_notes_.push_back(balls);
+  const MergedGimbals balls = mergeMasslessGimbals(&specs, *urdf, ext, transmissions, options_);
+  if (!balls.note.empty()) root_notes_.push_back(balls.note);
   const LinkTree tree(specs.tree, model_->root_link_);
   const RigidBodies bodies(tree, *urdf);
   checkInertias(robot, bodies, *urdf);
@@ -154,6 +154,7 @@ std::unique_ptr<MechanismModel> ModelBuilder::build() {
   for (const JointSpec& s : specs.tree) addJoint(s, bodies, true);
   for (const JointSpec& s : specs.loops) addJoint(s, bodies, false);
   markPassive(ext);
+  addGimbals(balls.chains);
   for (const JointSpec& s : specs.tree) addMimic(s, specs);
   for (const JointSpec& s : specs.tree) tree_joints_.push_back(s.name);
   for (const Coupling& c : resolveCouplings(ext, specs, reader_)) addCoupling(c);

@@ -46,6 +46,35 @@ void ModelBuilder::addJoint(const JointSpec& s, const RigidBodies& bodies, bool 
   if (s.sdf_no_limit) limit_notes_.push_back("joint '" + s.name + "': limits [-1e16, 1e16] (SDF's 'no limit') read as none");
 }
 
+void ModelBuilder::addGimbals(const std::vector<GimbalChain>& chains) {
+  for (const GimbalChain& c : chains) {
+    const JointSpec &j0 = c.joints[0], &j1 = c.joints[1], &j2 = c.joints[2];
+    Gimbal g;
+    g.joint = joint_index_.at(j0.name);
+    // the axes in J0's joint frame (z) through the chain's zero pose, whose joint frames
+    // share their origin (massless_gimbals.h)
+    const Isometry3d A = j0.C_J.inverse() * j1.P_J, B = A * j1.C_J.inverse() * j2.P_J;
+    g.axes = DavenportAxes(Eigen::Vector3d::UnitZ(), A.linear().col(2), B.linear().col(2));
+    g.parent_link = model_->linkIndex(j0.parent);
+    g.link1 = model_->linkIndex(j0.child);
+    g.link2 = model_->linkIndex(j1.child);
+    g.child_link = model_->linkIndex(j2.child);
+    g.P_J = {j0.P_J, j1.P_J};
+    g.C_J = {j0.C_J, j1.C_J};
+    const int index = static_cast<int>(model_->gimbals_.size());
+    model_->gimbals_.push_back(g);
+    for (Dof& d : model_->dofs_)
+      if (d.joint_index == g.joint) {
+        d.gimbal = index;
+        d.actuated = false;
+        d.name = d.joint = c.joints[d.k].name;
+      }
+    for (TreeJoint& t : model_->tree_)
+      if (t.name == j1.name || t.name == j2.name) t.fixed = false;
+  }
+  model_->gimbal_angles_.assign(model_->gimbals_.size(), {Angles3{0.0, 0.0, 0.0}, Eigen::Vector3d::Zero()});
+}
+
 void ModelBuilder::markPassive(const Extension& ext) {
   if (ext.actuated.empty()) return;
   const std::set<std::string> actuated(ext.actuated.begin(), ext.actuated.end());

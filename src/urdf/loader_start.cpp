@@ -8,6 +8,7 @@
 
 #include "mechanism_sim/core/kinematic.h"
 #include "mechanism_sim/core/model/inertia.h"
+#include "mechanism_sim/core/model/math.h"
 #include "model_builder.h"
 
 namespace mechanism_sim {
@@ -105,7 +106,16 @@ void ModelBuilder::assemble(const InitialValues& initial) {
     if (mech().driveOf(joint, v.first.second) < 0) velocities.push_back({joint, v.first.second, v.second});
   }
   std::vector<double> placed(model_->dofs_.size());
-  for (size_t d = 0; d < placed.size(); ++d) placed[d] = placedCoordinate(model_->dofs_[d].joint_index, model_->dofs_[d].k);
+  for (size_t d = 0; d < placed.size(); ++d) {
+    const Dof& dof = model_->dofs_[d];
+    placed[d] = placedCoordinate(dof.joint_index, dof.k);
+    if (dof.gimbal < 0) continue;
+    // a gimbal's angles (MechanismModel::gimbalAngles) where its ball was placed
+    Eigen::Vector3d rotation_vector;
+    for (int k = 0; k < 3; ++k) rotation_vector(k) = placedCoordinate(dof.joint_index, k);
+    const Eigen::Matrix3d R = expRotation(rotation_vector).toRotationMatrix();
+    placed[d] = model_->gimbals_[dof.gimbal].axes.angles(R, {0.0, 0.0, 0.0})[dof.k];
+  }
   try {
     mech().build();
     model_->assembly_ = mech().assemble(positions, velocities);

@@ -68,11 +68,12 @@ Named namedElsewhere(const JointSpecs& specs, const Extension& ext, const Transm
 
 }  // namespace
 
-std::string mergeMasslessGimbals(JointSpecs* specs, const urdf::ModelInterface& urdf, const Extension& ext,
-                                 const Transmissions& transmissions, const LoadOptions& options) {
+MergedGimbals mergeMasslessGimbals(JointSpecs* specs, const urdf::ModelInterface& urdf, const Extension& ext,
+                                   const Transmissions& transmissions, const LoadOptions& options) {
+  MergedGimbals out;
   bool has_mass = false;
   for (const auto& l : urdf.links_) has_mass = has_mass || (l.second->inertial && l.second->inertial->mass > 0.0);
-  if (!has_mass) return "";
+  if (!has_mass) return out;
   const Named named = namedElsewhere(*specs, ext, transmissions, options);
   auto untouched = [&](const JointSpec& s) { return freeRevolute(s) && !named.joints.count(s.name); };
   auto bare = [&](const std::string& link) { return massless(urdf, link) && !named.links.count(link); };
@@ -91,6 +92,7 @@ std::string mergeMasslessGimbals(JointSpecs* specs, const urdf::ModelInterface& 
     const Vector3d a0 = j0.C_J.linear().col(2), a1_in_l1 = j1->P_J.linear().col(2);
     const Vector3d a1_in_l2 = j1->C_J.linear().col(2), a2 = j2->P_J.linear().col(2);
     if (std::fabs(a0.dot(a1_in_l1)) > kPerpendicular || std::fabs(a1_in_l2.dot(a2)) > kPerpendicular) continue;
+    out.chains.push_back(GimbalChain{{j0, *j1, *j2}});
     // J0's joint frame stays where it is on both sides: at the ball's zero the child sits
     // where the chain's zero put it, and J1, J2 fixed at zero weld the links as it did
     j0.type = "spherical";
@@ -101,10 +103,11 @@ std::string mergeMasslessGimbals(JointSpecs* specs, const urdf::ModelInterface& 
     }
     merged += (merged.empty() ? "'" : ", '") + j0.name + "' (" + j1->name + ", " + j2->name + ")";
   }
-  if (merged.empty()) return "";
-  return "balls written as three revolute joints through links without mass are simulated as spherical joints "
-         "named after the first (dofs .x .y .z), the same motion without the gimbal's lock: " +
-         merged;
+  if (merged.empty()) return out;
+  out.note = "balls written as three revolute joints through links without mass are simulated as spherical joints, "
+             "the same motion without the gimbal's lock, and reported by the three joints' angles: " +
+             merged;
+  return out;
 }
 
 }  // namespace urdf_input

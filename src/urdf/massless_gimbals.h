@@ -8,6 +8,7 @@
 // massless links are undetermined). Such a chain is simulated as the ball it stands for.
 // Internal to the loader.
 #pragma once
+#include <array>
 #include <string>
 #include <vector>
 
@@ -20,9 +21,23 @@
 namespace mechanism_sim {
 namespace urdf_input {
 
+// A chain J0 -> L1 -> J1 -> L2 -> J2 simulated as a ball: the file's joints as written, by
+// which the model reports the ball (MechanismModel: the three angles as the file's joints'
+// positions, L1 and L2 where they turn to).
+struct GimbalChain {
+  std::array<JointSpec, 3> joints;  // J0, J1, J2 before the merge
+};
+
+// The chains merged and the note naming them ("" if none).
+struct MergedGimbals {
+  std::vector<GimbalChain> chains;
+  std::string note;
+};
+
 // Turns each chain J0 -> L1 -> J1 -> L2 -> J2 of the tree that is a ball into one spherical
-// joint: J0 becomes spherical at its frame (named J0, dofs J0.x, J0.y, J0.z), J1 and J2 fixed
-// at their zero (L1 and L2 weld to J2's child, adding no mass). A chain is a ball when:
+// joint: J0 becomes spherical at its frame (its rates J0.x, J0.y, J0.z: the relative angular
+// velocity in J0's joint frame), J1 and J2 fixed at their zero (L1 and L2 weld to J2's
+// child, adding no mass). A chain is a ball when:
 //  - J0, J1, J2 are revolute or continuous without limits, damping, friction or mimic, and
 //    nothing else names them (an actuator, a transmission, a drive, an initial value, a
 //    type override, a coupling, an option);
@@ -31,8 +46,7 @@ namespace urdf_input {
 //  - J1's and J2's origins coincide with J0's (the axes meet at one point) and each axis is
 //    perpendicular to the next (Davenport: the three then reach every rotation);
 //  - the model has mass somewhere (a kinematic model keeps its joints).
-// Returns one note naming the merged chains, or "" if none.
-std::string mergeMasslessGimbals(JointSpecs* specs, const urdf::ModelInterface& urdf, const Extension& ext,
+MergedGimbals mergeMasslessGimbals(JointSpecs* specs, const urdf::ModelInterface& urdf, const Extension& ext,
                                  const Transmissions& transmissions, const LoadOptions& options);
 
 }  // namespace urdf_input

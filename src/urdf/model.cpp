@@ -4,6 +4,8 @@
 #include <cmath>
 #include <sstream>
 
+#include "mechanism_sim/core/model/math.h"
+
 namespace mechanism_sim {
 
 int MechanismModel::dofIndex(const std::string& name) const {
@@ -36,7 +38,47 @@ double MechanismModel::velocityViolation() const { return mechanism_->velocityVi
 double MechanismModel::stepPositionViolation() const { return mechanism_->stepPositionViolation(); }
 double MechanismModel::stepVelocityViolation() const { return mechanism_->stepVelocityViolation(); }
 
+namespace {
+
+Eigen::Vector3d rotationVector(const Mechanism& m, int joint) {
+  return Eigen::Vector3d(m.jointPosition(joint, 0), m.jointPosition(joint, 1), m.jointPosition(joint, 2));
+}
+
+Eigen::Isometry3d turnAboutZ(double t) {
+  return Eigen::Isometry3d(Eigen::AngleAxisd(t, Eigen::Vector3d::UnitZ()));
+}
+
+}  // namespace
+
+const Angles3& MechanismModel::gimbalAngles(int gimbal) const {
+  auto& [angles, at] = gimbal_angles_.at(gimbal);
+  const Eigen::Vector3d now = rotationVector(*mechanism_, gimbals_[gimbal].joint);
+  if (now != at) {
+    angles = gimbals_[gimbal].axes.angles(expRotation(now).toRotationMatrix(), angles);
+    at = now;
+  }
+  return angles;
+}
+
+std::string MechanismModel::whyPassive(int dof) const {
+  const Dof& d = dofs_.at(dof);
+  if (d.gimbal >= 0)
+    return "'" + d.name + "' is one of three revolute joints through massless links that are simulated as one ball "
+           "(doc/robots.md): it is reported, not commanded; name it in the file (a <transmission>, limits) to keep the "
+           "chain";
+  if (!d.actuated) return "'" + d.name + "' is passive (the file names its actuated joints)";
+  return "";
+}
+
 Eigen::Isometry3d MechanismModel::linkPose(int link) const {
+  // a gimbal's massless links turn with its angles (Gimbal), not with the ball's child
+  for (size_t g = 0; g < gimbals_.size(); ++g) {
+    const Gimbal& G = gimbals_[g];
+    if (link != G.link1 && link != G.link2) continue;
+    const Angles3& t = gimbalAngles(static_cast<int>(g));
+    const Eigen::Isometry3d L1 = linkPose(G.parent_link) * G.P_J[0] * turnAboutZ(t[0]) * G.C_J[0].inverse();
+    return link == G.link1 ? L1 : L1 * G.P_J[1] * turnAboutZ(t[1]) * G.C_J[1].inverse();
+  }
   const Link& l = links_.at(link);
   Eigen::Isometry3d W_B = Eigen::Isometry3d::Identity();
   if (l.body != Mechanism::kGround) {
@@ -47,6 +89,18 @@ Eigen::Isometry3d MechanismModel::linkPose(int link) const {
 }
 
 std::pair<Eigen::Vector3d, Eigen::Vector3d> MechanismModel::linkVelocity(int link) const {
+  for (size_t g = 0; g < gimbals_.size(); ++g) {
+    const Gimbal& G = gimbals_[g];
+    if (link != G.link1 && link != G.link2) continue;
+    // turning about the ball's centre c, fixed in the parent: v(p) = v_parent(p) + w_rel x (p - c)
+    const Angles3& t = gimbalAngles(static_cast<int>(g));
+    const Angles3 t_dot = {velocity(dofOfGimbal(g, 0)), velocity(dofOfGimbal(g, 1)), 0.0};
+    const Eigen::Isometry3d F = linkPose(G.parent_link) * G.P_J[0];  // J0's frame on the parent
+    const Eigen::Vector3d w_rel = F.linear() * G.axes.rateMatrix(t) * Eigen::Vector3d(t_dot[0], link == G.link2 ? t_dot[1] : 0.0, 0.0);
+    const auto parent = linkVelocity(G.parent_link);
+    const Eigen::Vector3d p = linkPose(link).translation(), from_parent = p - linkPose(G.parent_link).translation();
+    return {parent.first + parent.second.cross(from_parent) + w_rel.cross(p - F.translation()), parent.second + w_rel};
+  }
   const Link& l = links_.at(link);
   if (l.body == Mechanism::kGround) return {Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero()};
   // the body's state: v_i of its origin r_i (world), w_i in body axes
@@ -64,19 +118,37 @@ std::vector<double> MechanismModel::couplingReactions() const {
 
 std::vector<JointReaction> MechanismModel::jointReactions() const {
   const std::vector<Reaction> r = mechanism_->jointReactions();
-  std::vector<JointReaction> out(r.size());
-  for (size_t j = 0; j < r.size(); ++j) {
-    const Joint& jt = mechanism_->joint(static_cast<int>(j));
-    // the file's joint frame on the child (body j is the child's body)
-    const Eigen::Matrix3d R = mechanism_->rotation(jt.bodyJ()) * reaction_frames_.at(j).linear();
-    out[j].joint = jt.name();
-    out[j].force = R.transpose() * r[j].force;
-    out[j].torque = R.transpose() * r[j].torque;
-  }
+  std::vector<JointReaction> out(r.size() + 2 * gimbals_.size());
+  auto put = [&](size_t at, const std::string& name, const Reaction& world) {
+    const Eigen::Matrix3d R = reactionFrame(static_cast<int>(at)).linear();
+    out[at].joint = name;
+    out[at].force = R.transpose() * world.force;
+    out[at].torque = R.transpose() * world.torque;
+  };
+  for (size_t j = 0; j < r.size(); ++j) put(j, mechanism_->joint(static_cast<int>(j)).name(), r[j]);
+  // a gimbal's J1 and J2 pass the ball's wrench on at its centre (their links carry no mass)
+  for (size_t g = 0; g < gimbals_.size(); ++g)
+    for (int k = 1; k < 3; ++k) put(r.size() + 2 * g + k - 1, dofs_[dofOfGimbal(g, k)].name, r[gimbals_[g].joint]);
   return out;
 }
 
+int MechanismModel::dofOfGimbal(size_t gimbal, int k) const {
+  for (size_t d = 0; d < dofs_.size(); ++d)
+    if (dofs_[d].gimbal == static_cast<int>(gimbal) && dofs_[d].k == k) return static_cast<int>(d);
+  throw InternalError("a gimbal without its dofs");
+}
+
 Eigen::Isometry3d MechanismModel::reactionFrame(int joint) const {
+  const int joints = mechanism_->numJoints();
+  if (joint >= joints) {  // a gimbal's J1 (on L2) or J2 (on the ball's child), at the ball's centre
+    const Gimbal& G = gimbals_.at((joint - joints) / 2);
+    Eigen::Isometry3d F = linkPose((joint - joints) % 2 == 0 ? G.link2 : G.child_link);
+    F.translation() = reactionFrame(G.joint).translation();
+    return F;
+  }
+  for (const Gimbal& G : gimbals_)
+    if (G.joint == joint)  // J0's frame on L1, which turns with the angles
+      return linkPose(G.link1) * links_[G.link1].body_T_link.inverse() * reaction_frames_.at(joint);
   const Joint& jt = mechanism_->joint(joint);
   Eigen::Isometry3d W_B = Eigen::Isometry3d::Identity();
   if (jt.bodyJ() != Mechanism::kGround) {
@@ -86,17 +158,38 @@ Eigen::Isometry3d MechanismModel::reactionFrame(int joint) const {
   return W_B * reaction_frames_.at(joint);
 }
 
+// A gimbal's dof (Dof::gimbal): its angle, and the rates, efforts and accelerations of the
+// angles from the ball's (davenport.h): omega = J t_dot, and by virtual work Q = J' tau.
 double MechanismModel::position(int dof) const {
-  return mechanism_->jointPosition(dofs_.at(dof).joint_index, dofs_[dof].k);
+  const Dof& d = dofs_.at(dof);
+  if (d.gimbal >= 0) return gimbalAngles(d.gimbal)[d.k];
+  return mechanism_->jointPosition(d.joint_index, d.k);
 }
 double MechanismModel::velocity(int dof) const {
-  return mechanism_->jointVelocity(dofs_.at(dof).joint_index, dofs_[dof].k);
+  const Dof& d = dofs_.at(dof);
+  if (d.gimbal >= 0) return gimbals_[d.gimbal].axes.rates(gimbalAngles(d.gimbal), ballVector(d, &Mechanism::jointVelocity))[d.k];
+  return mechanism_->jointVelocity(d.joint_index, d.k);
 }
 double MechanismModel::effort(int dof) const {
-  return mechanism_->jointEffort(dofs_.at(dof).joint_index, dofs_[dof].k);
+  const Dof& d = dofs_.at(dof);
+  if (d.gimbal >= 0)
+    return (gimbals_[d.gimbal].axes.rateMatrix(gimbalAngles(d.gimbal)).transpose() * ballVector(d, &Mechanism::jointEffort))(d.k);
+  return mechanism_->jointEffort(d.joint_index, d.k);
 }
 double MechanismModel::acceleration(int dof) const {
-  return mechanism_->jointAcceleration(dofs_.at(dof).joint_index, dofs_[dof].k);
+  const Dof& d = dofs_.at(dof);
+  if (d.gimbal >= 0) {
+    const Gimbal& G = gimbals_[d.gimbal];
+    const Angles3& t = gimbalAngles(d.gimbal);
+    return G.axes.accelerations(t, G.axes.rates(t, ballVector(d, &Mechanism::jointVelocity)),
+                                ballVector(d, &Mechanism::jointAcceleration))[d.k];
+  }
+  return mechanism_->jointAcceleration(d.joint_index, d.k);
+}
+
+Eigen::Vector3d MechanismModel::ballVector(const Dof& d, double (Mechanism::*of)(int, int) const) const {
+  const Mechanism& m = *mechanism_;
+  return Eigen::Vector3d((m.*of)(d.joint_index, 0), (m.*of)(d.joint_index, 1), (m.*of)(d.joint_index, 2));
 }
 
 void MechanismModel::commandDriveVelocity(int dof, double v, double acc) {
@@ -115,8 +208,7 @@ double MechanismModel::driveVelocity(int dof) const {
 void MechanismModel::setEffort(int dof, double tau) {
   if (dof < 0 || dof >= static_cast<int>(dofs_.size())) throw UsageError("no such degree of freedom");
   if (!std::isfinite(tau)) throw UsageError("effort for '" + dofs_[dof].name + "' is not finite");
-  if (!dofs_[dof].actuated)
-    throw UsageError(source_ + ": dof '" + dofs_[dof].name + "' is passive (the file names its actuated joints): command an actuated one");
+  if (!dofs_[dof].actuated) throw UsageError(source_ + ": " + whyPassive(dof) + ": command an actuated one");
   const double limit = dofs_[dof].effort_limit;
   command_[dof] = limit > 0 ? std::max(-limit, std::min(limit, tau)) : tau;
 }
@@ -154,8 +246,7 @@ void MechanismModel::driveDof(int dof) {
   if (dof < 0 || dof >= static_cast<int>(dofs_.size())) throw UsageError("no such degree of freedom");
   Dof& d = dofs_[dof];
   if (d.drive >= 0) throw UsageError("dof '" + d.name + "' is driven already");
-  if (!d.actuated)
-    throw UsageError(source_ + ": dof '" + d.name + "' is passive (the file names its actuated joints): drive an actuated one");
+  if (!d.actuated) throw UsageError(source_ + ": " + whyPassive(dof) + ": drive an actuated one");
   try {
     d.drive = mechanism_->addDrive(d.joint_index, d.k, DriveProfile::velocity(0.0));
   } catch (const ModelError& e) {
@@ -179,6 +270,7 @@ void MechanismModel::reset() {
   // the drives driveDof() added go (the last first); the System is the loaded one again
   while (!driven_after_load_.empty()) undriveDof(driven_after_load_.back());
   mechanism_->restore(initial_);
+  for (auto& g : gimbal_angles_) g = {Angles3{0.0, 0.0, 0.0}, Eigen::Vector3d::Zero()};
   std::fill(command_.begin(), command_.end(), 0.0);
   for (const Dof& d : dofs_) mechanism_->setJointEffort(d.joint_index, d.k, 0.0);
 }

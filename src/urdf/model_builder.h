@@ -10,6 +10,7 @@
 #include "couplings.h"
 #include "joint_specs.h"
 #include "loop_dialects.h"
+#include "massless_gimbals.h"
 #include "mechanism_sim/urdf/model.h"
 #include "rigid_bodies.h"
 #include "transmissions.h"
@@ -121,6 +122,9 @@ class ModelBuilder {
 
   // A file that names its actuated joints (Extended-URDF name_mot) makes every other dof
   // passive, loop closures included, as the reference tool's ActuationModel does.
+  // A ball written as a gimbal (massless_gimbals.h) reported by the file's joints: J0's
+  // three dofs become J0, J1, J2 (Dof::gimbal), J1 and J2 move in tf.
+  void addGimbals(const std::vector<GimbalChain>& chains);
   void markPassive(const Extension& ext);
 
   // URDF <mimic>: an exact coupling of two one-dof joints.

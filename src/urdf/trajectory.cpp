@@ -48,6 +48,7 @@ void checkTrajectory(const MechanismModel& model, const Trajectory& traj) {
     if (d < 0) throw TrajectoryError("unknown joint '" + name + "'");
     if (!seen.insert(name).second) throw TrajectoryError("joint '" + name + "' is named twice");
     const Dof& dof = model.dofs()[d];
+    if (!dof.actuated) throw TrajectoryError(model.whyPassive(d));
     if (isFollower(mech, dof.joint_index, dof.k))
       throw TrajectoryError("joint '" + name + "' is coupled (a mimic follower): it moves with the joint it follows");
     if (dof.drive >= 0 && mech.system().drives[dof.drive].profile.kind() != DriveProfile::Kind::kVelocity)

@@ -480,8 +480,9 @@ TEST(Dialects, BallWrittenAsAGimbalOfMasslessLinksMovesAsABall) {
     o.velocities = {{"ball.x", 2.0}, {"ball.z", 3.0}};
     auto gimbal = loadModelFile(kDir + "/ball_as_gimbal.urdf", o);
     auto ball = loadModelFile(kDir + "/ball_as_spherical.urdf", o);
-    EXPECT_GE(gimbal->dofIndex("ball.z"), 0);
-    EXPECT_LT(gimbal->dofIndex("ball_y"), 0);
+    // reported by the file's three joints (the next test checks their values)
+    for (const char* j : {"ball", "ball_y", "ball_x"}) EXPECT_GE(gimbal->dofs().at(gimbal->dofIndex(j)).gimbal, 0) << j;
+    EXPECT_LT(gimbal->dofIndex("ball.z"), 0);
     bool noted = false;
     for (const std::string& n : gimbal->notes()) noted = noted || n.find("'ball' (ball_y, ball_x)") != std::string::npos;
     EXPECT_TRUE(noted);
@@ -522,12 +523,79 @@ TEST(Dialects, GimbalsWithMassOrLimitsStayAsWritten) {
   LoadOptions o;
   o.formulation = "absolute";
   auto ball = loadModelString(xyz, "gimbal.urdf", o);
-  EXPECT_GE(ball->dofIndex("ball.z"), 0);
-  EXPECT_LT(ball->dofIndex("ball_y"), 0);
+  EXPECT_EQ(ball->gimbals().size(), 1u);
   for (const std::string& xml : {heavy, limited, coupled}) {
     auto m = loadModelString(xml, "gimbal.urdf", o);
-    EXPECT_GE(m->dofIndex("ball_y"), 0);
-    EXPECT_LT(m->dofIndex("ball.z"), 0);
+    EXPECT_TRUE(m->gimbals().empty());
+    EXPECT_EQ(m->dofs().at(m->dofIndex("ball_y")).gimbal, -1);
+  }
+}
+
+// The ball is reported as the file wrote it: the three joints' angles, rates, accelerations
+// and reactions, and the massless links' poses and velocities, are those of the chain as
+// written (kept as three joints by naming one of them; its zero pose is away from the lock),
+// swinging from rest under a slanted gravity. The angles take no command.
+TEST(Dialects, ABallWrittenAsAGimbalIsReportedByTheFilesJoints) {
+  const std::string xyz = replaced(readText(kDir + "/ball_as_gimbal.urdf"), "<axis xyz=\"1 0 0\"/><limit",
+                                   "<axis xyz=\"0 0 1\"/><limit");
+  LoadOptions keep;
+  keep.formulation = "absolute";
+  keep.positions = {{"ball_y", 0.0}};
+  auto chain = loadModelString(xyz, "gimbal.urdf", keep);
+  ASSERT_TRUE(chain->gimbals().empty());
+  const Eigen::Vector3d g(3.0, -2.0, -9.81);
+  chain->setGravity(g);
+  for (const char* formulation : {"joint", "absolute"}) {
+    SCOPED_TRACE(formulation);
+    auto c = loadModelString(xyz, "gimbal.urdf", keep);
+    c->setGravity(g);
+    LoadOptions o;
+    o.formulation = formulation;
+    auto ball = loadModelString(xyz, "gimbal.urdf", o);
+    ASSERT_EQ(ball->gimbals().size(), 1u);
+    ball->setGravity(g);
+    for (int step = 1; step <= 600; ++step) {
+      c->step(1e-3), ball->step(1e-3);
+      if (step % 150) continue;
+      double speed = 0.0;
+      for (const char* j : {"ball", "ball_y", "ball_x"}) {
+        const int a = c->dofIndex(j), b = ball->dofIndex(j);
+        speed = std::max(speed, std::fabs(c->velocity(a)));
+        EXPECT_NEAR(ball->position(b), c->position(a), 1e-9) << j;
+        EXPECT_NEAR(ball->velocity(b), c->velocity(a), 1e-8) << j;
+        EXPECT_NEAR(ball->acceleration(b), c->acceleration(a), 1e-6 * (1 + std::fabs(c->acceleration(a)))) << j;
+        EXPECT_NEAR(ball->effort(b), 0.0, 1e-12) << j;
+      }
+      EXPECT_GT(speed, 0.5);  // it swings
+      for (const char* l : {"gimbal_1", "gimbal_2", "rod"}) {
+        const int a = c->linkIndex(l), b = ball->linkIndex(l);
+        EXPECT_LE((ball->linkPose(b).matrix() - c->linkPose(a).matrix()).norm(), 1e-9) << l;
+        EXPECT_LE((ball->linkVelocity(b).first - c->linkVelocity(a).first).norm(), 1e-8) << l;
+        EXPECT_LE((ball->linkVelocity(b).second - c->linkVelocity(a).second).norm(), 1e-8) << l;
+      }
+      std::map<std::string, JointReaction> chain_reactions;
+      for (const JointReaction& r : c->jointReactions()) chain_reactions[r.joint] = r;
+      int reported = 0;
+      for (const JointReaction& r : ball->jointReactions()) {
+        const JointReaction& e = chain_reactions.at(r.joint);
+        EXPECT_LE((r.force - e.force).norm(), 1e-6 * e.force.norm()) << r.joint;
+        EXPECT_LE(r.torque.norm(), 1e-9 * e.force.norm()) << r.joint;
+        ++reported;
+      }
+      EXPECT_EQ(reported, 3);
+    }
+    const int b = ball->dofIndex("ball_y");
+    try {
+      ball->setEffort(b, 1.0);
+      ADD_FAILURE() << "an effort on a gimbal's angle was taken";
+    } catch (const UsageError& e) {
+      EXPECT_NE(std::string(e.what()).find("'ball_y' is one of three revolute joints through massless links"),
+                std::string::npos) << e.what();
+    }
+    EXPECT_THROW(ball->driveDof(b), UsageError);
+    // reset starts the angles again at the file's zero
+    ball->reset();
+    for (const char* j : {"ball", "ball_y", "ball_x"}) EXPECT_EQ(ball->position(ball->dofIndex(j)), 0.0);
   }
 }
 

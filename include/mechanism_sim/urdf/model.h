@@ -4,6 +4,7 @@
 // (doc/embedding.md): load, step, reset and ask it; mechanism() is the core
 // underneath, for what the model does not answer itself.
 #pragma once
+#include <array>
 #include <map>
 #include <memory>
 #include <stdexcept>
@@ -14,6 +15,7 @@
 #include <Eigen/Geometry>
 
 #include "mechanism_sim/core/mechanism.h"
+#include "mechanism_sim/core/model/davenport.h"
 #include "mechanism_sim/core/model/transmission.h"
 
 namespace mechanism_sim {
@@ -59,8 +61,25 @@ struct Dof {
   double effort_limit = 0.0, velocity_limit = 0.0;  // 0: none
   int drive = -1;         // Mechanism drive index, or -1 (not driven)
   // Takes an effort command or a drive. False for the passive dofs of a file that names its
-  // actuated joints (an Extended-URDF name_mot: doc/loop_dialects.md).
+  // actuated joints (an Extended-URDF name_mot: doc/loop_dialects.md) and for a gimbal's
+  // (MechanismModel::whyPassive says which).
   bool actuated = true;
+  // A ball the file writes as three revolute joints through massless links (doc/robots.md):
+  // the index of its gimbal (MechanismModel::gimbalAngles); joint_index is the spherical
+  // joint simulated in their place and k this joint's place in the chain. -1: none.
+  int gimbal = -1;
+};
+
+// A ball the file writes as three revolute joints J0, J1, J2 through massless links L1, L2,
+// simulated as one spherical joint and reported by the file's three angles: the spherical
+// joint's relative rotation is Rot(e0, t0) Rot(e1, t1) Rot(e2, t2) (Davenport angles), so
+// t0, t1, t2 are the joints' positions, and L1, L2 are placed where the angles turn them.
+struct Gimbal {
+  int joint = -1;                        // the spherical joint (Mechanism index)
+  DavenportAxes axes{Eigen::Vector3d::UnitZ(), Eigen::Vector3d::UnitX(), Eigen::Vector3d::UnitZ()};
+  int parent_link = -1, link1 = -1, link2 = -1, child_link = -1;  // links(): J0's parent, L1, L2, J2's child
+  // J0's and J1's joint frames in their parent and child links (z: the axis), as written
+  std::array<Eigen::Isometry3d, 2> P_J, C_J;
 };
 
 struct Link {
@@ -189,8 +208,15 @@ class MechanismModel {
   double acceleration(int dof) const;
   double kineticEnergy() const;
   double potentialEnergy() const;   // gravity and springs
+  // The angles of a ball written as a gimbal (Dof::gimbal), each continued from the last
+  // ones reported (whole turns kept; reset() starts them again at the file's zero).
+  const Angles3& gimbalAngles(int gimbal) const;
+  const std::vector<Gimbal>& gimbals() const { return gimbals_; }
+  // Why a dof takes no effort command, drive or trajectory ("" if it takes them).
+  std::string whyPassive(int dof) const;
   // Every joint with equations (tree joints that are not fixed or floating, and loop
-  // closures; in the core's joint order): what it exerts on its child link, constraint,
+  // closures; in the core's joint order; then each gimbal's J1 and J2, which pass on what its
+  // ball carries, their links being massless): what it exerts on its child link, constraint,
   // limits, drive, mimic share and applied efforts together. Where equations are dependent
   // (two hinges on one axis, a planar loop) the least-norm reactions: the same state gives
   // the same reactions whatever the history.
@@ -199,7 +225,7 @@ class MechanismModel {
   // the effort -c_i lambda (Mechanism::couplingReaction).
   std::vector<double> couplingReactions() const;
   // World pose of the frame jointReactions() are given in: the joint frame on the child of
-  // core joint j (the order of jointReactions()).
+  // core joint j, then of each gimbal's J1 and J2 (the order of jointReactions()).
   Eigen::Isometry3d reactionFrame(int joint) const;
   double positionViolation() const;  // largest |Phi|
   double velocityViolation() const;  // largest |Phi_q v|
@@ -246,6 +272,12 @@ class MechanismModel {
   std::vector<TransmissionInfo> transmissions_;
   std::vector<CouplingInfo> couplings_;
   std::vector<Actuator> actuators_;
+  std::vector<Gimbal> gimbals_;
+  int dofOfGimbal(size_t gimbal, int k) const;
+  // A gimbal dof's ball's three values of `of` (jointVelocity, jointEffort, ...).
+  Eigen::Vector3d ballVector(const Dof& d, double (Mechanism::*of)(int, int) const) const;
+  // per gimbal: the angles last reported and the rotation vector they were reported at
+  mutable std::vector<std::pair<Angles3, Eigen::Vector3d>> gimbal_angles_;
   std::vector<Eigen::Isometry3d> reaction_frames_;  // per core joint: its file frame in its child's body
   std::vector<double> command_;
   AssemblyReport assembly_;
@@ -256,7 +288,7 @@ class MechanismModel {
 };
 
 // Loads, builds and assembles. Throws LoadError naming the file, element and problem. A
-// path ending in .xacro is expanded by tools/xacro (Node.js) first; its errors are
+// path ending in .xacro is expanded by ROS's xacro first (doc/xacro.md); its errors are
 // "FILE: xacro: what", and the model's read "FILE (xacro expansion):LINE: ...".
 std::unique_ptr<MechanismModel> loadModelFile(const std::string& path, const LoadOptions& options = {});
 std::unique_ptr<MechanismModel> loadModelString(const std::string& xml, const std::string& source,
