@@ -1,13 +1,19 @@
 // The two formulations as the facade sees them: one stepper interface, and the choice of
 // which one runs a System.
 #pragma once
+#include <memory>
 #include <string>
+
+#include <Eigen/Core>
 
 #include "mechanism_sim/core/model/system.h"
 #include "mechanism_sim/core/model/tableau.h"
 #include "mechanism_sim/core/reports.h"
 
 namespace mechanism_sim {
+
+struct Evaluation;
+struct TreeReactionWorkspace;
 
 // What the Mechanism asks of the formulation that runs: the absolute one
 // (absolute/stepper.h, the seed's method on every body) or the joint one
@@ -35,6 +41,25 @@ class FormulationStepper {
   // the stepper knows them cheaply for s (else false: the caller evaluates every equation).
   virtual bool stepViolation(const State& s, double& position, double& velocity) const {
     (void)s, (void)position, (void)velocity;
+    return false;
+  }
+  // The System's damping changed (its layout did not).
+  virtual void dampingChanged(const System& sys) { (void)sys; }
+  // Where the State keeps joint `joint`'s coordinates as its own (its rates with `rate`):
+  // their first index in s.q (s.qdot), or -1 where they are only the joint's equations'
+  // values at s's poses.
+  virtual int stateCoordinate(const State& s, int joint, bool rate) const {
+    (void)s, (void)joint, (void)rate;
+    return -1;
+  }
+  // The multipliers of every System row at s for the reactions, in the absolute
+  // formulation's rows and sign, with the evaluation whose Jacobian goes with them, in
+  // `lambda` and `*with` (scratch: the caller's query workspace, made when first needed).
+  // False where the multipliers are the absolute formulation's at s (the caller's).
+  virtual bool reactionMultipliers(const System& sys, const State& s, const Inputs& in,
+                                   std::unique_ptr<TreeReactionWorkspace>& scratch, Eigen::VectorXd& lambda,
+                                   const Evaluation** with) const {
+    (void)sys, (void)s, (void)in, (void)scratch, (void)lambda, (void)with;
     return false;
   }
 };

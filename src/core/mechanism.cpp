@@ -13,7 +13,6 @@
 #include "core/formulation.h"
 #include "core/numerics.h"
 #include "core/joint_space/joint_stepper.h"
-#include "core/joint_space/tree_reactions.h"
 #include "core/reaction_solve.h"
 #include "mechanism_sim/core/model/couplers.h"
 #include "mechanism_sim/core/model/coupling.h"
@@ -236,7 +235,7 @@ void Mechanism::setJointDamping(int joint, int k, double c) {
   if (!(c >= 0) || !std::isfinite(c))
     throw ModelError("joint '" + sys_->joints[joint]->name() + "': damping must be finite and >= 0");
   editable().damping[joint][k] = c;
-  if (joint_) joint_->setDamping(*sys_);  // (the joint stepper keeps its damped coordinates)
+  if (running_) running_->dampingChanged(*sys_);
 }
 
 void Mechanism::addRotorInertia(const RotorInertia& rotor) {
@@ -392,18 +391,8 @@ const Row* Mechanism::coordinateRows(int joint) const {
   return rows;
 }
 
-// In joint coordinates a tree joint's coordinate is the State's own q (and its rate q_dot):
-// the poses are written from them, and Joint::coordinates at those poses gives the same
-// numbers to round-off. -1 where the joint is not on the tree, is spherical (a quaternion
-// in q, a rotation vector as its coordinates) or the absolute formulation runs.
 int Mechanism::treeCoordinate(int joint, bool rate) const {
-  if (!joint_ || state_.q.size() == 0) return -1;
-  const TreeModel& model = joint_->model();
-  const int link = model.joint_link[joint];
-  if (link < 0) return -1;
-  const TreeLink& L = model.links[link];
-  if (L.kind == TreeJointKind::kSpherical || L.kind == TreeJointKind::kFree) return -1;
-  return rate ? L.iv : L.iq;
+  return running_ ? running_->stateCoordinate(state_, joint, rate) : -1;
 }
 
 double Mechanism::jointPosition(int joint, int k) const {
@@ -433,16 +422,8 @@ double Mechanism::jointEffort(int joint, int k) const {
 Eigen::VectorXd Mechanism::multipliers(const Evaluation** with) const {
   const System& sys = *sys_;
   if (!reactions_) reactions_ = std::make_unique<ReactionSolve>();
-  if (joint_) {
-    // The joint formulation: the closures' multipliers (couplers, drives, limits) as its
-    // stepper solved them, the tree joints' from the recursive Newton-Euler pass over the
-    // State's accelerations (tree_reactions.h), in the absolute formulation's rows and sign.
-    if (!reactions_->tree) reactions_->tree = std::make_unique<TreeReactionWorkspace>(sys);
-    Eigen::VectorXd lambda = state_.lambda;
-    treeJointMultipliers(sys, joint_->model(), state_, inputs_, *reactions_->tree, lambda);
-    *with = &reactions_->tree->ev;  // (every row's Jacobian, none dropped)
-    return lambda;
-  }
+  Eigen::VectorXd lambda;
+  if (running_->reactionMultipliers(sys, state_, inputs_, reactions_->tree, lambda, with)) return lambda;
   bool dependent = false;
   for (char d : state_.dropped) dependent = dependent || d;
   if (!dependent) {
@@ -453,7 +434,6 @@ Eigen::VectorXd Mechanism::multipliers(const Evaluation** with) const {
     reactions_->ev = Evaluation(sys);
     reactions_->solver = makeSolver(sys, reactions_->stats);
   }
-  Eigen::VectorXd lambda;
   minimumNormMultipliers(sys, state_, inputs_, reactions_->ev, *reactions_->solver, reactions_->stats, lambda);
   *with = &reactions_->ev;  // (the dependent rows' Jacobian is in this evaluation only)
   return lambda;
@@ -478,23 +458,11 @@ Reaction Mechanism::reaction(int ci) const {
 }
 
 SolverStats Mechanism::solverStats() const {
+  // the absolute stepper's (assembly's, at least), the joint stepper's when it runs, the
+  // reaction queries'
   SolverStats s = stepper_->stats();
-  if (joint_) {  // (its solves: the articulated-body passes of its stages)
-    const SolverStats& j = joint_->stats();
-    s.solves += j.solves, s.solve_shortfalls += j.solve_shortfalls;
-    s.position_projections += j.position_projections, s.position_shortfalls += j.position_shortfalls;
-    s.velocity_projections += j.velocity_projections, s.velocity_shortfalls += j.velocity_shortfalls;
-    s.worst_solve = std::max(s.worst_solve, j.worst_solve);
-    s.worst_position = std::max(s.worst_position, j.worst_position);
-    s.worst_velocity = std::max(s.worst_velocity, j.worst_velocity);
-    s.halved_steps += j.halved_steps;
-  }
-  if (reactions_) {
-    const SolverStats& r = reactions_->stats;
-    s.solves += r.solves;
-    s.solve_shortfalls += r.solve_shortfalls;
-    s.worst_solve = std::max(s.worst_solve, r.worst_solve);
-  }
+  if (running_ != stepper_.get()) s.add(running_->stats());
+  if (reactions_) s.add(reactions_->stats);
   return s;
 }
 

@@ -29,6 +29,17 @@ struct SolverStats {
     ++velocity_projections;
     if (!met) ++velocity_shortfalls, worst_velocity = std::max(worst_velocity, residual);
   }
+  // Another's solves, projections, halved steps and worst residuals with these (the
+  // evaluations, factorizations and solve passes stay the stepper's own work counts).
+  void add(const SolverStats& o) {
+    solves += o.solves, solve_shortfalls += o.solve_shortfalls;
+    position_projections += o.position_projections, position_shortfalls += o.position_shortfalls;
+    velocity_projections += o.velocity_projections, velocity_shortfalls += o.velocity_shortfalls;
+    halved_steps += o.halved_steps;
+    worst_solve = std::max(worst_solve, o.worst_solve);
+    worst_position = std::max(worst_position, o.worst_position);
+    worst_velocity = std::max(worst_velocity, o.worst_velocity);
+  }
   std::string describe() const;  // one line
 };
 

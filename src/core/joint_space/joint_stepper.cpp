@@ -11,6 +11,7 @@
 #include "core/absolute/evaluation.h"
 #include "core/absolute/projection.h"
 #include "core/numerics.h"
+#include "core/joint_space/tree_reactions.h"
 
 namespace mechanism_sim {
 using numerics::kMaxVelocityPasses;
@@ -550,4 +551,23 @@ void JointStepper::frictionFor(const System& sys, State& s, double h) {
     coulombFriction(f, L.ptr->planarTranslation(), rate, gPg, s.friction[L.joint]);
   }
 }
+int JointStepper::stateCoordinate(const State& s, int joint, bool rate) const {
+  if (s.q.size() == 0) return -1;
+  const int link = model_.joint_link[joint];
+  if (link < 0) return -1;
+  const TreeLink& L = model_.links[link];
+  if (L.kind == TreeJointKind::kSpherical || L.kind == TreeJointKind::kFree) return -1;
+  return rate ? L.iv : L.iq;
+}
+
+bool JointStepper::reactionMultipliers(const System& sys, const State& s, const Inputs& in,
+                                       std::unique_ptr<TreeReactionWorkspace>& scratch, Eigen::VectorXd& lambda,
+                                       const Evaluation** with) const {
+  if (!scratch) scratch = std::make_unique<TreeReactionWorkspace>(sys);
+  lambda = s.lambda;
+  treeJointMultipliers(sys, model_, s, in, *scratch, lambda);
+  *with = &scratch->ev;  // (every row's Jacobian, none dropped)
+  return true;
+}
+
 }  // namespace mechanism_sim

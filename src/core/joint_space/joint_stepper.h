@@ -73,6 +73,16 @@ class JointStepper final : public FormulationStepper {
   // The System's joint damping changed (Mechanism::setJointDamping): which coordinates are
   // damped, and by how much, again (the constructor read them).
   void setDamping(const System& sys);
+  void dampingChanged(const System& sys) override { setDamping(sys); }
+  // A tree joint's coordinates are q's own (the poses are written from them, and
+  // Joint::coordinates at those poses gives the same numbers to round-off); not a
+  // spherical or free joint's (a quaternion in q, a rotation vector as coordinates).
+  int stateCoordinate(const State& s, int joint, bool rate) const override;
+  // The closures' multipliers (couplers, drives, limits) as the step solved them, the tree
+  // joints' from the recursive Newton-Euler pass over s's accelerations (tree_reactions.h).
+  bool reactionMultipliers(const System& sys, const State& s, const Inputs& in,
+                           std::unique_ptr<TreeReactionWorkspace>& scratch, Eigen::VectorXd& lambda,
+                           const Evaluation** with) const override;
   const TreeModel& model() const { return model_; }
 
  private:
