@@ -1,123 +1,247 @@
-// Loop closures on the joint-space tree (loop_closure.h) against the absolute-coordinate
-// solver: a planar four-bar, a spatial RSSR loop, random trees closed by one or two random
-// joints, in metres and millimetres. Every mechanism is built at a pose where each joint's
-// two frames coincide (joint coordinates zero), so the initial pose is assembled.
+// The closures' rows (loop_closure.cpp: layout, evaluation, limits): couplers, drives, limits
+// and cut-joint efforts as closures on the joint-space tree against the absolute-coordinate
+// solver (Stepper::settle after analyzeDependencies) at one assembled state: accelerations of
+// every body and the multiplier of every closure row (mapped to its System row), in metres and
+// millimetres; G against finite differences of Phi (and nu against -dPhi/dt); the projections.
 #include <gtest/gtest.h>
 
-#include "loop_cases.h"
+#include "bodies.h"
 #include "random_loops.h"
 #include "compare.h"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <functional>
 #include <memory>
 #include <random>
 #include <string>
 #include <vector>
 
-#include "core/absolute/evaluation.h"
+#include "mechanism_sim/core/model/couplers.h"
+#include "mechanism_sim/core/model/drive.h"
 #include "core/joint_space/loop_closure.h"
-#include "mechanism_sim/core/models.h"
 #include "core/absolute/stepper.h"
 
 namespace mechanism_sim {
 namespace {
 
 using test_util::accelerationDifference;
-using test_util::fourBar;
-using test_util::rssr;
-using test_util::absoluteFromJoint;
 using test_util::Builder;
-using test_util::isTranslation;
-using test_util::randomLoops;
-using test_util::randomRotation;
 using test_util::uniform;
 
-struct LoopComparison {
-  bool ok = false;
-  double acc = 0, lambda = 0, Gtlambda = 0, fd = 0, pos = 0, vel = 0;
-  int dependent = 0, rows = 0, pos_iterations = 0;
-  int idle = 0, kept = 0;  // closure rows left out as idle, and kept
-  bool reused = false;  // the projections left their evaluation at (q, q_dot) ...
-  double reuse = -1;    // ... and the dynamics from it differ from a fresh evaluation's by this
+Matrix3d axesWithZ(const Vector3d& z) {  // a right-handed frame with bz = z
+  const Vector3d zn = z.normalized();
+  const Vector3d x = (std::fabs(zn.x()) < 0.9 ? Vector3d::UnitX() : Vector3d::UnitY()).cross(zn).normalized();
+  Matrix3d R;
+  R << x, zn.cross(x), zn;
+  return R;
+}
+
+
+// A spatial chain: revolute (y), revolute (z), prismatic (x), revolute (x), revolute (y),
+// each link a rod to the next joint; the 1st joint written parent-last (reversed link).
+Builder chain(double L) {
+  Builder b(L, L);
+  static const char* const kType[] = {"revolute", "revolute", "prismatic", "revolute", "revolute"};
+  const Vector3d ax[] = {Vector3d::UnitY(), Vector3d::UnitZ(), Vector3d::UnitX(), Vector3d::UnitX(), Vector3d(0, 1, 1)};
+  Vector3d p(0, 0, 0);
+  int prev = 0;
+  std::mt19937 rng(3);
+  for (int k = 0; k < 5; ++k) {
+    const Vector3d next = p + 0.4 * L * Vector3d(1.0, 0.3 * std::sin(1.3 * k), 0.2 * std::cos(k));
+    const int bb = b.addBody(0.5 + 0.2 * k, Vector3d(0.02, 0.02 + 0.005 * k, 0.03), 0.5 * (p + next),
+                             Quaterniond(Eigen::AngleAxisd(0.3 * k, Vector3d(1, 2, 3).normalized())).toRotationMatrix());
+    if (k == 1) b.addJoint(kType[k], bb, prev, p, axesWithZ(ax[k]));
+    else b.addJoint(kType[k], prev, bb, p, axesWithZ(ax[k]));
+    prev = bb, p = next;
+  }
+  return b;
+}
+
+// The planar four-bar in x-z (axes along y), as joint_space/test_loop_closure.cpp; the closing
+// joint (coupler-rocker at C) is the last one.
+Builder fourBar(double L) {
+  Builder b(L, L);
+  const double pi = 3.141592653589793;
+  const Vector3d O(0, 0, 0), D(1.0 * L, 0, 0);
+  const Vector3d B = O + 0.35 * L * Vector3d(std::cos(1.1), 0, std::sin(1.1));
+  const Vector3d C = D + 0.8 * L * Vector3d(std::cos(pi * 0.6), 0, std::sin(pi * 0.6));
+  auto rod = [&](const Vector3d& a, const Vector3d& c, double m) {
+    const Vector3d x = (c - a).normalized();
+    Matrix3d R;
+    R << x, Vector3d::UnitY(), x.cross(Vector3d::UnitY());
+    const double l = (c - a).norm() / L;
+    return b.addBody(m, Vector3d(0.002, l * l / 12, l * l / 12 + 0.002), 0.5 * (a + c), R);
+  };
+  const int crank = rod(O, B, 0.7), coupler = rod(B, C, 1.3), rocker = rod(D, C, 1.0);
+  const Matrix3d Y = axesWithZ(Vector3d::UnitY());
+  b.addJoint("revolute", 0, crank, O, Y);
+  b.addJoint("revolute", crank, coupler, B, Y);
+  b.addJoint("revolute", 0, rocker, D, Y);
+  b.addJoint("revolute", coupler, rocker, C, Y);
+  return b;
+}
+
+// The absolute State of a joint state with the context of `ctx_from` (random_loops.h).
+State absoluteFromJoint(const System& sys, const TreeModel& model, TreeWorkspace& ws, const Eigen::VectorXd& q,
+                        const Eigen::VectorXd& qd, const State& ctx_from) {
+  return test_util::absoluteFromJoint(sys, model, ws, q, qd, &ctx_from);
+}
+
+struct Comparison {
+  double solve = 0, acc = 0, lambda = 0, lambda_row = 0, fd = 0, fd_t = 0, pos = 0, vel = 0, lam_max = 0;
+  int rows = 0, dependent = 0, released = 0;
 };
 
-// At the assembled pose (q neutral) with random rates projected onto G q_dot = 0 and random
-// loads: joint-space constrained dynamics against Stepper::settle; G against finite
-// differences of Phi; the projections from a perturbed state.
-LoopComparison compare(Builder& b, unsigned seed, const char* label) {
+// The state: q from the neutral pose projected onto Phi(q, t) = 0 (limits at their bounds,
+// drives at f(t)), random rates projected onto G q_dot = nu, random efforts (cut joints'
+// too when cut_effort) and loads; `base` carries t, limit sides and drive ramps.
+Comparison compare(Builder& b, const State& base0, unsigned seed, bool cut_effort, const std::string& label,
+                   bool unique_lambda = true, const std::function<void(Inputs&)>& adjust = nullptr) {
   System& sys = *b.sys;
   const double L = b.length;
-  sys.finalize();
-  LoopComparison out;
+  Comparison out;
   EXPECT_EQ(jointSpaceUnsupported(sys, true), "") << label;
-  EXPECT_NE(jointSpaceUnsupported(sys).find("closes a loop"), std::string::npos) << label;
+  EXPECT_NE(jointSpaceUnsupported(sys), "") << label;
   TreeModel model(sys);
-  if (model.cut_joints.empty()) return out;
   TreeWorkspace ws(model);
   LoopClosures cl(model, sys);
+  State base = base0;
   std::mt19937 rng(seed);
   Eigen::VectorXd q = model.neutralPositions(sys), qd(model.nv);
+  auto translation = [&](const TreeLink& Lk, int k) {
+    return Lk.kind == TreeJointKind::kPrismatic || (Lk.kind == TreeJointKind::kCylindrical && k == 1) ||
+           (Lk.kind == TreeJointKind::kPlanar && k < 2);
+  };
   for (const TreeLink& Lk : model.links)
-    for (int k = 0; k < Lk.nv; ++k) {
-      qd(Lk.iv + k) = uniform(rng, -2, 2) * (isTranslation(Lk, k) ? L : 1.0);
-    }
+    for (int k = 0; k < Lk.nv; ++k) qd(Lk.iv + k) = uniform(rng, -2, 2) * (translation(Lk, k) ? L : 1.0);
+  // positions: the tracked angles follow q (a State made from q each time)
+  State s = absoluteFromJoint(sys, model, ws, q, qd, base);
+  cl.setContext(s.context());
+  ClosureProjectionReport pr;
+  for (int round = 0; round < 3; ++round) {
+    pr = projectClosurePositions(model, sys, cl, q, ws, 1e-14, 30);
+    s = absoluteFromJoint(sys, model, ws, q, qd, base);
+    cl.setContext(s.context());
+  }
   forwardKinematics(model, q, qd, ws);
   cl.evaluate(model, sys, ws);
-  EXPECT_LT(cl.positionResidual(), 1e-14) << label << ": the built pose is not assembled";
+  out.pos = cl.positionResidual();
+  EXPECT_LT(out.pos, 1e-12) << label << ": position projection";
   const ClosureProjectionReport vr = projectClosureVelocities(model, sys, cl, q, qd, ws);
-  EXPECT_TRUE(vr.converged) << label << " velocity projection: " << vr.residual;
+  out.vel = vr.residual;
+  EXPECT_TRUE(vr.converged) << label << ": velocity projection " << vr.residual;
+  s = absoluteFromJoint(sys, model, ws, q, qd, base);
+  cl.setContext(s.context());
 
-  // ---- dynamics against the absolute solver
-  State s = absoluteFromJoint(sys, model, ws, q, qd);
   Inputs in = zeroInputs(sys);
-  const double effort = 9.81 * std::fabs(sys.gravity.z()) / 9.81 * L;
+  const double effort = std::fabs(sys.gravity.z()) * L;
   for (int j = 0; j < sys.numJoints(); ++j) {
-    if (model.joint_link[j] < 0) continue;  // (efforts on cut joints: not modelled)
-    for (int k = 0; k < sys.joints[j]->dof(); ++k) in.effort[j][k] = uniform(rng, -1, 1) * effort;
+    if (model.joint_link[j] < 0 && !cut_effort) continue;
+    const std::string t = sys.joints[j]->type();
+    for (int k = 0; k < sys.joints[j]->dof(); ++k)
+      in.effort[j][k] = uniform(rng, -1, 1) * effort / (t == "prismatic" ? L : 1.0);
   }
   for (int bb = 1; bb <= sys.nb; ++bb) {
     in.force[bb] = std::fabs(sys.gravity.z()) * Vector3d(uniform(rng, -1, 1), uniform(rng, -1, 1), uniform(rng, -1, 1));
     in.torque[bb] = effort * Vector3d(uniform(rng, -1, 1), uniform(rng, -1, 1), uniform(rng, -1, 1));
   }
-  // prismatic and the like take efforts in force units: scale those by 1/L
-  for (int j = 0; j < sys.numJoints(); ++j) {
-    const std::string t = sys.joints[j]->type();
-    for (int k = 0; k < sys.joints[j]->dof(); ++k)
-      if ((t == "prismatic" && k == 0) || (t == "cylindrical" && k == 1) || (t == "planar" && k < 2)) in.effort[j][k] /= L;
-  }
+  if (adjust) adjust(in);
   Eigen::VectorXd tau, qdd, acc;
   jointEfforts(model, in, tau);
   const ClosureSolveInfo info = constrainedForwardDynamics(model, sys, cl, q, qd, tau, ws, qdd, &in);
   bodyAccelerations(model, ws, qdd, acc);
-  out.dependent = info.dependent;
-  out.rows = info.rows;
-  out.idle = cl.idleRowCount();
-  out.kept = cl.m;
+  out.rows = info.rows, out.dependent = info.dependent;
 
   Stepper stepper(sys);
   stepper.analyzeDependencies(sys, s);
+  const std::vector<signed char> sides = s.limit_side;
+  std::vector<signed char> mine = sides;  // the closures' release rule on their first solve
+  cl.releasePullingLimits(sys, mine.data());
   stepper.settle(sys, s, in);
+  EXPECT_EQ(mine, s.limit_side) << label << ": the limits released";
+  int released = 0;
+  for (size_t l = 0; l < sides.size(); ++l) released += sides[l] != s.limit_side[l];
+  if (released) {
+    // settle let go of limits that would pull (their multiplier of the wrong sign): the
+    // closures' rule is the same, the caller's; solve again with the sides it left
+    // (the closures read s's context).
+    std::printf("[%s] settle released %d limit(s) that would pull; solving again with its sides\n", label.c_str(), released);
+    cl.setContext(s.context());
+    constrainedForwardDynamics(model, sys, cl, q, qd, tau, ws, qdd, &in);
+    bodyAccelerations(model, ws, qdd, acc);
+  }
+  out.released = released;
   out.acc = accelerationDifference(acc, s.acc, sys.nb, L, sys.gravity.norm());
-  Eigen::VectorXd lam_abs(cl.m);
-  for (int e = 0; e < cl.m; ++e) lam_abs(e) = s.lambda(cl.sys_row[e]);
-  // G^T lambda is unique even with dependent rows; lambda itself when G has full rank
-  const Eigen::VectorXd f1 = cl.G.transpose() * cl.lambda, f2 = cl.G.transpose() * lam_abs;
-  Eigen::VectorXd fs = (cl.Gabs.transpose() * lam_abs.cwiseAbs()).cwiseMax(1e-300);
-  out.Gtlambda = ((f1 - f2).cwiseAbs().cwiseQuotient(fs)).maxCoeff();
-  // per row of the same units: against the largest of that closure's multipliers in its
-  // rows of the same kind (forces and moments kept apart by the closure's sizes)
-  out.lambda = (cl.lambda - lam_abs).cwiseAbs().maxCoeff() / std::max(lam_abs.cwiseAbs().maxCoeff(), 1e-300);
-  (void)f1;
+  Eigen::VectorXd lam_sys = Eigen::VectorXd::Zero(sys.m);
+  cl.systemMultipliers(lam_sys);
+  double worst = 0, worst_row = 0, big = 0;
+  // Rows of limits left free are compared as zero: the closures give them lambda 0 (a
+  // zero row); State::lambda keeps there what the solve before settle's release gave.
+  std::vector<char> free_row(cl.m, 0);
+  for (size_t i = 0; i < cl.constraints.size(); ++i) {
+    const int l = sys.constraints[cl.constraints[i]]->limit();
+    if (l >= 0 && s.limit_side[l] == 0) {
+      free_row[cl.row[i]] = 1;
+      EXPECT_EQ(cl.lambda(cl.row[i]), 0.0) << label << ": a free limit's multiplier";
+    }
+  }
+  for (int e = 0; e < cl.m; ++e)
+    if (!free_row[e]) big = std::max(big, std::fabs(s.lambda(cl.sys_row[e])));
+  for (int e = 0; e < cl.m; ++e) {
+    if (free_row[e]) continue;
+    const double a = s.lambda(cl.sys_row[e]), d = std::fabs(lam_sys(cl.sys_row[e]) - a);
+    worst = std::max(worst, d / std::max(big, 1e-300));
+    if (std::fabs(a) > 1e-3 * big) worst_row = std::max(worst_row, d / std::fabs(a));
+  }
+  out.lambda = worst, out.lambda_row = worst_row, out.lam_max = big;
+  {  // the allocation-free least-norm solve against Eigen's CompleteOrthogonalDecomposition::solve
+    const Eigen::MatrixXd A = cl.G * cl.Y;
+    Eigen::VectorXd d = Eigen::VectorXd::Zero(cl.m), b = cl.G * qdd;  // G q_ddot_free - gamma_q = b + G Y lambda - G q_ddot
+    for (int e = 0; e < cl.m; ++e) {
+      bool zero = true;
+      for (int k = 0; k < cl.nv; ++k) zero = zero && !(std::fabs(cl.G(e, k)) > kClosureZeroEntry * cl.Gabs(e, k));
+      d(e) = (!zero && A(e, e) > 0) ? 1.0 / std::sqrt(A(e, e)) : 0.0;
+    }
+    Eigen::MatrixXd As = d.asDiagonal() * A * d.asDiagonal();
+    for (int e = 0; e < cl.m; ++e)
+      if (d(e) == 0.0) As(e, e) = 1.0;
+    b = A * cl.lambda;  // the right-hand side the solve saw (G q_ddot = gamma_q after it)
+    Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd> cod(cl.m, cl.m);
+    cod.setThreshold(kClosureRankThreshold);
+    cod.compute(As);
+    const Eigen::VectorXd ref = d.asDiagonal() * cod.solve(Eigen::VectorXd(d.asDiagonal() * b));
+    Eigen::VectorXd mine(cl.m);
+    cl.solve(b, mine);
+    const double diff = (mine - ref).cwiseAbs().maxCoeff() / std::max(ref.cwiseAbs().maxCoeff(), 1e-300);
+    EXPECT_LT(diff, 1e-12) << label << ": solve() against Eigen's COD";
+    out.solve = diff;
+  }
+  EXPECT_LT(out.acc, 1e-10) << label;
+  if (unique_lambda) {
+    EXPECT_LT(out.lambda, 1e-10) << label;
+  }
 
-  // ---- G against central differences of Phi along a random direction
+  if (cut_effort) {  // the cut joints' efforts act: without them the accelerations differ
+    Inputs in0 = in;
+    for (int j : model.cut_joints) in0.effort[j] = {0, 0, 0};
+    Eigen::VectorXd qdd0, acc0;
+    constrainedForwardDynamics(model, sys, cl, q, qd, tau, ws, qdd0, &in0);
+    bodyAccelerations(model, ws, qdd0, acc0);
+    const double without = accelerationDifference(acc0, s.acc, sys.nb, L, sys.gravity.norm());
+    std::printf("[%s] without the cut joint's effort the accelerations would differ by %.2e\n", label.c_str(), without);
+    EXPECT_GT(without, 1e-3) << label;
+  }
+  // ---- G against central differences of Phi along a random direction; nu against -Phi_t
   Eigen::VectorXd dv(model.nv);
-  for (int k = 0; k < model.nv; ++k) dv(k) = uniform(rng, -1, 1);
+  for (const TreeLink& Lk : model.links)
+    for (int k = 0; k < Lk.nv; ++k) dv(Lk.iv + k) = uniform(rng, -1, 1) * (translation(Lk, k) ? L : 1.0);
   forwardKinematics(model, q, qd, ws);
   cl.evaluate(model, sys, ws);
-  const Eigen::VectorXd Gdv = cl.G * dv;
-  const double eps = 1e-5;
+  const Eigen::VectorXd Gdv = cl.G * dv, nu = cl.nu;
+  const double eps = 1e-6;
   Eigen::VectorXd qp = q, qm = q;
   retract(model, qp, eps * dv);
   retract(model, qm, -eps * dv);
@@ -128,223 +252,154 @@ LoopComparison compare(Builder& b, unsigned seed, const char* label) {
   cl.evaluate(model, sys, ws);
   const Eigen::VectorXd fd = (Pp - cl.Phi) / (2 * eps);
   out.fd = (fd - Gdv).cwiseAbs().maxCoeff() / std::max(Gdv.cwiseAbs().maxCoeff(), 1e-300);
-
-  // ---- projections from a perturbed state
-  Eigen::VectorXd qx = q;
-  retract(model, qx, 1e-2 * dv);
-  const ClosureProjectionReport pr = projectClosurePositions(model, sys, cl, qx, ws, 1e-13);
-  out.pos = pr.residual;
-  out.pos_iterations = pr.iterations;
-  Eigen::VectorXd qdx = qd + 0.1 * dv;
-  const ClosureProjectionReport vr2 = projectClosureVelocities(model, sys, cl, qx, qdx, ws);
-  out.vel = vr2.residual;
-  // ---- the stepper's finish: projections with the kinematics at the rates, which move
-  // nothing on a state already on the closures, leave ws and the evaluation at (q, q_dot);
-  // the dynamics from them are those of a fresh evaluation there, bit for bit
-  // (a rate projected again is judged against its own size, no longer the perturbed one's:
-  // once more, so that it is on the closures by that measure too)
-  projectClosureVelocities(model, sys, cl, qx, qdx, ws);
-  const ClosureProjectionReport py = projectClosurePositions(model, sys, cl, qx, ws, 1e-13, 20, &qdx);
-  const ClosureProjectionReport vy = projectClosureVelocities(model, sys, cl, qx, qdx, ws, 1e-13, 3, true, py.at_rates);
-  out.reused = py.at_rates && py.iterations == 0 && vy.at_rates;
-  if (out.reused) {
-    Eigen::VectorXd qdd_reused, qdd_fresh;
-    constrainedForwardDynamics(model, sys, cl, qx, qdx, tau, ws, qdd_reused, &in, true);
-    const Eigen::VectorXd lambda_reused = cl.lambda;
-    forwardKinematics(model, q, qd, ws);  // (another state in between)
-    constrainedForwardDynamics(model, sys, cl, q, qd, tau, ws, qdd_fresh, &in);
-    constrainedForwardDynamics(model, sys, cl, qx, qdx, tau, ws, qdd_fresh, &in);
-    out.reuse = std::max((qdd_reused - qdd_fresh).cwiseAbs().maxCoeff(), (lambda_reused - cl.lambda).cwiseAbs().maxCoeff());
-  }
-  out.ok = true;
+  const double h = 1e-5;
+  State sp = s, sm = s;
+  sp.t += h, sm.t -= h;
+  forwardKinematics(model, q, qd, ws);
+  cl.evaluate(model, sys, ws, sp.context());
+  const Eigen::VectorXd Pt = cl.Phi;
+  cl.evaluate(model, sys, ws, sm.context());
+  const Eigen::VectorXd fdt = -(Pt - cl.Phi) / (2 * h);
+  out.fd_t = (fdt - nu).cwiseAbs().maxCoeff() / std::max(nu.cwiseAbs().maxCoeff(), 1e-300);
+  if (nu.cwiseAbs().maxCoeff() == 0.0) out.fd_t = fdt.cwiseAbs().maxCoeff();
+  EXPECT_LT(out.fd, 1e-7) << label;
+  EXPECT_LT(out.fd_t, 1e-7) << label;
+  std::printf("[%s] rows %d (dependent %d): acc %.2e, lambda %.2e (of max %.3g; per row %.2e), FD(G) %.2e, "
+              "FD(nu) %.2e, position %.2e (%d its), velocity %.2e, solve vs Eigen COD %.1e\n",
+              label.c_str(), out.rows, out.dependent, out.acc, out.lambda, out.lam_max, out.lambda_row, out.fd,
+              out.fd_t, out.pos, pr.iterations, out.vel, out.solve);
   return out;
 }
 
-void report(const char* label, const LoopComparison& c) {
-  std::printf("[%s] rows %d (dependent %d): acc %.2e, lambda %.2e, G^T lambda %.2e, FD(G) %.2e, "
-              "position projection %.2e (%d its), velocity projection %.2e\n",
-              label, c.rows, c.dependent, c.acc, c.lambda, c.Gtlambda, c.fd, c.pos, c.pos_iterations, c.vel);
-}
-
-void checkLoop(const LoopComparison& c, const char* label, bool unique_lambda) {
-  ASSERT_TRUE(c.ok) << label;
-  EXPECT_LT(c.acc, 1e-10) << label;
-  EXPECT_LT(c.Gtlambda, 1e-10) << label;
-  if (unique_lambda) {
-    EXPECT_LT(c.lambda, 1e-10) << label;
-  }
-  EXPECT_LT(c.fd, 1e-7) << label;
-  EXPECT_LT(c.pos, 1e-12) << label;
-  EXPECT_LT(c.vel, 1e-12) << label;
-  EXPECT_TRUE(c.reused) << label << ": the projections of a state on the closures moved it";
-  if (c.reused) {
-    EXPECT_EQ(c.reuse, 0.0) << label << ": dynamics from the projections' evaluation";
-  }
-}
-
-TEST(JointSpaceLoops, FourBarAgreesWithTheAbsoluteSolver) {
-  for (double L : {1.0, 1e3}) {
-    Builder b = fourBar(L, L);
-    const char* label = L == 1.0 ? "four-bar, m" : "four-bar, mm";
-    const LoopComparison c = compare(b, 11, label);
-    report(label, c);
-    EXPECT_EQ(c.dependent, 3) << label;  // the cut revolute's out-of-plane rows ...
-    EXPECT_EQ(c.idle, 3) << label;       // ... left out of the closure's rows: no motion moves them
-    EXPECT_EQ(c.kept, 2) << label;
-    checkLoop(c, label, true);
-  }
-}
-
-TEST(JointSpaceLoops, RssrAgreesWithTheAbsoluteSolver) {
-  for (double L : {1.0, 1e3}) {
-    Builder b = rssr(L, L);
-    const char* label = L == 1.0 ? "RSSR, m" : "RSSR, mm";
-    const LoopComparison c = compare(b, 12, label);
-    report(label, c);
-    EXPECT_EQ(c.dependent, 0) << label;
-    EXPECT_EQ(c.idle, 0) << label;  // (a spatial loop: every row moves)
-    checkLoop(c, label, true);
-  }
-}
-
-TEST(JointSpaceLoops, RandomTreesWithRandomClosuresAgreeWithTheAbsoluteSolver) {
-  int checked = 0, with_dependent = 0, with_idle = 0;
-  double worst_acc = 0, worst_lambda = 0, worst_gt = 0, worst_fd = 0, worst_pos = 0, worst_vel = 0;
+TEST(JointSpaceClosures, ChainWithActiveLimitsOnBothSides) {
+  int kept_active = 0;
   for (double L : {1.0, 1e3})
-    for (unsigned seed = 1; seed <= 24; ++seed) {
-      const int n = 3 + static_cast<int>(seed % 6), loops = 1 + static_cast<int>(seed % 2);
-      Builder b = randomLoops(seed, n, loops, L, L);
-      const std::string label = std::string(L == 1.0 ? "m" : "mm") + " tree " + std::to_string(seed);
+    for (int side : {-1, 1}) {
+      Builder b = chain(L);
+      b.addLimit(0, 0, -0.2, 0.15);      // revolute
+      b.addLimit(2, 0, -0.05 * L, 0.04 * L);  // prismatic
+      b.addLimit(4, 0, -1.0, 1.0);       // left free
       b.sys->finalize();
-      TreeModel probe(*b.sys);
-      if (probe.cut_joints.size() != static_cast<size_t>(loops)) continue;
-      const LoopComparison c = compare(b, 100 + seed, label.c_str());
-      checkLoop(c, label.c_str(), c.dependent == 0);
-      ++checked;
-      with_dependent += c.dependent > 0;
-      with_idle += c.idle > 0;
-      worst_acc = std::max(worst_acc, c.acc);
-      if (c.dependent == 0) worst_lambda = std::max(worst_lambda, c.lambda);
-      worst_gt = std::max(worst_gt, c.Gtlambda);
-      worst_fd = std::max(worst_fd, c.fd);
-      worst_pos = std::max(worst_pos, c.pos);
-      worst_vel = std::max(worst_vel, c.vel);
+      State base = initialState(*b.sys);
+      base.limit_side[0] = static_cast<signed char>(side);
+      base.limit_side[1] = static_cast<signed char>(-side);
+      base.t = 0.3;
+      const std::string label = std::string("chain, limits ") + (side < 0 ? "lower/upper" : "upper/lower") + (L == 1 ? ", m" : ", mm");
+      const Comparison c = compare(b, base, 21, false, label, true, [&](Inputs& in) {
+        // press each limited coordinate onto its bound, so settle keeps the limits active
+        in.effort[0][0] += side * 40 * 9.81 * L * L;
+        in.effort[2][0] += -side * 40 * 9.81 * L;
+      });
+      if (!c.released) {
+        EXPECT_GT(c.lam_max, 0.0);
+      }
+      kept_active += c.released == 0;
     }
-  std::printf("[random loops] %d trees (%d with dependent closure rows, %d with idle ones): acc %.2e, lambda (full rank) %.2e, "
-              "G^T lambda %.2e, FD(G) %.2e, position projection %.2e, velocity projection %.2e\n",
-              checked, with_dependent, with_idle, worst_acc, worst_lambda, worst_gt, worst_fd, worst_pos, worst_vel);
-  EXPECT_GE(checked, 20);
+  EXPECT_EQ(kept_active, 4);  // the pressed limits all stayed active
 }
 
-// RK4 over (q, q_dot) with the constrained dynamics, projections after each step.
-void rk4Step(const TreeModel& model, const System& sys, LoopClosures& cl, TreeWorkspace& ws, Eigen::VectorXd& q,
-             Eigen::VectorXd& qd, const Eigen::VectorXd& tau, double h) {
-  Eigen::VectorXd k1q, k1v, k2q, k2v, k3q, k3v, k4q, k4v, qs, vs;
-  auto rates = [&](const Eigen::VectorXd& qq, const Eigen::VectorXd& vv, Eigen::VectorXd& rq, Eigen::VectorXd& rv) {
-    constrainedForwardDynamics(model, sys, cl, qq, vv, tau, ws, rv);
-    positionRates(model, qq, vv, rq);
-  };
-  rates(q, qd, k1q, k1v);
-  qs = q + 0.5 * h * k1q, vs = qd + 0.5 * h * k1v;
-  normalizeQuaternions(model, qs);
-  rates(qs, vs, k2q, k2v);
-  qs = q + 0.5 * h * k2q, vs = qd + 0.5 * h * k2v;
-  normalizeQuaternions(model, qs);
-  rates(qs, vs, k3q, k3v);
-  qs = q + h * k3q, vs = qd + h * k3v;
-  normalizeQuaternions(model, qs);
-  rates(qs, vs, k4q, k4v);
-  q += h / 6 * (k1q + 2 * k2q + 2 * k3q + k4q);
-  qd += h / 6 * (k1v + 2 * k2v + 2 * k3v + k4v);
-  normalizeQuaternions(model, q);
-  projectClosurePositions(model, sys, cl, q, ws);
-  projectClosureVelocities(model, sys, cl, q, qd, ws);
+// Not pressed: settle lets go of limits that would pull, and so does releasePullingLimits.
+TEST(JointSpaceClosures, PullingLimitsAreReleasedAsTheAbsoluteSolverDoes) {
+  int released = 0;
+  for (double L : {1.0, 1e3})
+    for (int side : {-1, 1}) {
+      Builder b = chain(L);
+      b.addLimit(0, 0, -0.2, 0.15);
+      b.addLimit(2, 0, -0.05 * L, 0.04 * L);
+      b.sys->finalize();
+      State base = initialState(*b.sys);
+      base.limit_side[0] = static_cast<signed char>(side);
+      base.limit_side[1] = static_cast<signed char>(-side);
+      const Comparison c = compare(b, base, 21, false, std::string("chain, limits not pressed, side ") + std::to_string(side) + (L == 1 ? ", m" : ", mm"));
+      released += c.released;
+    }
+  EXPECT_GT(released, 0);
 }
 
-TEST(JointSpaceLoops, FourBarIntegratedOneSecondTracksTheAbsoluteFormulation) {
-  Builder b = fourBar(1.0, 1.0);
-  System& sys = *b.sys;
-  sys.finalize();
+TEST(JointSpaceClosures, LimitsPastTheirBoundsAreActivated) {
+  Builder b = chain(1.0);
+  b.addLimit(0, 0, -0.2, 0.15);
+  b.addLimit(2, 0, -0.05, 0.04);
+  b.addLimit(3, 0, -1.0, 1.0);
+  b.sys->finalize();
+  const System& sys = *b.sys;
   TreeModel model(sys);
   TreeWorkspace ws(model);
   LoopClosures cl(model, sys);
-  Eigen::VectorXd q = model.neutralPositions(sys), qd = Eigen::VectorXd::Zero(model.nv), tau = Eigen::VectorXd::Zero(model.nv);
-  qd(0) = 1.5;
-  projectClosureVelocities(model, sys, cl, q, qd, ws);
-  State s = absoluteFromJoint(sys, model, ws, q, qd);
-  Stepper stepper(sys);
-  stepper.analyzeDependencies(sys, s);
-  const Inputs in = zeroInputs(sys);
-  const double h = 1e-3;
-  const int crank = model.joint_link[0];
-  ASSERT_EQ(model.links[crank].body, 1);
-  double worst = 0;
-  for (int n = 0; n < 1000; ++n) {
-    rk4Step(model, sys, cl, ws, q, qd, tau, h);
-    stepper.step(sys, s, in, h);
-    Evaluation ev(sys);
-    loadKinematics(sys, s.x.data(), s.u.data(), ev);
-    Row rows[kMaxJointDofs];
-    jointRows(sys, ev, s, 0, rows);
-    worst = std::max(worst, std::fabs(rows[0].Phi - q(model.links[crank].iq)));
+  Eigen::VectorXd q = model.neutralPositions(sys), qd = Eigen::VectorXd::Zero(model.nv);
+  q(model.links[model.joint_link[0]].iq) = 0.3;    // past upper
+  q(model.links[model.joint_link[2]].iq) = -0.06;  // past lower
+  q(model.links[model.joint_link[3]].iq) = 0.5;    // inside
+  forwardKinematics(model, q, qd, ws);
+  // the tracked angles of the tree joints at q (the caller's State would hold them)
+  for (int j = 0; j < sys.numJoints(); ++j) {
+    const Joint& J = *sys.joints[j];
+    for (int k = 0; k < J.dof(); ++k)
+      if (J.trackedSlot(k) >= 0) cl.tracked[sys.joint_constraint[j]][J.trackedSlot(k)] = q(model.links[model.joint_link[j]].iq + k);
   }
-  std::printf("[four-bar 1 s] crank angle %.12f rad (joint space), largest difference to the absolute run %.2e rad\n",
-              q(model.links[crank].iq), worst);
-  EXPECT_LT(worst, 1e-8);
+  std::vector<signed char> side(sys.limits.size(), 0);
+  EXPECT_EQ(cl.activateReachedLimits(sys, model, q, qd, ws, side.data()), 2);
+  EXPECT_EQ(side, (std::vector<signed char>{1, -1, 0}));
 }
 
-// A branch passage's held direction is taken across the motion (branch_passage.cpp, "across
-// the motion"): its reaction does no work on it. A four-bar 1e-5 rad from flat with its
-// coordinate across the branch carried 1e-9 off (the integration's, as in a passage): the
-// level set's normal there leans 1e-4 into the motion, and a reaction along it did work:
-// 4e-9 of the constraint forces' |q_dot|^T |f| (the four-bars' random energy errors at
-// 0.1 ms, one per passage, largest where a stage landed nearest the crossing; 3e-16 with
-// the direction across the motion). The rates are projected
-// as the stepper's are (the regular directions' equations), so the constraint forces'
-// power q_dot^T M (q_ddot_free - q_ddot) is round-off.
-TEST(JointSpaceLoops, AHeldDirectionsReactionDoesNoWorkOnTheMotion) {
-  Mechanism mech;
-  models::fourBarChain(mech, 1, 0.4, 1.0, 0.3);  // flat at q = 0.3 on the parallelogram
-  mech.build();
-  const System& sys = mech.system();
-  TreeModel model(sys);
-  TreeWorkspace ws(model);
-  LoopClosures cl(model, sys);
-  ASSERT_EQ(model.nv, 3);
-  const Eigen::VectorXd zero = Eigen::VectorXd::Zero(model.nv);
-  // the branches' tangents at the flat pose: G's null space there (the parallelogram's is
-  // G's null vector at the built pose, linear in the joint coordinates)
-  auto nullSpace = [&](const Eigen::VectorXd& q) {
-    forwardKinematics(model, q, zero, ws);
-    cl.evaluate(model, sys, ws, q);
-    Eigen::JacobiSVD<Eigen::MatrixXd> svd(cl.G, Eigen::ComputeFullV);
-    return Eigen::MatrixXd(svd.matrixV());
-  };
-  const Eigen::VectorXd q0 = model.neutralPositions(sys);
-  Eigen::VectorXd t = nullSpace(q0).col(2);
-  t /= t(model.links[model.joint_link[0]].iv);  // (crank 0's rate 1)
-  const Eigen::VectorXd flat = q0 + 0.3 * t;
-  const Eigen::MatrixXd V = nullSpace(flat);
-  Eigen::VectorXd across = V.col(1) - V.col(1).dot(t) / t.squaredNorm() * t;
-  if (std::fabs(V.col(2).dot(t)) < std::fabs(V.col(1).dot(t)))
-    across = V.col(2) - V.col(2).dot(t) / t.squaredNorm() * t;
-  across.normalize();
-  const Eigen::VectorXd q = flat + 1e-5 * t + 1e-9 * across;
-  Eigen::VectorXd qdot = 2.0 * t;
-  Eigen::VectorXd a_ref = Eigen::VectorXd::Zero(model.nv);
-  cl.passage_ref = &a_ref;
-  projectClosureVelocities(model, sys, cl, q, qdot, ws, 1e-14);
-  Eigen::VectorXd qdd, qdd_free;
-  constrainedForwardDynamics(model, sys, cl, q, qdot, zero, ws, qdd);
-  EXPECT_GT(cl.passageDirections(), 0) << "a passage";
-  forwardDynamics(model, sys, q, qdot, zero, ws, qdd_free);
-  AlignedVector<Matrix6d> Ic(model.nb);
-  Eigen::MatrixXd H = Eigen::MatrixXd::Zero(model.nv, model.nv);
-  jointSpaceInertia(model, ws, Ic, H);
-  const Eigen::VectorXd f = H * (qdd_free - qdd);  // the constraint forces, R^T mu
-  const double power = qdot.dot(f), scale = qdot.cwiseAbs().dot(f.cwiseAbs());
-  std::printf("[four-bar 1e-5 rad from flat, 1e-9 across] constraint forces' power %.2e of %.2e\n", power, scale);
-  EXPECT_LT(std::fabs(power), 1e-12 * scale);
+TEST(JointSpaceClosures, VelocityAndHarmonicDrivesAtNonzeroTime) {
+  for (double L : {1.0, 1e3}) {
+    Builder b = chain(L);
+    b.addDrive(0, 0, DriveProfile::velocity(0.8), 0.1);
+    b.addDrive(2, 0, DriveProfile::harmonic(0.01 * L, 0.05 * L, 1.3, 0.4), 0.0);
+    b.addDrive(3, 0, DriveProfile::harmonic(0.2, 0.3, 0.7, -0.5), 0.0);
+    b.sys->finalize();
+    State base = initialState(*b.sys);
+    base.t = 0.37;
+    compare(b, base, 22, false, std::string("chain, velocity and harmonic drives, t 0.37") + (L == 1 ? ", m" : ", mm"));
+  }
+}
+
+TEST(JointSpaceClosures, MimicCouplerBetweenTreeJoints) {
+  for (double L : {1.0, 1e3}) {
+    Builder b = chain(L);
+    b.addCoupler(3, 0, -0.7, 0.05);  // q3 = -0.7 q0 + 0.05
+    b.addCoupler(4, 1, 1.5, 0.0);    // across the reversed link
+    b.sys->finalize();
+    State base = initialState(*b.sys);
+    compare(b, base, 23, false, std::string("chain, mimic couplers") + (L == 1 ? ", m" : ", mm"));
+  }
+}
+
+TEST(JointSpaceClosures, FourBarWithDrivenCrank) {
+  for (double L : {1.0, 1e3})
+    for (bool harmonic : {false, true}) {
+      Builder b = fourBar(L);
+      b.addDrive(0, 0, harmonic ? DriveProfile::harmonic(0.05, 0.2, 0.9, 0.3) : DriveProfile::velocity(1.2), 0.02);
+      b.sys->finalize();
+      State base = initialState(*b.sys);
+      base.t = 0.21;
+      compare(b, base, 24, false,
+              std::string("four-bar, ") + (harmonic ? "harmonic" : "velocity") + " drive on the crank" + (L == 1 ? ", m" : ", mm"));
+    }
+}
+
+TEST(JointSpaceClosures, EffortOnCutJoint) {
+  for (double L : {1.0, 1e3}) {
+    Builder b = fourBar(L);
+    b.sys->finalize();
+    State base = initialState(*b.sys);
+    compare(b, base, 25, true, std::string("four-bar, efforts on every joint, the cut one too") + (L == 1 ? ", m" : ", mm"));
+    // only on the cut joint
+    TreeModel model(*b.sys);
+    ASSERT_EQ(model.cut_joints.size(), 1u);
+  }
+}
+
+TEST(JointSpaceClosures, FrictionPassesAndDefaultRefusesClosures) {
+  Builder b = chain(1.0);
+  b.addLimit(0, 0, -0.2, 0.15);
+  b.sys->finalize();
+  EXPECT_EQ(jointSpaceUnsupported(*b.sys, true), "");
+  EXPECT_NE(jointSpaceUnsupported(*b.sys).find("limit"), std::string::npos) << jointSpaceUnsupported(*b.sys);
+  b.sys->friction.assign(b.sys->numJoints(), {0, 0, 0});
+  b.sys->friction[1][0] = 0.3;  // an effort along the joint (JointStepper::frictionFor)
+  EXPECT_EQ(jointSpaceUnsupported(*b.sys, true), "");
 }
 
 }  // namespace
