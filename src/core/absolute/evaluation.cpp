@@ -174,13 +174,9 @@ void appliedForces(const System& sys, const State& s, const Inputs& in,
   };
   for (size_t i = 0; i < sys.springs.size(); ++i) {
     const SpringDamper& sd = sys.springs[i];
-    const Gap g = gap(ev.kin[sd.body_i], sd.sp_i, ev.kin[sd.body_j], sd.sp_j);
-    const double L = g.d.norm();
-    if (!(L > 1e-12 * sys.length_scale)) continue;  // direction undefined; no force
-    const Vector3d e = g.d / L;
-    const double F = sd.k * (L - sd.L0) + sd.c * e.dot(g.d_dot) + sd.f_act + in.spring_actuation[i];
-    addForceAt(sd.body_i, sd.sp_i, F * e);
-    addForceAt(sd.body_j, sd.sp_j, -F * e);
+    const Vector3d f = sd.forceOnI(ev.kin[sd.body_i], ev.kin[sd.body_j], in.spring_actuation[i], sys.length_scale);
+    addForceAt(sd.body_i, sd.sp_i, f);
+    addForceAt(sd.body_j, sd.sp_j, -f);
   }
   Row rows[kMaxJointDofs];
   for (int j = 0; j < sys.numJoints(); ++j) {

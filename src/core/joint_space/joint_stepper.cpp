@@ -134,18 +134,14 @@ void JointStepper::accelerations(const System& sys, const State& s, const Inputs
     }
     for (size_t i = 0; i < sys.springs.size(); ++i) {
       const SpringDamper& sd = sys.springs[i];
-      const Gap g = gap(kin_[sd.body_i], sd.sp_i, kin_[sd.body_j], sd.sp_j);
-      const double L = g.d.norm();
-      if (!(L > 1e-12 * sys.length_scale)) continue;  // direction undefined; no force
-      const Vector3d e = g.d / L;
-      const double F = sd.k * (L - sd.L0) + sd.c * e.dot(g.d_dot) + sd.f_act + in.spring_actuation[i];
+      const Vector3d f = sd.forceOnI(kin_[sd.body_i], kin_[sd.body_j], in.spring_actuation[i], sys.length_scale);
       auto addForceAt = [&](int b, const Vector3d& sp, const Vector3d& f) {
         if (b == System::kGround) return;
         loads_.force[b] += f;
         loads_.torque[b] += sp.cross(kin_[b].A_Oi.transpose() * f);
       };
-      addForceAt(sd.body_i, sd.sp_i, F * e);
-      addForceAt(sd.body_j, sd.sp_j, -F * e);
+      addForceAt(sd.body_i, sd.sp_i, f);
+      addForceAt(sd.body_j, sd.sp_j, -f);
     }
     loads = &loads_;
   }

@@ -11,6 +11,7 @@
 
 #include "mechanism_sim/core/model/couplers.h"
 #include "mechanism_sim/core/model/errors.h"
+#include "mechanism_sim/core/model/primitives.h"
 #include "core/absolute/evaluation.h"
 #include "core/numerics.h"
 #include "mechanism_sim/core/model/tableau.h"
@@ -257,6 +258,14 @@ bool drivenAtLimit(const System& sys, const LimitSpec& L, double q, double t) {
       throw SimulationError(os.str());
     }
   return false;
+}
+
+Vector3d SpringDamper::forceOnI(const BodyKin& ki, const BodyKin& kj, double actuation, double length_scale) const {
+  const Gap g = gap(ki, sp_i, kj, sp_j);
+  const double L = g.d.norm();
+  if (!(L > 1e-12 * length_scale)) return Vector3d::Zero();
+  const Vector3d e = g.d / L;
+  return (k * (L - L0) + c * e.dot(g.d_dot) + f_act + actuation) * e;
 }
 
 }  // namespace mechanism_sim

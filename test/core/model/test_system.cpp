@@ -341,6 +341,30 @@ TEST(SystemLimits, ADrivePastItsLimitIsASimulationErrorNamingTheJoint) {
 // After N steps of h the time is t_run + N h, one rounding: the running sum of 1000 steps of
 // 1 ms is not 1000 * 1e-3, the clock is. A step of another size starts a run where
 // the time stands.
+// The spring law (SpringDamper::forceOnI): tension k (L - L0) + c L_dot + f_act + actuation
+// along the line from i's point to j's, written here from the points' world positions and
+// velocities; none where the points coincide.
+TEST(SpringLaw, TensionAlongTheLineBetweenThePoints) {
+  BodyKin ki, kj;
+  ki.r = Vector3d(0.1, -0.2, 0.3), kj.r = Vector3d(1.0, 0.5, -0.4);
+  ki.A_Oi = Eigen::AngleAxisd(0.4, Vector3d(1, 2, 3).normalized()).toRotationMatrix();
+  kj.A_Oi = Eigen::AngleAxisd(-1.1, Vector3d(0, 1, 1).normalized()).toRotationMatrix();
+  ki.v = Vector3d(0.3, 0.0, -0.1), kj.v = Vector3d(-0.2, 0.4, 0.5);
+  ki.w = Vector3d(0.5, -1.0, 0.2), kj.w = Vector3d(0.0, 0.7, -0.3);  // body components
+  SpringDamper sd;
+  sd.sp_i = Vector3d(0.05, 0.0, 0.1), sd.sp_j = Vector3d(-0.1, 0.2, 0.0);
+  sd.k = 200.0, sd.c = 3.0, sd.L0 = 0.6, sd.f_act = 1.5;
+  const Vector3d pi = ki.r + ki.A_Oi * sd.sp_i, pj = kj.r + kj.A_Oi * sd.sp_j;
+  const Vector3d vi = ki.v + ki.A_Oi * ki.w.cross(sd.sp_i), vj = kj.v + kj.A_Oi * kj.w.cross(sd.sp_j);
+  const double L = (pj - pi).norm();
+  const Vector3d e = (pj - pi) / L;
+  const double F = sd.k * (L - sd.L0) + sd.c * e.dot(vj - vi) + sd.f_act + 0.25;
+  EXPECT_LE((sd.forceOnI(ki, kj, 0.25, 1.0) - F * e).norm(), 1e-12 * std::fabs(F));
+  // coincident points: no direction, no force
+  kj.r = pi - kj.A_Oi * sd.sp_j;
+  EXPECT_EQ(sd.forceOnI(ki, kj, 0.25, 1.0), Vector3d::Zero());
+}
+
 TEST(StateClock, TimeAfterNStepsIsTheStartOfTheRunPlusNTimesTheStep) {
   State s;
   double sum = 0.0;

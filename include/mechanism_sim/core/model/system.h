@@ -37,6 +37,11 @@ struct SpringDamper {
   int body_i = 0, body_j = 0;
   Vector3d sp_i = Vector3d::Zero(), sp_j = Vector3d::Zero();
   double k = 0.0, c = 0.0, L0 = 0.0, f_act = 0.0;
+  // The spring law, one for both formulations: the force on body_i at sp_i, e F with e the
+  // unit vector from i's point to j's and F = k (L - L0) + c L_dot + f_act + actuation
+  // (body_j gets -e F at sp_j); zero where the points coincide (L at most 1e-12 of
+  // length_scale: no direction).
+  Vector3d forceOnI(const BodyKin& ki, const BodyKin& kj, double actuation, double length_scale) const;
 };
 
 // Which formulation runs a mechanism (joint_stepper.h): the tree in joint coordinates
