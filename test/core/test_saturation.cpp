@@ -194,6 +194,26 @@ TEST(Saturation, MotorWorkIsTheEnergyGainedPlusTheLoadsWork) {
   EXPECT_NEAR(error[1] / error[2], 2.0, 0.2);
 }
 
+// Lifting the bounds: a drive behind its profile keeps its lag as it stands and moves with its
+// profile from there.
+TEST(Saturation, LiftedBoundsKeepTheLagAndFollowTheProfilesVelocity) {
+  for (const char* formulation : {"absolute", "joint"}) {
+    Winch w(formulation, 30.0);
+    for (int k = 0; k < 500; ++k) w.mech.step(1e-3);
+    const double lag = w.mech.driveLag(w.drive);
+    ASSERT_GT(lag, 1.0);
+    w.mech.setActuatorLimits({});
+    EXPECT_EQ(w.mech.driveLag(w.drive), lag);
+    EXPECT_NEAR(w.mech.jointVelocity(0, 0), 30.0, 1e-9) << formulation;
+    for (int k = 0; k < 100; ++k) w.mech.step(1e-3);
+    double q, q_dot, q_ddot;
+    w.mech.driveTarget(w.drive, &q, &q_dot, &q_ddot);
+    EXPECT_EQ(w.mech.driveLag(w.drive), lag);
+    EXPECT_NEAR(w.mech.jointPosition(0, 0), q - lag, 1e-9 * q) << formulation;
+    EXPECT_NEAR(w.mech.jointVelocity(0, 0), 30.0, 1e-9) << formulation;
+  }
+}
+
 TEST(Saturation, BadLimitsAreRefusedNamingTheActuator) {
   Winch w("absolute", 1.0, 0.0, false);
   ActuatorLimit L;

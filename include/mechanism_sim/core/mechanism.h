@@ -122,7 +122,8 @@ class Mechanism {
   // the actuator's speed, its reference falls behind its profile (DriveLag) so that the
   // actuator gives exactly its bound; a drive behind its profile comes back onto it as fast
   // as the bound and the step allow, and follows it exactly again once there. Empty: the
-  // sizing mode (every drive follows its profile). Throws UsageError naming the actuator
+  // sizing mode (every drive follows its profile; one behind it when the bound is lifted
+  // keeps its lag as it stands and moves with its profile from there). Throws UsageError naming the actuator
   // for a coordinate out of range, a reduction zero or not finite, ratings not valid.
   void setActuatorLimits(std::vector<ActuatorLimit> limits);
   const std::vector<ActuatorLimit>& actuatorLimits() const { return actuator_limits_; }
