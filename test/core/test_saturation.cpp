@@ -10,6 +10,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <memory>
 
 #include "mechanism_sim/core/models.h"
 
@@ -164,6 +165,47 @@ TEST(Saturation, ARampAskingTooMuchFallsBehindAndRejoins) {
     final_q[f++] = w.mech.jointPosition(0, 0);
   }
   EXPECT_NEAR(final_q[0], final_q[1], 1e-9);
+}
+
+// A path (a trajectory's drive) that asks too much for a while: from rest to 1 rad in 0.1 s
+// (a quintic: up to 577 rad/s^2) and held there, where the peak torque gives the drum
+// (20 * 0.6 - 4) / 0.02 = 400 rad/s^2 against its load. The drum falls behind,
+// accelerating at the peak's (N peak - tau_L) / I, comes back and holds the path's end
+// exactly; the two formulations agree.
+TEST(Saturation, APathAskingTooMuchFallsBehindAndEndsWhereItEnds) {
+  double q_end[2], lag_max[2];
+  int f = 0;
+  for (const char* formulation : {"absolute", "joint"}) {
+    Winch w(formulation, 0.0);
+    ActuatorLimit L;
+    L.name = "motor", L.reduction = w.N, L.ratings.peak_torque = 0.6;
+    w.mech.setActuatorLimits({L});
+    const double h = 1e-3;
+    auto path = std::make_shared<const DrivePath>(
+        DrivePath::through(PathKnot{0.0, w.mech.jointPosition(0, 0), 0.0, 0.0}, {0.1, 0.3}, {1.0, 1.0}, {0.0, 0.0},
+                           {0.0, 0.0}));
+    w.mech.commandDrivePath(w.drive, path);
+    double worst = 0.0, at_bound = 0.0;
+    lag_max[f] = 0.0;
+    for (int k = 0; k < 600; ++k) {
+      w.mech.step(h);
+      worst = std::max(worst, std::fabs(w.torque()) / 0.6 - 1.0);
+      lag_max[f] = std::max(lag_max[f], std::fabs(w.mech.driveLag(w.drive)));
+      if (w.mech.driveSaturated(w.drive)) {
+        at_bound += h;
+        EXPECT_NEAR(std::fabs(w.torque()), 0.6, 1e-12) << k;
+      }
+    }
+    EXPECT_LT(worst, 1e-12);
+    EXPECT_GT(at_bound, 0.05);
+    EXPECT_GT(lag_max[f], 0.05);
+    EXPECT_EQ(w.mech.driveLag(w.drive), 0.0);
+    EXPECT_NEAR(w.mech.jointPosition(0, 0), 1.0, 1e-12);
+    EXPECT_NEAR(w.mech.jointVelocity(0, 0), 0.0, 1e-10);
+    q_end[f++] = w.mech.jointPosition(0, 0);
+  }
+  EXPECT_NEAR(q_end[0], q_end[1], 1e-12);
+  EXPECT_NEAR(lag_max[0], lag_max[1], 1e-9);
 }
 
 // The motor's work, summed over the run's states by the trapezoidal rule, against the drum's
