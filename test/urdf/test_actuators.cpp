@@ -352,6 +352,39 @@ TEST(Actuators, ElectricalPowerIsMechanicalPowerPlusCopperLoss) {
   EXPECT_NEAR(a.peakCurrent(), a.peakTorque() / 0.11, 1e-12 * a.peakCurrent());
 }
 
+// The saturating mode's record: runs at the bounds, the time spent there (a step counts when
+// it starts at the bound), the largest lag with when its drive fell behind and was back.
+TEST(Actuators, SaturationRecordCountsTheRunsAtTheBoundsAndTheLargestLag) {
+  ActuatorRatings r;
+  r.peak_torque = 1.0;
+  ActuatorSizing a("m", r);
+  const double lag[] = {0, 0, 0.1, 0.3, 0.2, 0, 0, 0.05, 0, 0};
+  const bool bound[] = {false, true, true, false, false, false, true, false, false, false};
+  for (int k = 0; k < 10; ++k) {
+    a.add(0.1 * k, 1.0, bound[k] ? 1.0 : 0.5);
+    a.addLag(0.1 * k, lag[k], bound[k]);
+  }
+  EXPECT_EQ(a.boundIntervals(), 2);
+  EXPECT_NEAR(a.boundTime(), 0.3, 1e-12);  // from 0.1 to 0.3, from 0.6 to 0.7
+  EXPECT_DOUBLE_EQ(a.firstBound(), 0.1);
+  EXPECT_DOUBLE_EQ(a.lastBound(), 0.6);
+  EXPECT_DOUBLE_EQ(a.largestLag(), 0.3);
+  EXPECT_DOUBLE_EQ(a.largestLagTime(), 0.30000000000000004);
+  EXPECT_DOUBLE_EQ(a.largestLagBegan(), 0.2);
+  EXPECT_DOUBLE_EQ(a.largestLagEnded(), 0.5);
+  EXPECT_TRUE(a.withinRating());  // at the peak torque, not over it
+  EXPECT_NE(a.describe().find("; at its bounds 2 times, 0.3 s in all (from t = 0.1 s, last at t = 0.6 s), largest lag "
+                              "0.3 at t = 0.3 s (behind from t = 0.2 s, back on its profile at t = 0.5 s); within rating"),
+            std::string::npos)
+      << a.describe();
+  ActuatorSizing calm("c", r);
+  calm.add(0, 1, 0.5), calm.addLag(0, 0, false);
+  EXPECT_NE(calm.describe().find("; never at its bounds; within rating"), std::string::npos) << calm.describe();
+  ActuatorSizing sized("s", r);
+  sized.add(0, 1, 0.5);
+  EXPECT_EQ(sized.describe().find("bounds"), std::string::npos) << sized.describe();
+}
+
 // The points kept for --actuator-plot: all while fewer than the cap, then every second,
 // every fourth, ...: evenly spaced in steps, the first one always kept.
 TEST(Actuators, KeptOperatingPointsStayEvenlySpaced) {

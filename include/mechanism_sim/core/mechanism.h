@@ -117,14 +117,15 @@ class Mechanism {
   void restore(const Snapshot& s);
 
   // ---- the saturating mode (doc/actuators.md; mechanism_saturation.cpp)
-  // From now on each actuator bounds the drive of its coordinate, when that has one: at
-  // every accepted state, where the drive would need more torque than torqueBounds allows at
-  // the actuator's speed, its reference falls behind its profile (DriveLag) so that the
-  // actuator gives exactly its bound; a drive behind its profile comes back onto it as fast
-  // as the bound and the step allow, and follows it exactly again once there. Empty: the
-  // sizing mode (every drive follows its profile; one behind it when the bound is lifted
-  // keeps its lag as it stands and moves with its profile from there). Throws UsageError naming the actuator
-  // for a coordinate out of range, a reduction zero or not finite, ratings not valid.
+  // From now on (the current state included) each actuator bounds the drive of its
+  // coordinate, when that has one: at every accepted state, where the drive would need more
+  // torque than torqueBounds allows at the actuator's speed, its reference falls behind its
+  // profile (DriveLag) so that the actuator gives exactly its bound; a drive behind its
+  // profile comes back onto it as fast as the bound and the step allow, and follows it
+  // exactly again once there. Empty: the sizing mode (every drive follows its profile; one
+  // behind it when its bound is lifted keeps its lag as it stands and moves with its
+  // profile from there). Throws UsageError naming the actuator for a coordinate out of
+  // range, a reduction zero or not finite, ratings not valid.
   void setActuatorLimits(std::vector<ActuatorLimit> limits);
   const std::vector<ActuatorLimit>& actuatorLimits() const { return actuator_limits_; }
   // How far a drive's reference is behind its profile now (profile minus reference, in the

@@ -137,20 +137,20 @@ std::string ActuatorSizing::describe() const {
     s += buf;
   }
   if (saturating_) {
-    if (bound_intervals_ == 0 && max_lag_ == 0) {
+    if (bound_intervals_ == 0) {
       s += "; never at its bounds";
     } else {
       std::snprintf(buf, sizeof buf, "; at its bounds %d time%s, %.4g s in all (from t = %.4g s, last at t = %.4g s)",
                     bound_intervals_, bound_intervals_ == 1 ? "" : "s", bound_time_, first_bound_, last_bound_);
       s += buf;
-      if (max_lag_ > 0) {
-        std::snprintf(buf, sizeof buf, ", largest lag %.4g at t = %.4g s (behind from t = %.4g s, ", max_lag_,
-                      max_lag_time_, max_lag_began_);
-        s += buf;
-        if (max_lag_ended_ >= 0) std::snprintf(buf, sizeof buf, "back on its profile at t = %.4g s)", max_lag_ended_);
-        else std::snprintf(buf, sizeof buf, "still behind at the end: %.4g)", std::fabs(last_lag_));
-        s += buf;
-      }
+    }
+    if (max_lag_ > 0) {
+      std::snprintf(buf, sizeof buf, ", largest lag %.4g at t = %.4g s (behind from t = %.4g s, ", max_lag_,
+                    max_lag_time_, max_lag_began_);
+      s += buf;
+      if (max_lag_ended_ >= 0) std::snprintf(buf, sizeof buf, "back on its profile at t = %.4g s)", max_lag_ended_);
+      else std::snprintf(buf, sizeof buf, "still behind at the end: %.4g)", std::fabs(last_lag_));
+      s += buf;
     }
   }
   const std::vector<Exceeded> ex = exceeded();
