@@ -22,6 +22,7 @@ KINDS = ("arg", "set", "velocity", "effort", "drive")
 # its own output
 _VALUE_FLAGS = {"--duration", "--dt", "--output-every", "--integrator", "--closures", "--formulation", "--actuators"}
 _ASSIGN_FLAGS = {"--set": "set", "--velocity": "velocity", "--effort": "effort", "--drive": "drive"}
+_BOOL_FLAGS = {"--actuator-limits": "actuator_limits"}
 _IGNORED_FLAGS = {"--reactions", "--quiet", "--poses"}
 _REFUSED_FLAGS = {"--csv", "--bag", "--plot", "--plot-columns"}
 RESULT_PREFIX = ("status", "time", "largest_violation.position", "largest_violation.velocity")
@@ -69,7 +70,7 @@ def parse_vary(text):
 def parse_simulate_options(argv):
     """SIMULATE_OPTIONS -> (settings, fixed {KEY: value}) with KEY as --vary names them."""
     settings = {"duration": 10.0, "dt": 1e-3, "output_every": 10, "integrator": "", "closures": None, "formulation": "",
-                "actuators": None}
+                "actuators": None, "actuator_limits": False}
     fixed = {}
     i = 0
     while i < len(argv):
@@ -96,6 +97,10 @@ def parse_simulate_options(argv):
                 except ValueError:
                     raise SweepError(f"{a} needs a number, not '{v}'") from None
                 settings[a[2:].replace("-", "_")] = int(x) if a == "--output-every" else x
+            continue
+        if a in _BOOL_FLAGS:
+            settings[_BOOL_FLAGS[a]] = True
+            i += 1
             continue
         if a in _IGNORED_FLAGS:
             i += 1
@@ -138,6 +143,7 @@ def run(model, values, settings):
     try:
         m = mechanism_sim.load(model, integrator=settings["integrator"], closures=settings["closures"],
                                formulation=settings["formulation"], actuators=settings.get("actuators"),
+                               actuator_limits=settings.get("actuator_limits", False),
                                **load_kwargs(values))
         peak, peak_coupling = {}, {}
 
@@ -179,10 +185,14 @@ ACTUATOR_COLUMNS = ("peak_torque", "rms_torque", "peak_speed", "within_rating")
 
 def actuator_cells(name, sizing):
     """An actuator's sizing cells (doc/actuators.md): peak and RMS torque and peak speed at
-    the motor, and 1 within its ratings, 0 not, empty without ratings."""
+    the motor, and 1 within its ratings, 0 not, empty without ratings; in the saturating mode
+    its drive's largest lag."""
     flag = sizing["within_rating"]
-    return {f"{name}.peak_torque": sizing["peak_torque"], f"{name}.rms_torque": sizing["rms_torque"],
-            f"{name}.peak_speed": sizing["peak_speed"], f"{name}.within_rating": "" if flag is None else int(flag)}
+    cells = {f"{name}.peak_torque": sizing["peak_torque"], f"{name}.rms_torque": sizing["rms_torque"],
+             f"{name}.peak_speed": sizing["peak_speed"], f"{name}.within_rating": "" if flag is None else int(flag)}
+    if "largest_lag" in sizing:  # --actuator-limits: how far its drive fell behind
+        cells[f"{name}.largest_lag"] = sizing["largest_lag"]
+    return cells
 
 
 def result_columns(model, values, settings):
@@ -192,13 +202,15 @@ def result_columns(model, values, settings):
     try:
         m = mechanism_sim.load(model, integrator=settings["integrator"], closures=settings["closures"],
                                formulation=settings["formulation"], actuators=settings.get("actuators"),
+                               actuator_limits=settings.get("actuator_limits", False),
                                **load_kwargs(values))
     except mechanism_sim.Error:
         return list(RESULT_PREFIX) + ["message"]
     return (list(RESULT_PREFIX) + [f"{d}.peak_effort" for d in m.driven_dofs()] +
             [f"{j}.peak_reaction" for j in m.reaction_joints()] +
             [f"{c}.peak_coupling_reaction" for c in m.reaction_couplings()] +
-            [f"{a}.{c}" for a in m.actuator_names() for c in ACTUATOR_COLUMNS] + ["message"])
+            [f"{a}.{c}" for a in m.actuator_names()
+             for c in ACTUATOR_COLUMNS + (("largest_lag",) if settings.get("actuator_limits") else ())] + ["message"])
 
 
 # ---- the CSV

@@ -33,7 +33,7 @@ const char* kUsage =
     "                [--set JOINT=POSITION]... [--velocity JOINT=VALUE]...\n"
     "                [--effort JOINT=VALUE]... [--drive JOINT=VELOCITY]...\n"
     "                [--reactions] [--bag FILE.bag] [--plot FILE.png] [--plot-columns LIST]\n"
-    "                [--actuator-plot FILE.png]\n"
+    "                [--actuator-plot FILE.png] [--actuator-limits]\n"
     "                [--closures FILE.yaml] [--actuators FILE.yaml] [--strict-inertia] [--quiet]\n"
     "                [--trajectory FILE.csv] [--trajectory-start-tolerance X]\n";
 
@@ -101,6 +101,7 @@ Args parse(int argc, char** argv) {
     else if (arg == "--actuator-plot") a.actuator_plot = value();  // doc/actuators.md
     else if (arg == "--closures") a.load.closures_file = value();  // doc/loop_dialects.md
     else if (arg == "--actuators") a.load.actuators_file = value();  // doc/actuators.md
+    else if (arg == "--actuator-limits") a.load.actuator_limits = true;  // doc/actuators.md (saturating mode)
     else if (arg == "--strict-inertia") a.load.strict_inertia = true;  // doc/robots.md
     else if (arg == "--quiet") a.quiet = true;
     else if (arg == "--trajectory") a.trajectory = value();  // doc/trajectories.md

@@ -30,6 +30,10 @@ class FormulationStepper {
   // Advances s by h under the inputs. Throws StepFailure or SimulationError when the run
   // cannot go on, UsageError for an h that is not positive and finite; s is then as it was.
   virtual void step(const System& sys, State& s, const Inputs& in, double h) = 0;
+  // Solves the accelerations and multipliers of s again at its positions and velocities
+  // (a drive's reference changed: its DriveLag), s's evaluation and factorization kept
+  // where they describe it. After step() or settle().
+  virtual void resolve(const System& sys, State& s, const Inputs& in) = 0;
   virtual const SolverStats& stats() const = 0;
   // Makes a State of either formulation (a snapshot restored) this one's: the joint
   // formulation settles its joint state from the absolute one where it has none; the

@@ -220,7 +220,9 @@ void Mechanism::commandDriveVelocity(int drive, double v, double acc) {
   double q, q_dot, q_ddot;
   driveTarget(drive, &q, &q_dot, &q_ddot);
   stateChanged();
+  const DriveLag lag = state_.drive[drive].lag;  // (a drive held back stays behind the new profile)
   state_.drive[drive] = DriveRamp{state_.t, q, q_dot, v, std::isfinite(acc) ? acc : 0.0};
+  state_.drive[drive].lag = lag;
 }
 
 void Mechanism::setGravity(const Vector3d& g) {
@@ -317,10 +319,15 @@ AssemblyReport Mechanism::assemble(const std::vector<CoordinateTarget>& position
 
 void Mechanism::step(double h) {
   if (!built_) throw UsageError("Mechanism::step before build() and assemble()");
+  const bool saturation_current = saturation_current_;
   stateChanged();
+  // (saturating mode: the step starts within the bounds and its lags' ways back chosen for h;
+  // the state it reaches is brought within them)
+  if (!actuator_limits_.empty() && !saturation_current) saturate(h);
   // (a step that fails leaves the State at the last accepted step: the queries compute
   // from it, not from the stepper's evaluation, which the failed step left elsewhere)
   running_->step(*sys_, state_, inputs_, h);
+  if (!actuator_limits_.empty()) saturate(h);
 }
 
 void Mechanism::setJointEffort(int joint, int k, double tau) {
@@ -332,6 +339,7 @@ void Mechanism::setJointEffort(int joint, int k, double tau) {
   if (sameBits(inputs_.effort[joint][k], tau)) return;
   inputs_.effort[joint][k] = tau;
   running_->invalidate();
+  saturation_current_ = false;
 }
 
 void Mechanism::setBodyWrench(int body, const Vector3d& force, const Vector3d& torque_body) {
@@ -341,6 +349,7 @@ void Mechanism::setBodyWrench(int body, const Vector3d& force, const Vector3d& t
   inputs_.force.at(body) = force;
   inputs_.torque.at(body) = torque_body;
   running_->invalidate();
+  saturation_current_ = false;
 }
 
 void Mechanism::setSpringActuation(int spring, double f_act) {
@@ -350,6 +359,7 @@ void Mechanism::setSpringActuation(int spring, double f_act) {
   if (sameBits(inputs_.spring_actuation.at(spring), value)) return;
   inputs_.spring_actuation.at(spring) = value;
   running_->invalidate();
+  saturation_current_ = false;
 }
 
 void Mechanism::restore(const Snapshot& s) {

@@ -107,7 +107,9 @@ void Mechanism::commandDrivePath(int drive, std::shared_ptr<const DrivePath> pat
                                 "': its drive follows a profile; only a velocity drive takes a path");
   if (!path) throw UsageError("commandDrivePath: no path");
   stateChanged();
+  const DriveLag lag = state_.drive[drive].lag;  // (a drive held back stays behind the path)
   state_.drive[drive] = DriveRamp{state_.t, 0.0, 0.0, 0.0, 0.0, std::move(path)};
+  state_.drive[drive].lag = lag;
   // the accelerations and the driving effort of the new reference, now (queries read them)
   stepper_->settle(*sys_, state_, inputs_);
 }

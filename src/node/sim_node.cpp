@@ -40,6 +40,7 @@ bool NodeParams::read(const ros::NodeHandle& pnh) {
   pnh.param<std::string>("formulation", load.formulation, "");
   pnh.param<std::string>("closures_file", load.closures_file, "");  // doc/loop_dialects.md
   pnh.param<std::string>("actuators_file", load.actuators_file, "");  // doc/actuators.md
+  pnh.param<bool>("actuator_limits", load.actuator_limits, false);      // doc/actuators.md (saturating mode)
   pnh.param<bool>("strict_inertia", load.strict_inertia, false);     // doc/robots.md
   std::map<std::string, double> positions, velocities;
   pnh.getParam("initial_positions", positions);

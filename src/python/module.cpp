@@ -40,7 +40,7 @@ struct LoadArgs {
 LoadArgs loadArgs(const py::object& args, const py::object& positions, const py::object& velocities,
                   const py::object& efforts, const py::object& drives, const std::string& integrator,
                   const py::object& closures, const std::string& formulation, bool strict_inertia,
-                  const py::object& actuators) {
+                  const py::object& actuators, bool actuator_limits) {
   LoadArgs a;
   if (!args.is_none())
     for (const py::handle item : args.attr("items")()) {
@@ -53,6 +53,7 @@ LoadArgs loadArgs(const py::object& args, const py::object& positions, const py:
   a.options.integrator = integrator;
   a.options.formulation = formulation;
   a.options.strict_inertia = strict_inertia;
+  a.options.actuator_limits = actuator_limits;
   if (!closures.is_none()) a.options.closures_file = py::str(closures).cast<std::string>();
   if (!actuators.is_none()) a.options.actuators_file = py::str(actuators).cast<std::string>();
   a.efforts = values(efforts, "efforts");
@@ -99,6 +100,7 @@ py::dict actuatorStates(const Simulation& s) {
   const size_t n = actuators.size();
   std::vector<std::string> names;
   std::vector<double> position(n), velocity(n), torque(n), power(n), current(n), voltage(n), electrical_power(n);
+  std::vector<double> lag(n), saturated(n);
   const double nan = std::numeric_limits<double>::quiet_NaN();
   for (size_t a = 0; a < n; ++a) {
     const ActuatorState st = s.model().actuatorState(static_cast<int>(a));
@@ -107,11 +109,13 @@ py::dict actuatorStates(const Simulation& s) {
     const bool given = electricalGiven(actuators[a].ratings);
     current[a] = given ? st.current : nan, voltage[a] = given ? st.voltage : nan;
     electrical_power[a] = given ? st.electrical_power : nan;
+    lag[a] = st.lag, saturated[a] = st.saturated ? 1.0 : 0.0;
   }
   py::dict d;
   d["names"] = names;
   d["position"] = array(position), d["velocity"] = array(velocity), d["torque"] = array(torque), d["power"] = array(power);
   d["current"] = array(current), d["voltage"] = array(voltage), d["electrical_power"] = array(electrical_power);
+  d["lag"] = array(lag), d["saturated"] = array(saturated);  // the saturating mode's (0 otherwise)
   return d;
 }
 
@@ -136,6 +140,13 @@ py::dict actuatorSizing(const Simulation& s) {
     }
     // None: no rating to size against
     d["within_rating"] = a.rated() ? py::object(py::bool_(exceeded.size() == 0)) : py::object(py::none());
+    if (a.saturating()) {  // the saturating mode's record (doc/actuators.md)
+      d["bound_intervals"] = a.boundIntervals(), d["bound_time"] = a.boundTime();
+      d["first_bound"] = a.firstBound(), d["last_bound"] = a.lastBound();
+      d["largest_lag"] = a.largestLag(), d["largest_lag_time"] = a.largestLagTime();
+      d["largest_lag_began"] = a.largestLagBegan(), d["largest_lag_ended"] = a.largestLagEnded();
+      d["final_lag"] = a.finalLag();
+    }
     d["exceeded"] = exceeded;
     d["describe"] = a.describe();
     out[py::str(a.name())] = d;
@@ -316,6 +327,9 @@ PYBIND11_MODULE(_mechanism_sim, m) {
         for (const Actuator& a : s.model().actuators()) names.push_back(a.name);
         return names;
       }, "The actuators the simulated <transmission>s name (doc/actuators.md).")
+      .def("set_actuator_limits", [](Simulation& s, bool on) { return s.setActuatorLimits(on); }, py::arg("on"),
+           "The saturating mode on or off from now (simulate --actuator-limits; doc/actuators.md); returns "
+           "the note on actuators it cannot bound ('' if none).")
       .def("actuator_states", [](const Simulation& s) { return actuatorStates(s); },
            "Each actuator's operating point now: {'names', 'position', 'velocity', 'torque', 'power', 'current', "
            "'voltage', 'electrical_power'} (arrays in actuator_names() order; the electrical ones NaN without a "
@@ -374,14 +388,15 @@ PYBIND11_MODULE(_mechanism_sim, m) {
       "(--drive), integrator 'rk4'|'rk3'|'rk2', closures: an Extended URDF YAML (--closures), "
       "formulation 'absolute'|'joint'|'auto' (--formulation), strict_inertia: refuse a body whose inertia "
       "is not physical (--strict-inertia; by default it runs with the nearest physical one and a note), "
-      "actuators: a YAML file of actuator properties (--actuators). "
+      "actuators: a YAML file of actuator properties (--actuators), actuator_limits: the saturating mode "
+      "(--actuator-limits: actuators bound their drives; set_actuator_limits() switches it later). "
       "Raises mechanism_sim.LoadError.";
   m.def("load", [](const std::string& path, const py::object& args, const py::object& positions,
                    const py::object& velocities, const py::object& efforts, const py::object& drives,
                    const std::string& integrator, const py::object& closures, const std::string& formulation,
-                   bool strict_inertia, const py::object& actuators) {
+                   bool strict_inertia, const py::object& actuators, bool actuator_limits) {
     const LoadArgs a = loadArgs(args, positions, velocities, efforts, drives, integrator, closures, formulation,
-                                strict_inertia, actuators);
+                                strict_inertia, actuators, actuator_limits);
     std::unique_ptr<MechanismModel> model;
     {
       py::gil_scoped_release release;  // xacro runs Node.js
@@ -391,13 +406,14 @@ PYBIND11_MODULE(_mechanism_sim, m) {
   }, py::arg("path"), py::kw_only(), py::arg("args") = py::none(), py::arg("positions") = py::none(),
      py::arg("velocities") = py::none(), py::arg("efforts") = py::none(), py::arg("drives") = py::none(),
      py::arg("integrator") = "", py::arg("closures") = py::none(), py::arg("formulation") = "",
-     py::arg("strict_inertia") = false, py::arg("actuators") = py::none(), load_doc);
+     py::arg("strict_inertia") = false, py::arg("actuators") = py::none(),
+     py::arg("actuator_limits") = false, load_doc);
   m.def("load_string", [](const std::string& xml, const std::string& source, const py::object& positions,
                           const py::object& velocities, const py::object& efforts, const py::object& drives,
                           const std::string& integrator, const py::object& closures, const std::string& formulation,
-                          bool strict_inertia, const py::object& actuators) {
+                          bool strict_inertia, const py::object& actuators, bool actuator_limits) {
     const LoadArgs a = loadArgs(py::none(), positions, velocities, efforts, drives, integrator, closures, formulation,
-                                strict_inertia, actuators);
+                                strict_inertia, actuators, actuator_limits);
     std::unique_ptr<MechanismModel> model;
     {
       py::gil_scoped_release release;
@@ -407,5 +423,6 @@ PYBIND11_MODULE(_mechanism_sim, m) {
   }, py::arg("xml"), py::arg("source") = "<string>", py::kw_only(), py::arg("positions") = py::none(),
      py::arg("velocities") = py::none(), py::arg("efforts") = py::none(), py::arg("drives") = py::none(),
      py::arg("integrator") = "", py::arg("closures") = py::none(), py::arg("formulation") = "",
-     py::arg("strict_inertia") = false, py::arg("actuators") = py::none(), "As load(), from URDF text (no xacro).");
+     py::arg("strict_inertia") = false, py::arg("actuators") = py::none(),
+     py::arg("actuator_limits") = false, "As load(), from URDF text (no xacro).");
 }

@@ -45,6 +45,7 @@ void Simulation::trackPeaks() {
   for (size_t a = 0; a < sizing_.size(); ++a) {
     const ActuatorState st = model_->actuatorState(static_cast<int>(a));
     sizing_[a].add(model_->time(), st.velocity, st.torque);
+    if (model_->actuatorLimits()) sizing_[a].addLag(model_->time(), st.lag, st.saturated);
   }
 }
 

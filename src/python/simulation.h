@@ -32,6 +32,9 @@ class Simulation {
   // path: the file as given (the summary's prefix, as simulate prints it).
   Simulation(std::unique_ptr<MechanismModel> model, std::string path);
 
+  // The saturating mode on or off from now (MechanismModel::setActuatorLimits; the sizing
+  // record goes on, and records the lags while it is on).
+  std::string setActuatorLimits(bool on) { return model_->setActuatorLimits(on); }
   MechanismModel& model() { return *model_; }
   const MechanismModel& model() const { return *model_; }
   const std::string& path() const { return path_; }

@@ -1,6 +1,7 @@
 // An actuator's operating point from its transmission's joints (model.h, doc/actuators.md).
 #include <cmath>
 
+#include "mechanism_sim/core/model/actuator_limits.h"
 #include "mechanism_sim/core/model/actuator_sizing.h"
 #include "mechanism_sim/urdf/model.h"
 
@@ -39,7 +40,36 @@ ActuatorState MechanismModel::actuatorState(int actuator) const {
     const ActuatorElectrical e = electrical(a.ratings, s.velocity, s.torque);
     s.current = e.current, s.voltage = e.voltage, s.electrical_power = e.power;
   }
+  if (actuator_limits_ && n == 1) {
+    const Dof& d = dofs_[t.dofs[0]];
+    const int drive = mechanism_->driveOf(d.joint_index, d.k);
+    if (drive >= 0) s.lag = mechanism_->driveLag(drive), s.saturated = mechanism_->driveSaturated(drive);
+  }
   return s;
+}
+
+std::string MechanismModel::setActuatorLimits(bool on) {
+  std::vector<ActuatorLimit> limits;
+  std::string others;
+  for (const Actuator& a : actuators_) {
+    if (!on || !boundsTorque(a.ratings)) continue;
+    const TransmissionInfo& t = transmissions_[a.transmission];
+    if (t.map.type != TransmissionType::kSimple) {
+      others += (others.empty() ? "'" : ", '") + a.name + "'";
+      continue;
+    }
+    const Dof& d = dofs_[t.dofs[0]];
+    ActuatorLimit L;
+    L.name = a.name, L.joint = d.joint_index, L.k = d.k, L.reduction = t.E(0, 0), L.ratings = a.ratings;
+    limits.push_back(L);
+  }
+  mechanism_->setActuatorLimits(limits);
+  actuator_limits_ = on;
+  if (!on) return "";
+  if (!others.empty())
+    return "actuator limits: " + others + " (of differential or four-bar transmissions) are sized, not bounded";
+  if (limits.empty()) return "actuator limits: no actuator has a peak_torque or a torque-speed line: nothing is bounded";
+  return "";
 }
 
 }  // namespace mechanism_sim

@@ -170,6 +170,11 @@ std::unique_ptr<MechanismModel> ModelBuilder::build() {
   addSprings(ext, bodies, placed, *urdf);
   setGravityAndIntegrator(ext);
   assemble(initial);
+  if (options_.actuator_limits) {  // (the saturating mode: doc/actuators.md)
+    const std::string note = model_->setActuatorLimits(true);
+    if (!note.empty()) model_->notes_.push_back(note);
+    model_->initial_ = model_->mechanism_->snapshot();  // (reset() returns to it within the bounds)
+  }
   return std::move(model_);
 }
 

@@ -66,6 +66,7 @@ void RunLoop::trackPeaks() {
   for (size_t a = 0; a < sizing_.size(); ++a) {
     const ActuatorState s = model_.actuatorState(static_cast<int>(a));
     sizing_[a].add(model_.time(), s.velocity, s.torque);
+    if (model_.actuatorLimits()) sizing_[a].addLag(model_.time(), s.lag, s.saturated);
   }
 }
 

@@ -294,6 +294,36 @@ def test_actuators_states_and_sizing_have_the_known_answers(tmp_path):
     assert m.actuator_sizing()["motor"]["describe"] in m.summary()
 
 
+def test_actuator_limits_hold_the_winch_to_its_motors_line(tmp_path):
+    # urdf/winch.urdf (doc/actuators.md, "Saturating mode"): 10 kg on a drum of radius 0.05 m
+    # behind 20:1, the motor's line 0.5 N m / 400 rad/s; the drive asks 15 rad/s. Saturating,
+    # the drum settles where 0.5 (1 - 20 w / 400) = m g r / 20; the sizing record and the
+    # sweep's column carry the lag; switched off, the drive is followed again.
+    winch = os.path.join(SOURCE, "urdf/winch.urdf")
+    settled = 400 / 20 * (1 - 10 * 9.81 * 0.05 / 20 / 0.5)
+    m = mechanism_sim.load(winch, actuator_limits=True)
+    m.advance(3.0, 1e-3)
+    drum = m.dof_names().index("drum_joint")
+    assert m.velocities()[drum] == pytest.approx(settled, rel=1e-9)
+    a = m.actuator_states()
+    assert a["saturated"][0] == 1.0
+    assert a["torque"][0] == pytest.approx(10 * 9.81 * 0.05 / 20, rel=1e-9)
+    s = m.actuator_sizing()["winch_motor"]
+    assert s["bound_intervals"] == 1 and s["largest_lag_ended"] == -1.0
+    assert s["largest_lag"] == pytest.approx(a["lag"][0], rel=1e-12)
+    assert s["within_rating"] is True
+    assert "at its bounds 1 time" in s["describe"] and s["describe"] in m.summary()
+    # simulate's line for the same run
+    run = simulate(winch, "--actuator-limits", "--duration", "3", "--dt", "1e-3", "--output-every", "3000")
+    assert s["describe"] in run.stderr
+    # off again: the drive takes the drum back onto its profile at once (sizing)
+    assert m.set_actuator_limits(False) == ""
+    m.advance(0.01, 1e-3)
+    assert m.velocities()[drum] == pytest.approx(15.0, rel=1e-9)
+    sized = mechanism_sim.load(winch)
+    assert "largest_lag" not in sized.actuator_sizing()["winch_motor"]
+
+
 HARMONIC = os.path.join(SOURCE, "urdf/harmonic_drive_joint.urdf")
 ACTUATOR_PLOT = os.path.join(SOURCE, "scripts/actuator_plot")
 

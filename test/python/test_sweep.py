@@ -284,6 +284,22 @@ def test_a_planetary_sweep_carries_each_couplings_peak_reaction(tmp_path):
     assert_rows_equal_simulate(planetary, rows, keys, options)
 
 
+def test_a_saturating_sweep_carries_each_actuators_largest_lag(tmp_path):
+    # urdf/winch.urdf with --actuator-limits: a drive asking w of the drum within the motor's
+    # reach (w = 5 rad/s: 100 rad/s at the motor, where its line gives 0.375 N m > 0.245)
+    # never lags; asking 15 rad/s it lags behind (the drum settles at 10.19 rad/s)
+    winch = os.path.join(SOURCE, "urdf/winch.urdf")
+    out = tmp_path / "winch.csv"
+    sw = sweep(winch, "--vary", "drive:drum_joint=5,15", "--workers", "1", "--out", str(out), "--",
+               "--actuator-limits", "--duration", "0.5", "--dt", "1e-3")
+    _, stderr = sw.communicate(timeout=120)
+    assert sw.returncode == 0, stderr
+    rows = {float(r["drive:drum_joint"]): r for r in read_rows(out)}
+    assert float(rows[5.0]["winch_motor.largest_lag"]) == 0.0
+    assert float(rows[15.0]["winch_motor.largest_lag"]) > 1.0
+    assert rows[15.0]["winch_motor.within_rating"] == "1"
+
+
 def test_bad_arguments_stop_before_running(tmp_path):
     out = tmp_path / "x.csv"
     for argv, message in [

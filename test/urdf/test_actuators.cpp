@@ -193,6 +193,85 @@ TEST(Actuators, HarmonicDriveExampleSizing) {
   EXPECT_NE(d.find("EXCEEDS the torque-speed line"), std::string::npos) << d;
 }
 
+// The winch example (doc/actuators.md, "Saturating mode"): 10 kg on a drum of radius 0.05 m
+// behind 20:1, the motor's line 0.5 N m / 400 rad/s. Saturating, the drum settles where the
+// line meets the load: 0.5 (1 - 20 w / 400) = m g r / 20, in both formulations, the line
+// never exceeded; sizing, the drive turns the drum at its 15 rad/s and the summary names the
+// line.
+TEST(Actuators, WinchSettlesWhereTheMotorsLineMeetsTheLoad) {
+  const double m = 10.0, r = 0.05, N = 20.0, T_s = 0.5, w0 = 400.0;
+  const double settled = w0 / N * (1.0 - m * kG * r / N / T_s);
+  for (const char* f : {"absolute", "joint", "auto"}) {
+    LoadOptions o;
+    o.formulation = f;
+    o.actuator_limits = true;
+    auto model = loadModelFile(kSource + "/urdf/winch.urdf", o);
+    EXPECT_TRUE(model->actuatorLimits());
+    RunLoop loop(*model, 1e-3, 100);
+    double worst = 0.0;
+    while (loop.steps() < 3000) {
+      loop.advance(1);
+      const ActuatorState s = model->actuatorState(0);
+      const double line = T_s * std::max(0.0, 1.0 - std::fabs(s.velocity) / w0);
+      worst = std::max(worst, (s.torque - line) / T_s);
+    }
+    const int drum = model->dofIndex("drum_joint");
+    EXPECT_NEAR(model->velocity(drum), settled, 1e-9 * settled) << f;
+    EXPECT_NEAR(model->velocity(model->dofIndex("rope")), r * settled, 1e-9 * settled) << f;
+    EXPECT_NEAR(model->actuatorState(0).torque, m * kG * r / N, 1e-9 * T_s) << f;
+    EXPECT_LT(worst, 1e-10) << f;
+    EXPECT_TRUE(model->actuatorState(0).saturated);
+    const ActuatorSizing& a = loop.actuatorSizing()[0];
+    EXPECT_TRUE(a.saturating());
+    EXPECT_TRUE(a.withinRating()) << a.describe();
+    EXPECT_EQ(a.boundIntervals(), 1) << a.describe();
+    EXPECT_GT(a.largestLag(), 10.0);
+    EXPECT_EQ(a.largestLagEnded(), -1.0);
+    EXPECT_NE(a.describe().find("at its bounds 1 time, "), std::string::npos) << a.describe();
+    EXPECT_NE(a.describe().find("still behind at the end"), std::string::npos) << a.describe();
+  }
+  auto sized = loadModelFile(kSource + "/urdf/winch.urdf");
+  EXPECT_FALSE(sized->actuatorLimits());
+  RunLoop loop(*sized, 1e-3, 100);
+  while (loop.steps() < 1000) loop.advance();
+  EXPECT_NEAR(sized->velocity(sized->dofIndex("drum_joint")), 15.0, 1e-9);
+  const ActuatorSizing& a = loop.actuatorSizing()[0];
+  EXPECT_FALSE(a.saturating());
+  EXPECT_NE(a.describe().find("EXCEEDS the torque-speed line (stall 0.5 N m, no-load 400 rad/s)"), std::string::npos)
+      << a.describe();
+  EXPECT_EQ(a.describe().find("at its bounds"), std::string::npos) << a.describe();
+}
+
+// A differential's actuators are sized, not bounded, and a note names them; a model whose
+// actuators have no torque bound is told that nothing is bounded.
+TEST(Actuators, SaturatingModeNamesTheActuatorsItCannotBound) {
+  const std::string xml =
+      "<robot name=\"diff\" xmlns:mechanism_sim=\"https://mechanism-sim.github.io/urdf-extension\"><link name=\"base\"/>"
+      "<link name=\"a\"><inertial><mass value=\"1\"/><inertia ixx=\"1e-3\" iyy=\"1e-3\" izz=\"1e-3\" "
+      "ixy=\"0\" ixz=\"0\" iyz=\"0\"/></inertial></link>"
+      "<link name=\"b\"><inertial><mass value=\"1\"/><inertia ixx=\"1e-3\" iyy=\"1e-3\" izz=\"1e-3\" "
+      "ixy=\"0\" ixz=\"0\" iyz=\"0\"/></inertial></link>"
+      "<joint name=\"ja\" type=\"continuous\"><parent link=\"base\"/><child link=\"a\"/><axis xyz=\"0 1 0\"/></joint>"
+      "<joint name=\"jb\" type=\"continuous\"><parent link=\"base\"/><child link=\"b\"/><origin xyz=\"0 1 0\"/>"
+      "<axis xyz=\"0 1 0\"/></joint>"
+      "<transmission name=\"wrist\"><type>transmission_interface/DifferentialTransmission</type>"
+      "<actuator name=\"m1\"><role>actuator1</role><mechanicalReduction>20</mechanicalReduction></actuator>"
+      "<actuator name=\"m2\"><role>actuator2</role><mechanicalReduction>30</mechanicalReduction></actuator>"
+      "<joint name=\"ja\"><role>joint1</role></joint><joint name=\"jb\"><role>joint2</role></joint></transmission>"
+      "<mechanism_sim:actuator name=\"m1\" peak_torque=\"1\"/></robot>";
+  LoadOptions o;
+  o.actuator_limits = true;
+  auto model = loadModelString(xml, "diff.urdf", o);
+  bool named = false;
+  for (const std::string& n : model->notes())
+    named = named || n == "actuator limits: 'm1' (of differential or four-bar transmissions) are sized, not bounded";
+  EXPECT_TRUE(named);
+  EXPECT_EQ(model->setActuatorLimits(false), "");
+  EXPECT_FALSE(model->actuatorLimits());
+  auto plain = loadModelString(pendulum(kSimple), "plain.urdf", o);
+  EXPECT_EQ(plain->notes().back(), "actuator limits: no actuator has a peak_torque or a torque-speed line: nothing is bounded");
+}
+
 // A wheel about the vertical (gravity does no work) turned at a constant 2 rad/s by a
 // velocity drive behind a 100:1 gearbox: the motor turns at 200 rad/s and gives only its own
 // friction and damping, 0.05 + 1e-4 * 200 = 0.07 N m. With k_t = 0.05 N m/A and R = 0.8 ohm:
@@ -271,6 +350,39 @@ TEST(Actuators, ElectricalPowerIsMechanicalPowerPlusCopperLoss) {
   const ActuatorSizing& a = loop.actuatorSizing()[0];
   EXPECT_NEAR(a.copperEnergy(), copper, 1e-9 * copper);
   EXPECT_NEAR(a.peakCurrent(), a.peakTorque() / 0.11, 1e-12 * a.peakCurrent());
+}
+
+// The saturating mode's record: runs at the bounds, the time spent there (a step counts when
+// it starts at the bound), the largest lag with when its drive fell behind and was back.
+TEST(Actuators, SaturationRecordCountsTheRunsAtTheBoundsAndTheLargestLag) {
+  ActuatorRatings r;
+  r.peak_torque = 1.0;
+  ActuatorSizing a("m", r);
+  const double lag[] = {0, 0, 0.1, 0.3, 0.2, 0, 0, 0.05, 0, 0};
+  const bool bound[] = {false, true, true, false, false, false, true, false, false, false};
+  for (int k = 0; k < 10; ++k) {
+    a.add(0.1 * k, 1.0, bound[k] ? 1.0 : 0.5);
+    a.addLag(0.1 * k, lag[k], bound[k]);
+  }
+  EXPECT_EQ(a.boundIntervals(), 2);
+  EXPECT_NEAR(a.boundTime(), 0.3, 1e-12);  // from 0.1 to 0.3, from 0.6 to 0.7
+  EXPECT_DOUBLE_EQ(a.firstBound(), 0.1);
+  EXPECT_DOUBLE_EQ(a.lastBound(), 0.6);
+  EXPECT_DOUBLE_EQ(a.largestLag(), 0.3);
+  EXPECT_DOUBLE_EQ(a.largestLagTime(), 0.30000000000000004);
+  EXPECT_DOUBLE_EQ(a.largestLagBegan(), 0.2);
+  EXPECT_DOUBLE_EQ(a.largestLagEnded(), 0.5);
+  EXPECT_TRUE(a.withinRating());  // at the peak torque, not over it
+  EXPECT_NE(a.describe().find("; at its bounds 2 times, 0.3 s in all (from t = 0.1 s, last at t = 0.6 s), largest lag "
+                              "0.3 at t = 0.3 s (behind from t = 0.2 s, back on its profile at t = 0.5 s); within rating"),
+            std::string::npos)
+      << a.describe();
+  ActuatorSizing calm("c", r);
+  calm.add(0, 1, 0.5), calm.addLag(0, 0, false);
+  EXPECT_NE(calm.describe().find("; never at its bounds; within rating"), std::string::npos) << calm.describe();
+  ActuatorSizing sized("s", r);
+  sized.add(0, 1, 0.5);
+  EXPECT_EQ(sized.describe().find("bounds"), std::string::npos) << sized.describe();
 }
 
 // The points kept for --actuator-plot: all while fewer than the cap, then every second,

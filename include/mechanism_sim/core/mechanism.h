@@ -12,6 +12,7 @@
 #include <utility>
 #include <vector>
 
+#include "mechanism_sim/core/model/actuator_limits.h"
 #include "mechanism_sim/core/model/system.h"
 #include "mechanism_sim/core/reports.h"
 
@@ -115,6 +116,25 @@ class Mechanism {
   Snapshot snapshot() const { return state_; }
   void restore(const Snapshot& s);
 
+  // ---- the saturating mode (doc/actuators.md; mechanism_saturation.cpp)
+  // From now on (the current state included) each actuator bounds the drive of its
+  // coordinate, when that has one: at every accepted state, where the drive would need more
+  // torque than torqueBounds allows at the actuator's speed, its reference falls behind its
+  // profile (DriveLag) so that the actuator gives exactly its bound; a drive behind its
+  // profile comes back onto it as fast as the bound and the step allow, and follows it
+  // exactly again once there. Empty: the sizing mode (every drive follows its profile; one
+  // behind it when its bound is lifted keeps its lag as it stands and moves with its
+  // profile from there). Throws UsageError naming the actuator for a coordinate out of
+  // range, a reduction zero or not finite, ratings not valid.
+  void setActuatorLimits(std::vector<ActuatorLimit> limits);
+  const std::vector<ActuatorLimit>& actuatorLimits() const { return actuator_limits_; }
+  // How far a drive's reference is behind its profile now (profile minus reference, in the
+  // coordinate's units; 0 when it follows it), and whether an actuator holds it at its bound.
+  double driveLag(int drive) const;
+  bool driveSaturated(int drive) const { return state_.drive.at(drive).lag.saturated; }
+  // The torque actuator limit i gives now (ActuatorLimit).
+  double limitedActuatorTorque(int i) const;
+
   // ---- the parts
   const System& system() const { return *sys_; }
   const State& state() const { return state_; }
@@ -209,6 +229,7 @@ class Mechanism {
   // Every method that may change state_, the System or the steppers' evaluations calls it.
   void stateChanged() {
     described_ = nullptr;
+    saturation_current_ = false;
     std::fill(rows_found_.begin(), rows_found_.end(), 0);
   }
   // The multipliers of state_ and the evaluation whose Jacobian they go with: the State's
@@ -224,6 +245,13 @@ class Mechanism {
   // Joint::coordinates of a joint at state_ (its rows, one per dof), computed once per state
   // like evaluated(): a sample asks each dof's position, velocity and effort.
   const Row* coordinateRows(int joint) const;
+
+  // The saturating mode at state_: each drive an actuator bounds held within its bound, its
+  // lag's way back chosen for steps of h (saturation_current_ until the state or the inputs
+  // change).
+  void saturate(double h);
+  std::vector<ActuatorLimit> actuator_limits_;
+  bool saturation_current_ = false;
 
   std::shared_ptr<System> sys_;
   bool built_ = false;

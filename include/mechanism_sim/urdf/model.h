@@ -50,6 +50,8 @@ struct LoadOptions {
   bool strict_inertia = false;
   // Actuator ratings (YAML, doc/actuators.md) over the file's <mechanism_sim:actuator>.
   std::string actuators_file;
+  // The saturating mode (MechanismModel::setActuatorLimits): actuators bound their drives.
+  bool actuator_limits = false;
 };
 
 // One degree of freedom of a joint, tree or loop closure.
@@ -144,6 +146,10 @@ struct Actuator {
 struct ActuatorState {
   double position = 0.0, velocity = 0.0, torque = 0.0, power = 0.0;
   double current = 0.0, voltage = 0.0, electrical_power = 0.0;
+  // In the saturating mode: how far its joint's drive is behind its profile (the joint
+  // coordinate's units; Mechanism::driveLag) and whether the actuator is at its bound.
+  double lag = 0.0;
+  bool saturated = false;
 };
 
 class MechanismModel {
@@ -185,6 +191,13 @@ class MechanismModel {
   const std::vector<TransmissionInfo>& transmissions() const { return transmissions_; }
   const std::vector<Actuator>& actuators() const { return actuators_; }
   const std::vector<CouplingInfo>& couplings() const { return couplings_; }
+  // The saturating mode (doc/actuators.md): with `on`, each actuator of a simple transmission
+  // whose ratings bound its torque (peak_torque, a torque-speed line) bounds the drive of its
+  // joint (Mechanism::setActuatorLimits); off, every drive follows its profile (sizing).
+  // Returns a note naming the rated actuators it cannot bound (those of differential and
+  // four-bar transmissions), or that none bounds anything; empty otherwise.
+  std::string setActuatorLimits(bool on);
+  bool actuatorLimits() const { return actuator_limits_; }
 
   // ---- where it is now
   double time() const;
@@ -285,6 +298,7 @@ class MechanismModel {
   Mechanism::Snapshot initial_;
   std::vector<int> driven_after_load_;  // dofs driveDof() drove, in order
   bool kinematic_ = false;
+  bool actuator_limits_ = false;
 };
 
 // Loads, builds and assembles. Throws LoadError naming the file, element and problem. A

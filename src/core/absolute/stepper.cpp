@@ -296,6 +296,20 @@ void Stepper::settle(const System& sys, State& s, const Inputs& in) {
   finishStep(sys, s, in, false);
 }
 
+void Stepper::resolve(const System& sys, State& s, const Inputs& in) {
+  load(sys, s.x.data(), s.u.data());
+  evaluate(sys, s);
+  const bool factored = solver_->factoredAt(ev_.stamp);
+  if (!factored) solver_->factor(sys, ev_, "drive reference", s.t);
+  forces(sys, s, in, s.friction);
+  a_ = s.acc;
+  lam_ = s.lambda;
+  solver_->solve(sys, ev_, a_, lam_, factored ? HState::kNearby : HState::kCurrent, s.t);
+  s.acc = a_;
+  s.lambda = lam_;
+  ev_.stamp.level = EvaluationStamp::kSolved;
+}
+
 bool Stepper::frictionActs(const System& sys) const {
   for (const auto& f : sys.friction)
     if (f[0] > 0 || f[1] > 0 || f[2] > 0) return true;

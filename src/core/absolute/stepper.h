@@ -47,6 +47,7 @@ class Stepper final : public FormulationStepper {
   // Evaluates at s and solves accelerations and multipliers (s.acc, s.lambda) with the
   // friction efforts in s; after it evaluation() describes s.
   void settle(const System& sys, State& s, const Inputs& in) override;
+  void resolve(const System& sys, State& s, const Inputs& in) override;
   void adopt(const System&, State& s, const Inputs&) override { s.q.resize(0), s.qdot.resize(0), s.qddot.resize(0); }
 
   // The last evaluation (after step() or settle(): of the state reached; its stamp says

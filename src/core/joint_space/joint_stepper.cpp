@@ -235,6 +235,13 @@ void JointStepper::finish(const System& sys, State& s, const Inputs& in) {
   writeAbsolute(sys, s);
 }
 
+void JointStepper::resolve(const System& sys, State& s, const Inputs& in) {
+  if (s.q.size() == 0) return settle(sys, s, in);
+  accelerations(sys, s, in, s.t, s.q, s.qdot, s.qddot);
+  if (!model_.cut_joints.empty()) s.qddot_ref = a_ref_;
+  writeAbsolute(sys, s);
+}
+
 // Positions and velocities onto the closures (loop_closure.h), to the System's relative
 // tolerances; a shortfall is counted, beyond kFailureResidual the step fails.
 bool JointStepper::project(const System& sys, State& s) {

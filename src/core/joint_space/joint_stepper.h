@@ -61,6 +61,7 @@ class JointStepper final : public FormulationStepper {
   // settled first. Throws UsageError for an h that is not positive and finite; s is then
   // as it was.
   void step(const System& sys, State& s, const Inputs& in, double h) override;
+  void resolve(const System& sys, State& s, const Inputs& in) override;
   const SolverStats& stats() const override { return stats_; }
   // The largest |Phi| and |G q_dot - nu| of the closures' rows (loop closures, couplers,
   // limits, drives: the equations on the tree's coordinates, the same numbers as their

@@ -7,6 +7,11 @@
 
 namespace mechanism_sim {
 
+namespace {
+// Relative to a bound: what a torque may lie above it and still meet it (round-off).
+constexpr double kBoundSlack = 1e-9;
+}  // namespace
+
 void ActuatorSizing::reset() {
   const size_t keep = max_points_;
   *this = ActuatorSizing(name_, ratings_);
@@ -65,12 +70,14 @@ void ActuatorSizing::add(double t, double velocity, double torque) {
   if (std::fabs(torque) > peak_torque_) peak_torque_ = std::fabs(torque), peak_torque_time_ = t;
   peak_speed_ = std::max(peak_speed_, std::fabs(velocity));
   peak_power_ = std::max(peak_power_, power);
-  if (ratings_.peak_torque > 0 && std::fabs(torque) > ratings_.peak_torque)
+  // (a torque held at a bound by the saturating mode meets it to the solves' round-off:
+  // kBoundSlack above it is not over)
+  if (ratings_.peak_torque > 0 && std::fabs(torque) > ratings_.peak_torque * (1 + kBoundSlack))
     worst_[0].limit = ratings_.peak_torque, exceed(0, torque, t);
   if (ratings_.max_speed > 0 && std::fabs(velocity) > ratings_.max_speed)
     worst_[1].limit = ratings_.max_speed, exceed(1, velocity, t);
   const double allowed = envelope(velocity, torque);
-  if (std::fabs(torque) > allowed) {
+  if (std::fabs(torque) > allowed + kBoundSlack * ratings_.stall_torque) {
     // measured against the stall torque: past the no-load speed the line allows nothing
     worst_[2].limit = ratings_.stall_torque;
     Worst& w = worst_[2];
@@ -78,6 +85,26 @@ void ActuatorSizing::add(double t, double velocity, double torque) {
     if (!w.hit) w.hit = true, w.first = t;
     if (over > w.ratio) w.ratio = over, w.value = torque, w.time = t;
   }
+}
+
+void ActuatorSizing::addLag(double t, double lag, bool saturated) {
+  if (saturating_ && last_bound_point_) bound_time_ += t - last_lag_t_;
+  saturating_ = true;
+  if (saturated) {
+    if (!last_bound_point_) ++bound_intervals_;
+    if (first_bound_ < 0) first_bound_ = t;
+    last_bound_ = t;
+  }
+  last_bound_point_ = saturated;
+  last_lag_t_ = t;
+  last_lag_ = lag;
+  const double a = std::fabs(lag);
+  if (a > 0 && !behind_) behind_ = true, behind_since_ = t;
+  if (a == 0 && behind_) {
+    behind_ = false;
+    if (max_lag_ > 0 && max_lag_began_ == behind_since_ && max_lag_ended_ < 0) max_lag_ended_ = t;
+  }
+  if (a > max_lag_) max_lag_ = a, max_lag_time_ = t, max_lag_began_ = behind_since_, max_lag_ended_ = -1.0;
 }
 
 double ActuatorSizing::rmsTorque() const {
@@ -108,6 +135,23 @@ std::string ActuatorSizing::describe() const {
                   ", peak current %.4g A, peak voltage %.4g V, peak electrical power %.4g W, copper energy %.4g J",
                   peak_current_, peak_voltage_, peak_electrical_power_, copper_energy_);
     s += buf;
+  }
+  if (saturating_) {
+    if (bound_intervals_ == 0) {
+      s += "; never at its bounds";
+    } else {
+      std::snprintf(buf, sizeof buf, "; at its bounds %d time%s, %.4g s in all (from t = %.4g s, last at t = %.4g s)",
+                    bound_intervals_, bound_intervals_ == 1 ? "" : "s", bound_time_, first_bound_, last_bound_);
+      s += buf;
+    }
+    if (max_lag_ > 0) {
+      std::snprintf(buf, sizeof buf, ", largest lag %.4g at t = %.4g s (behind from t = %.4g s, ", max_lag_,
+                    max_lag_time_, max_lag_began_);
+      s += buf;
+      if (max_lag_ended_ >= 0) std::snprintf(buf, sizeof buf, "back on its profile at t = %.4g s)", max_lag_ended_);
+      else std::snprintf(buf, sizeof buf, "still behind at the end: %.4g)", std::fabs(last_lag_));
+      s += buf;
+    }
   }
   const std::vector<Exceeded> ex = exceeded();
   if (!rated()) return s + "; no ratings given";

@@ -222,9 +222,19 @@ void DriveProfile::eval(double t, const DriveRamp& ramp, double* f, double* f_do
   }
 }
 
+// The profile less the lag while one is active (DriveLag).
+static void reference(const DriveProfile& profile, double t, const DriveRamp& ramp, double* f, double* f_dot,
+                      double* f_ddot) {
+  profile.eval(t, ramp, f, f_dot, f_ddot);
+  if (!ramp.lag.active) return;
+  double d, d_dot, d_ddot;
+  ramp.lag.eval(t, &d, &d_dot, &d_ddot);
+  *f -= d, *f_dot -= d_dot, *f_ddot -= d_ddot;
+}
+
 void DriveConstraint::velocityTerm(const EvalContext& ctx, double* nu) const {
   double f, f_dot, f_ddot;
-  profile_.eval(ctx.t, ctx.drive[drive_], &f, &f_dot, &f_ddot);
+  reference(profile_, ctx.t, ctx.drive[drive_], &f, &f_dot, &f_ddot);
   nu[0] = f_dot;  // nu = -Phi_t
 }
 
@@ -236,7 +246,7 @@ void DriveConstraint::evaluate(const BodyKin* const* kin, const EvalContext& ctx
   Row rows[kMaxJointDofs];
   joint_.coordinates(*kin[0], *kin[1], ctx.tracked[joint_.id()], rows);
   double f, f_dot, f_ddot;
-  profile_.eval(ctx.t, ctx.drive[drive_], &f, &f_dot, &f_ddot);
+  reference(profile_, ctx.t, ctx.drive[drive_], &f, &f_dot, &f_ddot);
   Phi(0) = rows[k_].Phi - f;
   J.row(0) = rows[k_].J;
   gamma(0) = rows[k_].gamma + f_ddot;

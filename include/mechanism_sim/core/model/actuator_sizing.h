@@ -63,6 +63,23 @@ class ActuatorSizing {
   double peakVoltage() const { return peak_voltage_; }
   double peakElectricalPower() const { return peak_electrical_power_; }
   double copperEnergy() const { return copper_energy_; }
+  // The saturating mode's record (Mechanism::setActuatorLimits), given after add() at each
+  // operating point: how far the actuator's drive is behind its profile (its joint
+  // coordinate's units) and whether the actuator is at its bound. A step is at the bound
+  // when the state it starts from is (the drive's lag is chosen there for the step).
+  void addLag(double t, double lag, bool saturated);
+  bool saturating() const { return saturating_; }
+  int boundIntervals() const { return bound_intervals_; }  // runs of points at the bound
+  double boundTime() const { return bound_time_; }          // time spent at the bound
+  double firstBound() const { return first_bound_; }        // when first at it (-1: never)
+  double lastBound() const { return last_bound_; }          // the last point at it (-1: never)
+  double largestLag() const { return max_lag_; }            // |lag|
+  double largestLagTime() const { return max_lag_time_; }
+  // when the drive fell behind before its largest lag, and when it was back on its profile
+  // (-1: still behind at the last point)
+  double largestLagBegan() const { return max_lag_began_; }
+  double largestLagEnded() const { return max_lag_ended_; }
+  double finalLag() const { return last_lag_; }
   const std::string& name() const { return name_; }
   const ActuatorRatings& ratings() const { return ratings_; }
   // A rating exceeded: which (peak_torque, rated_torque (by the RMS torque), max_speed,
@@ -105,6 +122,11 @@ class ActuatorSizing {
     bool hit = false;
     double first = 0.0, ratio = 0.0, value = 0.0, time = 0.0, limit = 0.0;
   } worst_[3];
+  bool saturating_ = false, last_bound_point_ = false, behind_ = false;
+  int bound_intervals_ = 0;
+  double last_lag_t_ = 0.0, bound_time_ = 0.0, first_bound_ = -1.0, last_bound_ = -1.0;
+  double max_lag_ = 0.0, max_lag_time_ = 0.0, max_lag_began_ = 0.0, max_lag_ended_ = -1.0, behind_since_ = 0.0;
+  double last_lag_ = 0.0;
 };
 
 }  // namespace mechanism_sim

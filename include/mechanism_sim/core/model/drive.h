@@ -6,6 +6,7 @@
 //   accel.:    Phi_q a = gamma_k + f_ddot(t)     (q_ddot = q_x,k a - gamma_k, joint.h)
 #pragma once
 #include <array>
+#include <cmath>
 #include <memory>
 #include <string>
 #include <vector>
@@ -49,6 +50,28 @@ class DrivePath {
   std::vector<std::array<double, 6>> c_;  // per segment: q = sum c_k (t - t_i)^k
 };
 
+// How far a drive's reference lags behind its profile (the saturating mode, doc/actuators.md:
+// an actuator that cannot give what the profile asks holds the drive back). The drive's
+// equation becomes q_k = f(t) - d(t), with d a quadratic from t0,
+//   d(t) = d0 + d0_dot (t - t0) + 1/2 d_ddot (t - t0)^2,
+// chosen anew at every accepted state (Mechanism's saturation): the motion the bounded
+// torque produces, or the way back onto the profile. Inactive (the profile exactly) unless
+// an actuator held it back; `saturated`: the actuator is at its envelope at this state.
+struct DriveLag {
+  bool active = false, saturated = false;
+  double t0 = 0.0, d0 = 0.0, d0_dot = 0.0, d_ddot = 0.0;
+  // what the equation reads (saturated only says why)
+  bool operator==(const DriveLag& o) const {
+    return active == o.active && t0 == o.t0 && d0 == o.d0 && d0_dot == o.d0_dot && d_ddot == o.d_ddot;
+  }
+  void eval(double t, double* d, double* d_dot, double* d_ddot_out) const {
+    const double tau = t - t0;
+    *d = d0 + d0_dot * tau + 0.5 * d_ddot * tau * tau;
+    *d_dot = d0_dot + d_ddot * tau;
+    *d_ddot_out = d_ddot;
+  }
+};
+
 // A velocity drive's reference, part of the State (it changes when a new velocity or a
 // path is commanded): from t0 the coordinate leaves q0 at v0 and its velocity moves to v1
 // at constant acceleration acc (acc <= 0: at once), then stays at v1. Position and
@@ -60,8 +83,9 @@ struct DriveRamp {
       : t0(t0_), q0(q0_), v0(v0_), v1(v1_), acc(acc_), path(std::move(path_)) {}
   double t0 = 0.0, q0 = 0.0, v0 = 0.0, v1 = 0.0, acc = 0.0;
   std::shared_ptr<const DrivePath> path;  // immutable, so a copied State may share it
+  DriveLag lag;  // behind the profile (saturating mode); kept across commands
   bool operator==(const DriveRamp& o) const {
-    return t0 == o.t0 && q0 == o.q0 && v0 == o.v0 && v1 == o.v1 && acc == o.acc && path == o.path;
+    return t0 == o.t0 && q0 == o.q0 && v0 == o.v0 && v1 == o.v1 && acc == o.acc && path == o.path && lag == o.lag;
   }
   // f(t), f_dot(t), f_ddot(t)
   void eval(double t, double* f, double* f_dot, double* f_ddot) const;
@@ -91,7 +115,8 @@ class DriveProfile {
   std::vector<double> t_, q_, m_;  // knots, values, second derivatives
 };
 
-// Phi = q_k - f(t) on coordinate k of a joint (one row).
+// Phi = q_k - f(t) on coordinate k of a joint (one row); f - d(t) while the State's DriveLag
+// is active.
 class DriveConstraint : public Constraint {
  public:
   DriveConstraint(const Joint& joint, int k, int drive, DriveProfile profile)
