@@ -242,3 +242,38 @@ TEST(DriveAfterBuild, ADependentDriveIsRefusedAndChangesNothing) {
 
 }  // namespace
 }  // namespace mechanism_sim
+
+namespace mechanism_sim {
+namespace {
+
+// A drum held at rest by a zero-velocity drive against a torque and a force on it, with no
+// gravity: nothing in the model sets a velocity scale (the System's is 0), and the motion
+// the drive forbids is round-off of zero. The steps hold it in both formulations, and the
+// drive's effort balances the torque.
+TEST(DriveAfterBuild, ADrumHeldAtRestWithoutGravityStepsUnderALoad) {
+  for (const char* formulation : {"absolute", "joint"}) {
+    SCOPED_TRACE(formulation);
+    Mechanism m;
+    IntegratorOptions o;
+    o.formulation = formulation;
+    m.setIntegrator(o);
+    Body drum;
+    drum.name = "drum";
+    drum.m = 3.0;
+    drum.Jp = Eigen::Vector3d(0.1, 0.1, 0.2).asDiagonal();
+    const int b = m.addBody(drum);
+    JointFrame f;
+    m.addJoint(makeJoint("revolute", "axle", Mechanism::kGround, f, b, f));
+    m.setGravity(Eigen::Vector3d::Zero());
+    m.addDrive(0, 0, DriveProfile::velocity(0.0));
+    m.build();
+    m.assemble();
+    m.setBodyWrench(b, Eigen::Vector3d(1.0, 0.0, 0.0), Eigen::Vector3d(0.0, 0.0, 4.0));
+    for (int s = 0; s < 100; ++s) ASSERT_NO_THROW(m.step(1e-3)) << "step " << s;
+    EXPECT_EQ(m.jointVelocity(0, 0), 0.0);
+    EXPECT_NEAR(std::fabs(m.jointEffort(0, 0)), 4.0, 1e-12);
+  }
+}
+
+}  // namespace
+}  // namespace mechanism_sim
