@@ -385,12 +385,10 @@ void Stepper::finishStep(const System& sys, State& s, const Inputs& in, bool aft
 // Activates a limit whose coordinate has passed its bound; returns whether any did.
 bool Stepper::updateLimits(const System& sys, State& s) {
   bool changed = false;
-  Row rows[kMaxJointDofs];
   for (size_t l = 0; l < sys.limits.size(); ++l) {
     const LimitSpec& L = sys.limits[l];
     if (s.limit_side[l]) continue;
-    jointRows(sys, ev_, s, L.joint, rows);
-    const double q = rows[L.k].Phi;
+    const double q = limitValue(sys, ev_, s, L);
     const int side = limitSide(L, q);
     if (!side) continue;
     if (drivenAtLimit(sys, L, q, s.t)) continue;

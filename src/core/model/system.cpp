@@ -10,6 +10,7 @@
 #include <Eigen/Eigenvalues>
 
 #include "mechanism_sim/core/model/couplers.h"
+#include "mechanism_sim/core/model/coupling.h"
 #include "mechanism_sim/core/model/errors.h"
 #include "core/absolute/evaluation.h"
 #include "core/numerics.h"
@@ -111,8 +112,11 @@ void System::finalize() {
     LimitSpec& L = limits[l];
     validateLimit(*this, L);
     L.constraint = numConstraints();
-    constraints.push_back(std::make_shared<LimitConstraint>(*joints[L.joint], L.k,
-                                                            static_cast<int>(l), L.lower, L.upper));
+    if (L.terms.empty()) L.terms = {{L.joint, L.k, 1.0}};
+    std::vector<CouplingTerm> terms;
+    for (const LimitTerm& t : L.terms) terms.push_back({joints[t.joint], t.k, t.c});
+    constraints.push_back(std::make_shared<LimitConstraint>(L.name.empty() ? joints[L.joint]->name() + " limit" : L.name,
+                                                            std::move(terms), static_cast<int>(l), L.lower, L.upper));
   }
   rheonomic.clear();
   for (int c = 0; c < numConstraints(); ++c) {
@@ -230,14 +234,31 @@ int limitSide(const LimitSpec& L, double q) {
 }
 
 void validateLimit(const System& sys, const LimitSpec& L) {
-  if (L.joint < 0 || L.joint >= sys.numJoints())
-    throw ModelError("limit on joint " + std::to_string(L.joint) + ": no such joint");
-  const Joint& j = *sys.joints[L.joint];
-  if (L.k < 0 || L.k >= j.dof())
-    throw ModelError("joint '" + j.name() + "': a limit on coordinate " + std::to_string(L.k) + ", which it does not have");
-  if (!j.holonomicCoordinates()) throw ModelError("joint '" + j.name() + "': limits need a position coordinate");
+  const std::vector<LimitTerm> terms = L.terms.empty() ? std::vector<LimitTerm>{{L.joint, L.k, 1.0}} : L.terms;
+  if (terms[0].joint != L.joint || terms[0].k != L.k)
+    throw ModelError(limitSubject(sys, L) + ": a limit's (joint, k) is its first term's");
+  for (size_t i = 0; i < terms.size(); ++i) {
+    const LimitTerm& t = terms[i];
+    if (t.joint < 0 || t.joint >= sys.numJoints())
+      throw ModelError("limit on joint " + std::to_string(t.joint) + ": no such joint");
+    const Joint& j = *sys.joints[t.joint];
+    if (t.k < 0 || t.k >= j.dof())
+      throw ModelError("joint '" + j.name() + "': a limit on coordinate " + std::to_string(t.k) + ", which it does not have");
+    if (!j.holonomicCoordinates()) throw ModelError("joint '" + j.name() + "': limits need a position coordinate");
+    if (!std::isfinite(t.c) || t.c == 0.0)
+      throw ModelError(limitSubject(sys, L) + ": the limit's coefficient of joint '" + j.name() + "' must be finite and non-zero");
+    for (size_t e = 0; e < i; ++e)
+      if (terms[e].joint == t.joint && terms[e].k == t.k)
+        throw ModelError(limitSubject(sys, L) + ": joint '" + j.name() + "' appears twice in one limit");
+  }
   if (!(L.lower <= L.upper) || !std::isfinite(L.lower) || !std::isfinite(L.upper))
-    throw ModelError("joint '" + j.name() + "': limits need finite lower <= upper");
+    throw ModelError(limitSubject(sys, L) + ": limits need finite lower <= upper");
+}
+
+std::string limitSubject(const System& sys, const LimitSpec& L) {
+  if (!L.name.empty()) return "coupling '" + L.name + "'";
+  return L.joint >= 0 && L.joint < sys.numJoints() ? "joint '" + sys.joints[L.joint]->name() + "'"
+                                                    : "limit on joint " + std::to_string(L.joint);
 }
 
 double limitSlack(const System& sys, const LimitSpec& L) {
@@ -245,18 +266,25 @@ double limitSlack(const System& sys, const LimitSpec& L) {
 }
 
 bool drivenAtLimit(const System& sys, const LimitSpec& L, double q, double t) {
-  for (const DriveSpec& D : sys.drives)
-    if (D.joint == L.joint && D.k == L.k) {
-      // within the assembly's slack of the bound (a gripper's finger held at its stop, off by
-      // round-off): the drive holds it there, no limit to activate
-      const double slack = limitSlack(sys, L);
-      if (q >= L.lower - slack && q <= L.upper + slack) return true;
-      std::ostringstream os;
-      os << "at t = " << t << " s: the drive of joint '" << sys.joints[L.joint]->name() << "' moves it to " << fmt(q)
-         << ", past its limits [" << fmt(L.lower) << ", " << fmt(L.upper) << "]; change the drive or the limits";
-      throw SimulationError(os.str());
-    }
-  return false;
+  // (no copy of the terms: a step allocates nothing)
+  auto driven = [&](int joint, int k) {
+    for (const DriveSpec& D : sys.drives)
+      if (D.joint == joint && D.k == k) return true;
+    return false;
+  };
+  if (L.terms.empty() && !driven(L.joint, L.k)) return false;
+  for (const LimitTerm& term : L.terms)
+    if (!driven(term.joint, term.k)) return false;  // a coordinate free to stop
+  const size_t n = std::max<size_t>(1, L.terms.size());
+  // within the assembly's slack of the bound (a gripper's finger held at its stop, off by
+  // round-off): the drive holds it there, no limit to activate
+  const double slack = limitSlack(sys, L);
+  if (q >= L.lower - slack && q <= L.upper + slack) return true;
+  std::ostringstream os;
+  os << "at t = " << t << " s: the drive" << (n > 1 ? "s of " : " of ") << limitSubject(sys, L)
+     << " move" << (n > 1 ? " its sum" : "s it") << " to " << fmt(q) << ", past its limits ["
+     << fmt(L.lower) << ", " << fmt(L.upper) << "]; change the drive or the limits";
+  throw SimulationError(os.str());
 }
 
 }  // namespace mechanism_sim
