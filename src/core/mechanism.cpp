@@ -278,6 +278,11 @@ void Mechanism::addRotorInertia(const RotorInertia& rotor) {
   sys_->rotors.push_back(rotor);
 }
 
+void Mechanism::addSumFriction(const SumFriction& friction) {
+  requireUnbuilt("addSumFriction");
+  sys_->sum_friction.push_back(friction);
+}
+
 void Mechanism::setJointFriction(int joint, int k, double f) {
   checkCoordinate(joint, k);
   if (!(f >= 0) || !std::isfinite(f))
@@ -598,6 +603,9 @@ std::vector<Reaction> Mechanism::jointReactions() const {
     }
     for (size_t c = 0; c < R.coords.size(); ++c) along(R.coords[c].first, R.coords[c].second, -tau[c]);
   }
+  // Coulomb friction on sums of coordinates: c_i F along each (System::sum_friction)
+  for (size_t r = 0; r < sys.sum_friction.size() && r < s.sum_friction.size(); ++r)
+    for (const LimitTerm& t : sys.sum_friction[r].terms) along(t.joint, t.k, t.c * s.sum_friction[r]);
   return out;
 }
 

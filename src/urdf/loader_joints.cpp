@@ -139,21 +139,26 @@ void ModelBuilder::addTransmissions(const Transmissions& read) {
     if (n == 2) rotor.damping_coupling = D(0, 1);
     // The motors' Coulomb friction acts on theta = E (q - q_0): where a motor turns one joint
     // alone (a simple transmission: theta = n q) it is that joint's friction of bound |n| f_m
-    // (an effort f_m on theta is n f_m on q); on a motor that turns two joints at once (a
-    // differential's) it is not applied to the motion but counted in the motor's torque.
-    std::string unapplied;
+    // (an effort f_m on theta is n f_m on q); a motor that turns two joints at once (a
+    // differential's) has it on its own row, sum_i E_ki q_i (System::sum_friction).
     Eigen::Vector2d motor_friction = Eigen::Vector2d::Zero();  // per joint of the transmission
+    std::vector<SumFriction> on_sums;
     for (int k = 0; k < n; ++k) {
       if (!(f[k] > 0)) continue;
       int on = -1;
       for (int i = 0; i < n; ++i)
         if (E(k, i) != 0.0) on = on < 0 ? i : n;
-      if (on >= 0 && on < n) motor_friction[on] += std::fabs(E(k, on)) * f[k];
-      else unapplied += (unapplied.empty() ? "'" : ", '") + s.actuators[k] + "'";
+      if (on >= 0 && on < n) {
+        motor_friction[on] += std::fabs(E(k, on)) * f[k];
+        continue;
+      }
+      SumFriction F;
+      F.name = s.actuators[k];
+      F.f = f[k];
+      for (int i = 0; i < n; ++i)
+        if (E(k, i) != 0.0) F.terms.push_back({rotor.coords[i].first, rotor.coords[i].second, E(k, i)});
+      on_sums.push_back(F);
     }
-    if (!unapplied.empty())
-      limit_notes_.push_back("actuators " + unapplied + " turn two joints at once: their friction is counted in their "
-                             "torque (sizing), not applied to the motion");
     // a kinematic model has no forces: its rotors and motors' losses do nothing (as joint damping)
     if (!kinematic_) {
       for (size_t i = 0; i < rotor.coords.size(); ++i) {
@@ -163,6 +168,7 @@ void ModelBuilder::addTransmissions(const Transmissions& read) {
           mech().setJointFriction(joint, k, mech().system().friction[joint][k] + motor_friction[i]);
       }
       if (J.maxCoeff() > 0.0 || rotor.damping_coupling != 0.0) mech().addRotorInertia(rotor);
+      for (const SumFriction& F : on_sums) mech().addSumFriction(F);
     }
     model_->transmissions_.push_back(info);
   }

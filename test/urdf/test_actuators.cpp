@@ -531,5 +531,68 @@ TEST(Actuators, MotorWorkIsTheEnergyChangePlusWhatDampingAndFrictionTook) {
   }
 }
 
+// Two discs about the vertical behind a differential (E = [20 40; 30 -60]), the first
+// motor's Coulomb friction f_m on its own shaft theta_1 = 20 q_a + 40 q_b, a row on both
+// joints. In motor coordinates the inertia is M_theta = E^-T M E^-1. With
+// motor torques tau_theta applied as joint efforts E^T tau_theta from rest: below the bound
+// theta_1 sticks (its rate 0 to round-off) while theta_2 turns at tau_2 / M_theta(1, 1); above
+// it the motor slides against f_m and theta_dot = M_theta^-1 (tau_theta - (f_m, 0)) t.
+// Both formulations (the rotors left out: a differential's B couples the joints, which the
+// joint formulation does not take).
+TEST(Actuators, DifferentialMotorFrictionActsOnItsShaft) {
+  const double f_m = 0.02;
+  const std::string actuators = "<mechanism_sim:actuator name=\"m1\" friction=\"0.02\"/>";
+  const std::string xml =
+      "<robot name=\"diff\" xmlns:mechanism_sim=\"https://mechanism-sim.github.io/urdf-extension\"><link name=\"base\"/>"
+      "<link name=\"a\"><inertial><mass value=\"1\"/><inertia ixx=\"0.01\" iyy=\"0.01\" izz=\"0.02\" "
+      "ixy=\"0\" ixz=\"0\" iyz=\"0\"/></inertial></link>"
+      "<link name=\"b\"><inertial><mass value=\"1.2\"/><inertia ixx=\"0.015\" iyy=\"0.015\" izz=\"0.03\" "
+      "ixy=\"0\" ixz=\"0\" iyz=\"0\"/></inertial></link>"
+      "<joint name=\"ja\" type=\"continuous\"><parent link=\"base\"/><child link=\"a\"/><axis xyz=\"0 0 1\"/></joint>"
+      "<joint name=\"jb\" type=\"continuous\"><parent link=\"base\"/><child link=\"b\"/><origin xyz=\"0.3 0 0\"/>"
+      "<axis xyz=\"0 0 1\"/></joint>"
+      "<transmission name=\"wrist\"><type>transmission_interface/DifferentialTransmission</type>"
+      "<actuator name=\"m1\"><role>actuator1</role><mechanicalReduction>20</mechanicalReduction></actuator>"
+      "<actuator name=\"m2\"><role>actuator2</role><mechanicalReduction>30</mechanicalReduction></actuator>"
+      "<joint name=\"ja\"><role>joint1</role><mechanicalReduction>1</mechanicalReduction></joint>"
+      "<joint name=\"jb\"><role>joint2</role><mechanicalReduction>2</mechanicalReduction></joint></transmission>" +
+      actuators + "</robot>";
+  Eigen::Matrix2d E;
+  E << 20, 40, 30, -60;
+  const Eigen::Matrix2d Einv = E.inverse();
+  const Eigen::Matrix2d M_theta = Einv.transpose() * Eigen::Vector2d(0.02, 0.03).asDiagonal() * Einv;
+  for (const char* f : {"absolute", "joint"}) {
+    for (double share : {0.5, 1.5}) {
+      SCOPED_TRACE(std::string(f) + " share " + std::to_string(share));
+      LoadOptions o;
+      o.formulation = f;
+      auto model = loadModelString(xml, "diff.urdf", o);
+      EXPECT_STREQ(model->mechanism().formulation(), f);
+      for (const std::string& note : model->notes()) EXPECT_EQ(note.find("friction"), std::string::npos) << note;
+      // tau_2 chosen so that, with theta_1 held, its reaction M_theta(0, 1) theta_ddot_2 is
+      // within the bound: the friction holds tau_1 - M_theta(0, 1) tau_2 / M_theta(1, 1)
+      const double tau2 = 0.01;
+      const double held = M_theta(0, 1) * tau2 / M_theta(1, 1);
+      const Eigen::Vector2d tau_theta(held + share * f_m, tau2);
+      const Eigen::Vector2d tau_q = E.transpose() * tau_theta;
+      model->setEffort(model->dofIndex("ja"), tau_q[0]);
+      model->setEffort(model->dofIndex("jb"), tau_q[1]);
+      for (int s = 0; s < 200; ++s) model->step(1e-3);
+      const double t = model->mechanism().time();
+      const Eigen::Vector2d qd(model->velocity(model->dofIndex("ja")), model->velocity(model->dofIndex("jb")));
+      const Eigen::Vector2d theta_dot = E * qd;
+      if (share < 1) {
+        EXPECT_NEAR(theta_dot[0], 0.0, 1e-9 * std::fabs(theta_dot[1]));
+        EXPECT_NEAR(theta_dot[1], tau2 / M_theta(1, 1) * t, 1e-9 * std::fabs(theta_dot[1]));
+      } else {
+        const Eigen::Vector2d expected = M_theta.ldlt().solve(tau_theta - Eigen::Vector2d(f_m, 0.0)) * t;
+        for (int k = 0; k < 2; ++k) EXPECT_NEAR(theta_dot[k], expected[k], 1e-9 * expected.norm()) << k;
+      }
+      std::printf("[differential motor friction, %s, %.1f f_m] theta_dot = (%.3e, %.6f) rad/s after %.1f s\n", f, share,
+                  theta_dot[0], theta_dot[1], t);
+    }
+  }
+}
+
 }  // namespace
 }  // namespace mechanism_sim

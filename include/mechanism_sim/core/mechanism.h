@@ -74,6 +74,9 @@ class Mechanism {
   // (transmission.h): the kinetic energy 1/2 q_dot^T B q_dot, in both formulations (a
   // coupled B runs in absolute coordinates). Before build(); build() validates it.
   void addRotorInertia(const RotorInertia& rotor);
+  // Coulomb friction of bound f on a sum of joint coordinates (System::sum_friction; a
+  // differential motor's shaft). Before build(); build() validates it.
+  void addSumFriction(const SumFriction& friction);
   // Position limits of a coordinate: unilateral, activated on contact with no rebound,
   // released when the joint pulls away.
   void setJointLimits(int joint, int k, double lower, double upper);

@@ -206,6 +206,12 @@ void appliedForces(const System& sys, const State& s, const Inputs& in,
     for (int k = 0; k < dof; ++k)
       scatterRow(sys, j, rows[k], appliedEffort(tau[k], c[k], rows[k].Phi_dot, fr[k]), Q.data());
   }
+  // Coulomb friction on sums of coordinates: its effort F as c_i F along each q_i
+  for (size_t r = 0; r < sys.sum_friction.size() && r < s.sum_friction.size(); ++r) {
+    if (s.sum_friction[r] == 0.0) continue;
+    for (const LimitTerm& t : sys.sum_friction[r].terms)
+      scatterRow(sys, t.joint, jointRow(sys, ev, s, t.joint, t.k), t.c * s.sum_friction[r], Q.data());
+  }
   // the rotors' -G^T B (G a - gamma): its G^T B gamma part (addRotorMass has the other);
   // the motors' coupled damping
   for (size_t r = 0; r < sys.rotors.size(); ++r) {

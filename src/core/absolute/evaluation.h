@@ -120,7 +120,7 @@ Row jointRow(const System& sys, const Evaluation& ev, const State& s, int j, int
 double limitValue(const System& sys, const Evaluation& ev, const State& s, const LimitSpec& L);
 // ev.Q per body: [f (global, at the centre of mass); n' (body components)] from gravity,
 // the inputs, springs, and the joints' applied efforts (damping c and friction per joint
-// coordinate).
+// coordinate, and s.sum_friction on sums of coordinates).
 void appliedForces(const System& sys, const State& s, const Inputs& in,
                    const std::vector<std::array<double, 3>>& damping,
                    const std::vector<std::array<double, 3>>& friction, Evaluation& ev);

@@ -84,6 +84,15 @@ void System::finalize() {
   if (!gravity.allFinite()) throw ModelError("gravity must be finite");
   options.validate();
   validateRotors(*this);
+  for (const SumFriction& F : sum_friction) {
+    if (F.terms.empty() || F.terms.size() > static_cast<size_t>(kMaxCoordinateEfforts))
+      throw ModelError("friction '" + F.name + "': on 1 to " + std::to_string(kMaxCoordinateEfforts) + " coordinates");
+    if (!(F.f >= 0.0) || !std::isfinite(F.f)) throw ModelError("friction '" + F.name + "': its bound must be finite and >= 0");
+    LimitSpec as_limit;  // (the same terms as a limit's: joints' coordinates, coefficients)
+    as_limit.joint = F.terms[0].joint, as_limit.k = F.terms[0].k, as_limit.terms = F.terms;
+    as_limit.name = F.name;
+    validateLimit(*this, as_limit);
+  }
 
   // Drives become constraints after joints and couplers, limits after all others (free
   // until reached).
@@ -212,6 +221,7 @@ State initialState(const System& sys) {
   s.lambda = Eigen::VectorXd::Zero(sys.m);
   s.acc = Eigen::VectorXd::Zero(sys.n);
   s.friction.assign(sys.joints.size(), {0, 0, 0});
+  s.sum_friction.assign(sys.sum_friction.size(), 0.0);
   for (const DriveSpec& D : sys.drives) {
     const double v = D.profile.kind() == DriveProfile::Kind::kVelocity ? D.profile.velocity() : 0.0;
     s.drive.push_back(DriveRamp{0.0, D.q0, v, v, 0.0});

@@ -82,6 +82,16 @@ struct LimitSpec {
   bool single() const { return terms.empty() || (terms.size() == 1 && terms[0].c == 1.0); }
 };
 
+// Coulomb friction of bound f on s = sum_i c_i q_i, a linear combination of joint
+// coordinates (a motor's shaft behind a differential, theta = E q: doc/actuators.md): the
+// joints' per-coordinate rule (coulombFriction) on the row sum_i c_i q_x,i, its effort F
+// acting as c_i F along each q_i.
+struct SumFriction {
+  std::string name;
+  std::vector<LimitTerm> terms;
+  double f = 0.0;
+};
+
 // Prescribed motion of joint coordinate k; `constraint` is its DriveConstraint.
 struct DriveSpec {
   int joint = 0, k = 0;
@@ -110,6 +120,7 @@ class System {
   std::vector<DriveSpec> drives;
   std::vector<std::array<double, 3>> damping, friction;  // per joint coordinate
   std::vector<RotorInertia> rotors;  // reflected rotor inertias (transmission.h)
+  std::vector<SumFriction> sum_friction;  // Coulomb friction on sums of coordinates
   Vector3d gravity = Vector3d(0, 0, -9.81);
   IntegratorOptions options;
 
@@ -180,6 +191,7 @@ struct State {
   Eigen::VectorXd lambda;                  // multipliers at this state (and warm start)
   Eigen::VectorXd acc;                     // accelerations at this state
   std::vector<std::array<double, 3>> friction;  // friction effort of the step that led here
+  std::vector<double> sum_friction;             // per System::sum_friction: its effort F, the same
   std::vector<DriveRamp> drive;            // per drive: a velocity drive's reference
   // The joint formulation's state (joint_stepper.h; empty in the absolute formulation):
   // joint positions, rates and accelerations (x, u, acc above are written from them).
