@@ -90,8 +90,11 @@ void System::finalize() {
     if (!(F.f >= 0.0) || !std::isfinite(F.f)) throw ModelError("friction '" + F.name + "': its bound must be finite and >= 0");
     LimitSpec as_limit;  // (the same terms as a limit's: joints' coordinates, coefficients)
     as_limit.joint = F.terms[0].joint, as_limit.k = F.terms[0].k, as_limit.terms = F.terms;
-    as_limit.name = F.name;
-    validateLimit(*this, as_limit);
+    try {
+      validateLimit(*this, as_limit);
+    } catch (const ModelError& e) {
+      throw ModelError("friction '" + F.name + "': " + e.what());
+    }
   }
 
   // Drives become constraints after joints and couplers, limits after all others (free
