@@ -130,18 +130,20 @@ int Mechanism::addCoupler(const std::string& name, int joint_a, int k_a, int joi
   return numConstraints() - 1;
 }
 
-int Mechanism::addCoupling(const std::string& name, const std::vector<CouplingCoordinate>& terms, double c0) {
-  requireUnbuilt("addCoupling");
-  const std::string what = "coupling '" + name + "': ";
+namespace {
+
+// The coupling's terms as the core takes them, or a ModelError naming what is wrong.
+std::vector<CouplingTerm> couplingTerms(const System& sys, const std::string& what,
+                                        const std::vector<Mechanism::CouplingCoordinate>& terms, double c0) {
   if (terms.size() < 2 || terms.size() > static_cast<size_t>(kMaxCouplingTerms))
     throw ModelError(what + "couples " + std::to_string(terms.size()) + " coordinates (2 to " +
                      std::to_string(kMaxCouplingTerms) + ")");
   if (!std::isfinite(c0)) throw ModelError(what + "its constant must be finite");
   std::vector<CouplingTerm> made;
-  for (const CouplingCoordinate& t : terms) {
-    if (t.joint < 0 || t.joint >= numJoints() || t.k < 0 || t.k >= sys_->joints[t.joint]->dof())
+  for (const Mechanism::CouplingCoordinate& t : terms) {
+    if (t.joint < 0 || t.joint >= sys.numJoints() || t.k < 0 || t.k >= sys.joints[t.joint]->dof())
       throw ModelError(what + "no such joint coordinate");
-    const Joint& joint = *sys_->joints[t.joint];
+    const Joint& joint = *sys.joints[t.joint];
     if (!joint.holonomicCoordinates())
       throw ModelError(what + "joint '" + joint.name() + "' has no position coordinate to couple");
     if (!std::isfinite(t.c) || t.c == 0.0)
@@ -150,8 +152,32 @@ int Mechanism::addCoupling(const std::string& name, const std::vector<CouplingCo
       if (m.joint == &joint && m.k == t.k) throw ModelError(what + "joint '" + joint.name() + "' appears twice");
     made.push_back({&joint, t.k, t.c});
   }
+  return made;
+}
+
+}  // namespace
+
+int Mechanism::addCoupling(const std::string& name, const std::vector<CouplingCoordinate>& terms, double c0) {
+  requireUnbuilt("addCoupling");
+  std::vector<CouplingTerm> made = couplingTerms(*sys_, "coupling '" + name + "': ", terms, c0);
   sys_->constraints.push_back(std::make_shared<LinearCoupling>(name, std::move(made), c0));
   return numConstraints() - 1;
+}
+
+int Mechanism::addBacklashCoupling(const std::string& name, const std::vector<CouplingCoordinate>& terms, double c0,
+                                   double backlash) {
+  requireUnbuilt("addBacklashCoupling");
+  const std::string what = "coupling '" + name + "': ";
+  couplingTerms(*sys_, what, terms, c0);
+  if (!std::isfinite(backlash) || !(backlash > 0.0)) throw ModelError(what + "its backlash must be finite and positive");
+  LimitSpec limit;
+  limit.joint = terms[0].joint, limit.k = terms[0].k;
+  limit.lower = c0 - 0.5 * backlash, limit.upper = c0 + 0.5 * backlash;
+  limit.name = name;
+  for (const CouplingCoordinate& t : terms) limit.terms.push_back({t.joint, t.k, t.c});
+  validateLimit(*sys_, limit);
+  sys_->limits.push_back(limit);
+  return static_cast<int>(sys_->limits.size()) - 1;
 }
 
 double Mechanism::couplingReaction(int ci) const {
@@ -159,6 +185,13 @@ double Mechanism::couplingReaction(int ci) const {
     throw UsageError("constraint " + std::to_string(ci) + " is not a coupling");
   const Evaluation* ev = nullptr;
   return multipliers(&ev)[sys_->layout.at(ci).row];
+}
+
+double Mechanism::limitReaction(int l) const {
+  if (l < 0 || l >= static_cast<int>(sys_->limits.size())) throw UsageError("no limit " + std::to_string(l));
+  if (!state_.limit_side[l]) return 0.0;
+  const Evaluation* ev = nullptr;
+  return multipliers(&ev)[sys_->layout.at(sys_->limits[l].constraint).row];
 }
 
 int Mechanism::addSpring(const SpringDamper& s) {
@@ -180,7 +213,8 @@ void Mechanism::checkCoordinate(int joint, int k) const {
 void Mechanism::setJointLimits(int joint, int k, double lower, double upper) {
   requireUnbuilt("setJointLimits");
   checkCoordinate(joint, k);
-  const LimitSpec limit{joint, k, lower, upper, 0};
+  LimitSpec limit;
+  limit.joint = joint, limit.k = k, limit.lower = lower, limit.upper = upper;
   validateLimit(*sys_, limit);  // (at once, as finalize() would)
   sys_->limits.push_back(limit);
 }
@@ -243,6 +277,11 @@ void Mechanism::setJointDamping(int joint, int k, double c) {
 void Mechanism::addRotorInertia(const RotorInertia& rotor) {
   requireUnbuilt("addRotorInertia");
   sys_->rotors.push_back(rotor);
+}
+
+void Mechanism::addSumFriction(const SumFriction& friction) {
+  requireUnbuilt("addSumFriction");
+  sys_->sum_friction.push_back(friction);
 }
 
 void Mechanism::setJointFriction(int joint, int k, double f) {
@@ -422,7 +461,7 @@ double Mechanism::jointEffort(int joint, int k) const {
   double tau = appliedEffort(inputs_.effort[joint][k], sys_->damping[joint][k], jointVelocity(joint, k),
                              state_.friction[joint][k]);
   for (size_t l = 0; l < sys_->limits.size(); ++l)
-    if (sys_->limits[l].joint == joint && sys_->limits[l].k == k && state_.limit_side[l])
+    if (sys_->limits[l].single() && sys_->limits[l].joint == joint && sys_->limits[l].k == k && state_.limit_side[l])
       tau -= state_.lambda[sys_->layout[sys_->limits[l].constraint].row];
   const int d = driveOf(joint, k);
   if (d >= 0) tau -= state_.lambda[sys_->layout[sys_->drives[d].constraint].row];
@@ -529,14 +568,22 @@ std::vector<Reaction> Mechanism::jointReactions() const {
       if (tau != 0.0) add(j, rows[k].J.segment<6>(6).transpose() * tau);
     }
   }
-  // The rotors' inertial efforts -B q_ddot (transmission.h): the drives' and commands'
-  // efforts above accelerate the rotors too, which the gearbox, not the child link, takes.
+  // The rotors' inertial efforts -B q_ddot and the motors' coupled damping (transmission.h):
+  // the drives' and commands' efforts above accelerate the rotors too and overcome their
+  // damping, which the gearbox, not the child link, takes.
   for (const RotorInertia& R : sys.rotors) {
     Eigen::Vector2d q_ddot = Eigen::Vector2d::Zero();
     for (size_t c = 0; c < R.coords.size(); ++c) q_ddot[c] = jointAcceleration(R.coords[c].first, R.coords[c].second);
-    const Eigen::Vector2d tau = R.B * q_ddot;
+    Eigen::Vector2d tau = R.B * q_ddot;
+    if (R.damping_coupling != 0.0) {  // the motors' coupled damping D_01 (transmission.h)
+      tau[0] += R.damping_coupling * jointVelocity(R.coords[1].first, R.coords[1].second);
+      tau[1] += R.damping_coupling * jointVelocity(R.coords[0].first, R.coords[0].second);
+    }
     for (size_t c = 0; c < R.coords.size(); ++c) along(R.coords[c].first, R.coords[c].second, -tau[c]);
   }
+  // Coulomb friction on sums of coordinates: c_i F along each (System::sum_friction)
+  for (size_t r = 0; r < sys.sum_friction.size() && r < s.sum_friction.size(); ++r)
+    for (const LimitTerm& t : sys.sum_friction[r].terms) along(t.joint, t.k, t.c * s.sum_friction[r]);
   return out;
 }
 

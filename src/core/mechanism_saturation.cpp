@@ -105,9 +105,9 @@ double Mechanism::limitedActuatorTorque(int i) const {
   double tau_q = inputs_.effort[L.joint][L.k];
   const int d = driveOf(L.joint, L.k);
   if (d >= 0) tau_q -= state_.lambda[sys_->layout[sys_->drives[d].constraint].row];
-  const double omega = L.reduction * jointVelocity(L.joint, L.k);
-  const double sign = omega > 0 ? 1.0 : omega < 0 ? -1.0 : 0.0;
-  return tau_q / L.reduction + L.ratings.damping * omega + L.ratings.friction * sign;
+  // (the motor's own damping and friction act on the motion through the transmission, so
+  // the drive's effort already overcomes them: MechanismModel::actuatorState)
+  return tau_q / L.reduction;
 }
 
 void Mechanism::saturate(double h) {

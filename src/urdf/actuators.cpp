@@ -32,9 +32,9 @@ ActuatorState MechanismModel::actuatorState(int actuator) const {
   s.position = t.E.row(a.k).dot(q);
   s.velocity = t.E.row(a.k).dot(q_dot);
   s.torque = t.E_inv_T.row(a.k).dot(tau);
-  // the motor's own losses, which it overcomes at the speed the motion asks
-  const double sign = s.velocity > 0 ? 1.0 : s.velocity < 0 ? -1.0 : 0.0;
-  s.torque += a.ratings.damping * s.velocity + a.ratings.friction * sign;
+  // The motor's own damping and friction act on the motion (loader_joints.cpp: through the
+  // transmission onto the joints), so a drive's effort above already overcomes them and a
+  // command is what the motor gives, part of which they take: nothing is added here.
   s.power = s.torque * s.velocity;
   if (electricalGiven(a.ratings)) {
     const ActuatorElectrical e = electrical(a.ratings, s.velocity, s.torque);

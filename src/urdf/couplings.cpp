@@ -12,12 +12,14 @@ namespace urdf_input {
 using tinyxml2::XMLElement;
 
 ExtLinearCoupling readLinearCoupling(const XMLElement* e, const XmlReader& r) {
-  r.onlyAttributes(e, {"name", "constant"});
+  r.onlyAttributes(e, {"name", "constant", "backlash"});
   ExtLinearCoupling c;
   c.element = e;
   c.name = e->Attribute("name") ? e->Attribute("name") : "";
   if (c.name.empty()) r.fail(e, "missing attribute 'name'");
   c.c0 = r.number(e, "constant", 0.0);
+  c.backlash = r.number(e, "backlash", 0.0);
+  if (!(c.backlash >= 0.0)) r.fail(e, "backlash is negative (the clearance on the coupled sum, 0 for none)");
   for (const XMLElement* j = e->FirstChildElement(); j; j = j->NextSiblingElement()) {
     if (std::string(j->Name()) != "joint") r.fail(j, "unknown element in <mechanism_sim:coupling> (joint)");
     r.onlyAttributes(j, {"name", "dof", "coefficient"});
@@ -66,10 +68,10 @@ std::pair<int, int> resolve(const ExtLinearCoupling::Term& t, const JointSpecs& 
 
 }  // namespace
 
-std::vector<int> addLinearCouplings(const std::vector<ExtLinearCoupling>& couplings, const JointSpecs& specs,
-                                    const std::map<std::string, int>& joint_index, Mechanism& mech,
-                                    const XmlReader& r) {
-  std::vector<int> added;
+std::vector<CouplingInfo> addLinearCouplings(const std::vector<ExtLinearCoupling>& couplings, const JointSpecs& specs,
+                                             const std::map<std::string, int>& joint_index, Mechanism& mech,
+                                             const XmlReader& r) {
+  std::vector<CouplingInfo> added;
   std::set<std::string> names;
   for (const ExtLinearCoupling& c : couplings) {
     if (!names.insert(c.name).second) r.fail(c.element, "a coupling named '" + c.name + "' comes earlier in the file");
@@ -85,7 +87,8 @@ std::vector<int> addLinearCouplings(const std::vector<ExtLinearCoupling>& coupli
       terms.push_back({at.first, at.second, t.c});
     }
     try {
-      added.push_back(mech.addCoupling(c.name, terms, c.c0));
+      if (c.backlash > 0.0) added.push_back({c.name, -1, mech.addBacklashCoupling(c.name, terms, c.c0, c.backlash)});
+      else added.push_back({c.name, mech.addCoupling(c.name, terms, c.c0)});
     } catch (const ModelError& e) {
       r.fail(c.element, e.what());
     }

@@ -8,6 +8,8 @@
 
 #include <tinyxml2.h>
 
+#include "mechanism_sim/urdf/model.h"
+
 namespace mechanism_sim {
 class Mechanism;
 namespace urdf_input {
@@ -18,6 +20,7 @@ struct ExtLinearCoupling {
   const tinyxml2::XMLElement* element = nullptr;
   std::string name;
   double c0 = 0.0;  // attribute constant
+  double backlash = 0.0;  // attribute backlash (0: none, the equation exact)
   struct Term {
     const tinyxml2::XMLElement* element = nullptr;
     std::string joint, dof;  // dof: a multi-dof joint's coordinate name (dofNames), or ""
@@ -30,10 +33,11 @@ struct ExtLinearCoupling {
 // one-line errors naming file, line and element.
 ExtLinearCoupling readLinearCoupling(const tinyxml2::XMLElement* e, const XmlReader& reader);
 
-// Adds the couplings to the Mechanism (Mechanism::addCoupling), each joint resolved among
-// the file's joints (joint_index: the core joint of each joint that has one); returns each
-// one's constraint index, in order. Errors name the element at fault.
-std::vector<int> addLinearCouplings(const std::vector<ExtLinearCoupling>& couplings, const JointSpecs& specs,
+// Adds the couplings to the Mechanism (Mechanism::addCoupling, or addBacklashCoupling for
+// one with backlash), each joint resolved among the file's joints (joint_index: the core
+// joint of each joint that has one); returns each one's name and constraint or limit, in
+// order. Errors name the element at fault.
+std::vector<CouplingInfo> addLinearCouplings(const std::vector<ExtLinearCoupling>& couplings, const JointSpecs& specs,
                                     const std::map<std::string, int>& joint_index, Mechanism& mech,
                                     const XmlReader& reader);
 

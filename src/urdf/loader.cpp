@@ -158,8 +158,8 @@ std::unique_ptr<MechanismModel> ModelBuilder::build() {
   for (const JointSpec& s : specs.tree) addMimic(s, specs);
   for (const JointSpec& s : specs.tree) tree_joints_.push_back(s.name);
   for (const Coupling& c : resolveCouplings(ext, specs, reader_)) addCoupling(c);
-  for (int c : addLinearCouplings(ext.linear_couplings, specs, joint_index_, mech(), reader_))
-    model_->couplings_.push_back({mech().constraint(c).name(), c});
+  for (const CouplingInfo& c : addLinearCouplings(ext.linear_couplings, specs, joint_index_, mech(), reader_))
+    model_->couplings_.push_back(c);
   addTransmissions(transmissions);
   model_->notes_ = ext.notes;
   model_->notes_.insert(model_->notes_.end(), root_notes_.begin(), root_notes_.end());

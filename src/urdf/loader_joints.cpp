@@ -147,24 +147,58 @@ void ModelBuilder::addTransmissions(const Transmissions& read) {
       info.dofs.push_back(d);
       rotor.coords.push_back({index->second, 0});
     }
-    Eigen::VectorXd J(s.actuators.size());
-    for (size_t k = 0; k < s.actuators.size(); ++k) {
+    const int n = static_cast<int>(s.actuators.size());
+    Eigen::VectorXd J(n), c(n), f(n);
+    for (int k = 0; k < n; ++k) {
       Actuator a;
       a.name = s.actuators[k];
       a.transmission = static_cast<int>(model_->transmissions_.size());
-      a.k = static_cast<int>(k);
+      a.k = k;
       a.ratings = read.actuators.at(a.name).ratings;
-      J[k] = a.ratings.rotor_inertia;
-      if (a.ratings.friction > 0 || a.ratings.damping > 0)
-        limit_notes_.push_back("actuator '" + a.name + "': its friction and damping are counted in its torque "
-                               "(sizing), not applied to the motion");
+      J[k] = a.ratings.rotor_inertia, c[k] = a.ratings.damping, f[k] = a.ratings.friction;
       info.actuators.push_back(static_cast<int>(model_->actuators_.size()));
       model_->actuators_.push_back(a);
     }
     const Eigen::MatrixXd B = s.map.reflectedInertia(J);
     rotor.B.topLeftCorner(B.rows(), B.cols()) = B;
-    // a kinematic model has no forces: its rotors do nothing (as joint damping)
-    if (J.maxCoeff() > 0.0 && !kinematic_) mech().addRotorInertia(rotor);
+    // The motors' damping acts on the motion through the transmission: D = E^T diag(c_m) E
+    // (N^2 c_m for a simple one, as the rotor's inertia). Its diagonal joins the joints' own
+    // damping, its coupling term (a differential's) stays with the rotor (transmission.h).
+    const Eigen::MatrixXd D = E.transpose() * c.asDiagonal() * E;
+    if (n == 2) rotor.damping_coupling = D(0, 1);
+    // The motors' Coulomb friction acts on theta = E (q - q_0): where a motor turns one joint
+    // alone (a simple transmission: theta = n q) it is that joint's friction of bound |n| f_m
+    // (an effort f_m on theta is n f_m on q); a motor that turns two joints at once (a
+    // differential's) has it on its own row, sum_i E_ki q_i (System::sum_friction).
+    Eigen::Vector2d motor_friction = Eigen::Vector2d::Zero();  // per joint of the transmission
+    std::vector<SumFriction> on_sums;
+    for (int k = 0; k < n; ++k) {
+      if (!(f[k] > 0)) continue;
+      int on = -1;
+      for (int i = 0; i < n; ++i)
+        if (E(k, i) != 0.0) on = on < 0 ? i : n;
+      if (on >= 0 && on < n) {
+        motor_friction[on] += std::fabs(E(k, on)) * f[k];
+        continue;
+      }
+      SumFriction F;
+      F.name = s.actuators[k];
+      F.f = f[k];
+      for (int i = 0; i < n; ++i)
+        if (E(k, i) != 0.0) F.terms.push_back({rotor.coords[i].first, rotor.coords[i].second, E(k, i)});
+      on_sums.push_back(F);
+    }
+    // a kinematic model has no forces: its rotors and motors' losses do nothing (as joint damping)
+    if (!kinematic_) {
+      for (size_t i = 0; i < rotor.coords.size(); ++i) {
+        const auto [joint, k] = rotor.coords[i];
+        if (D(i, i) > 0.0) mech().setJointDamping(joint, k, mech().system().damping[joint][k] + D(i, i));
+        if (motor_friction[i] > 0.0)
+          mech().setJointFriction(joint, k, mech().system().friction[joint][k] + motor_friction[i]);
+      }
+      if (J.maxCoeff() > 0.0 || rotor.damping_coupling != 0.0) mech().addRotorInertia(rotor);
+      for (const SumFriction& F : on_sums) mech().addSumFriction(F);
+    }
     model_->transmissions_.push_back(info);
   }
   if (!on_missing.empty())

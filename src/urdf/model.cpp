@@ -112,7 +112,8 @@ std::pair<Eigen::Vector3d, Eigen::Vector3d> MechanismModel::linkVelocity(int lin
 
 std::vector<double> MechanismModel::couplingReactions() const {
   std::vector<double> out;
-  for (const CouplingInfo& c : couplings_) out.push_back(mechanism_->couplingReaction(c.constraint));
+  for (const CouplingInfo& c : couplings_)
+    out.push_back(c.limit >= 0 ? mechanism_->limitReaction(c.limit) : mechanism_->couplingReaction(c.constraint));
   return out;
 }
 

@@ -8,6 +8,8 @@
 #include <fstream>
 #include <string>
 
+#include <Eigen/Dense>
+
 #include "mechanism_sim/urdf/model.h"
 #include "mechanism_sim/urdf/run_loop.h"
 
@@ -273,8 +275,9 @@ TEST(Actuators, SaturatingModeNamesTheActuatorsItCannotBound) {
 }
 
 // A wheel about the vertical (gravity does no work) turned at a constant 2 rad/s by a
-// velocity drive behind a 100:1 gearbox: the motor turns at 200 rad/s and gives only its own
-// friction and damping, 0.05 + 1e-4 * 200 = 0.07 N m. With k_t = 0.05 N m/A and R = 0.8 ohm:
+// velocity drive behind a 100:1 gearbox: the motor turns at 200 rad/s and gives only what its
+// own friction and damping take from the motion (the drive's effort through the gearbox),
+// 0.05 + 1e-4 * 200 = 0.07 N m. With k_t = 0.05 N m/A and R = 0.8 ohm:
 // i = 0.07 / 0.05 = 1.4 A, V = 0.8 * 1.4 + 0.05 * 200 = 11.12 V, P_el = V i = 15.568 W, of
 // which R i^2 = 1.568 W is copper loss and tau omega = 14 W mechanical.
 std::string electricWheel() {
@@ -304,9 +307,13 @@ TEST(Actuators, ElectricalQuantitiesAtAKnownTorqueAndSpeed) {
   EXPECT_NEAR(a.peakCurrent(), 1.4, 1e-9 * 1.4);
   EXPECT_NEAR(a.peakVoltage(), 11.12, 1e-9 * 11.12);
   EXPECT_NEAR(a.peakElectricalPower(), 15.568, 1e-9 * 15.568);
-  EXPECT_NEAR(a.copperEnergy(), 1.568 * 1.0, 1e-9 * 1.568);  // R i^2 over the run's 1 s
+  // R i^2 over the run's 1 s, less over its first interval: at t = 0 no step has been taken
+  // and the friction, which acts from the first step on, is not yet in the drive's effort
+  // (the motor gives the damping's 0.02 N m there, i = 0.4 A)
+  const double first = 0.5e-3 * (1.568 - 0.8 * 0.4 * 0.4);
+  EXPECT_NEAR(a.copperEnergy(), 1.568 * 1.0 - first, 1e-9 * 1.568);
   EXPECT_NE(a.describe().find(", peak current 1.4 A, peak voltage 11.12 V, peak electrical power 15.57 W, copper energy "
-                              "1.568 J"),
+                              "1.567 J"),
             std::string::npos)
       << a.describe();
   // without a torque_constant nothing electrical is reported; a resistance alone is refused
@@ -479,6 +486,224 @@ TEST(Actuators, BadInputIsOneLine) {
             "t.urdf:1: mechanism_sim:actuator 'motor': rotor_inertia must be finite and not negative");
   EXPECT_EQ(loadError(pendulum(std::string(kSimple) + "<mechanism_sim:actuator name=\"servo\" rotor_inertia=\"1e-5\"/>")),
             "t.urdf:1: mechanism_sim:actuator 'servo': no transmission of a simulated type names actuator 'servo'");
+}
+
+// A wheel about the vertical (gravity does no work) behind 100:1, its motor's damping c_m
+// and rotor J on the shaft, spun to w0 and let go: the damping reaches the joint as N^2 c_m,
+// (I + N^2 J) w_dot = -N^2 c_m w, so w = w0 exp(-N^2 c_m t / (I + N^2 J)), in both
+// formulations (to the integrator's accuracy at 1 ms: h k = 0.05).
+TEST(Actuators, MotorDampingDecaysTheWheelAtNSquaredItsRate) {
+  const double N = 100, c_m = 1e-5, J = 1e-6, I = 0.02, w0 = 3.0;
+  const double k = N * N * c_m / (I + N * N * J);
+  const std::string xml =
+      "<robot name=\"wheel\" xmlns:mechanism_sim=\"https://mechanism-sim.github.io/urdf-extension\">"
+      "<link name=\"base\"/><link name=\"wheel\"><inertial><mass value=\"1\"/><inertia ixx=\"0.01\" iyy=\"0.01\" "
+      "izz=\"0.02\" ixy=\"0\" ixz=\"0\" iyz=\"0\"/></inertial></link>"
+      "<joint name=\"hinge\" type=\"continuous\"><parent link=\"base\"/><child link=\"wheel\"/><axis xyz=\"0 0 1\"/>"
+      "</joint>" +
+      std::string(kSimple) +
+      "<mechanism_sim:actuator name=\"motor\" rotor_inertia=\"1e-6\" damping=\"1e-5\"/>"
+      "<mechanism_sim:initial joint=\"hinge\" velocity=\"3\"/></robot>";
+  for (const char* f : {"absolute", "joint"}) {
+    SCOPED_TRACE(f);
+    LoadOptions o;
+    o.formulation = f;
+    auto model = loadModelString(xml, "wheel.urdf", o);
+    for (const std::string& note : model->notes()) EXPECT_EQ(note.find("not applied"), std::string::npos) << note;
+    EXPECT_NEAR(model->acceleration(0), -k * w0, 1e-12 * k * w0);
+    for (int s = 0; s < 1000; ++s) model->step(1e-3);
+    const double t = model->mechanism().time(), w = w0 * std::exp(-k * t);
+    EXPECT_NEAR(model->velocity(0), w, 1e-9 * w0);
+    // the motor turns N times as fast; its damping's torque c_m theta_dot is what it loses
+    EXPECT_NEAR(model->actuatorState(0).velocity, N * w, 1e-9 * N * w0);
+    std::printf("[motor damping, %s] w(1 s) = %.12f, w0 exp(-N^2 c_m t / (I + N^2 J)) = %.12f\n", f, model->velocity(0), w);
+  }
+}
+
+// A pendulum behind 100:1 (m g L = 9.81 N m at the horizontal) with its motor's Coulomb
+// friction f_m: the friction reaches the joint as a bound N f_m. Released at rest where
+// gravity's torque m g L cos q is 0.9 N f_m it sticks; at 1.1 N f_m it accelerates at
+// (m g L cos q - N f_m) / (I + N^2 J) from rest. Both formulations.
+TEST(Actuators, MotorFrictionHoldsThePendulumWithinItsBound) {
+  const double m = 2.0, L = 0.5, Iyy = 1e-3, N = 100, J = 4e-5, f_m = 0.05;
+  const double mgL = m * kG * L, I = m * L * L + Iyy + N * N * J;
+  const std::string xml = pendulum(std::string(kSimple) +
+                                   "<mechanism_sim:actuator name=\"motor\" rotor_inertia=\"4e-5\" friction=\"0.05\"/>");
+  for (const char* f : {"absolute", "joint"}) {
+    for (double share : {0.9, 1.1}) {
+      SCOPED_TRACE(std::string(f) + " share " + std::to_string(share));
+      const double q0 = std::acos(share * N * f_m / mgL);
+      LoadOptions o;
+      o.formulation = f;
+      o.positions = {{"hinge", q0}};
+      auto model = loadModelString(xml, "geared.urdf", o);
+      const int steps = share < 1 ? 1000 : 10;
+      for (int s = 0; s < steps; ++s) model->step(1e-3);
+      const double t = model->mechanism().time();
+      const double free_fall = mgL * std::cos(q0) / I * t;  // what gravity alone would do
+      if (share < 1) {  // stuck for 1 s (to the solves' round-off)
+        EXPECT_NEAR(model->velocity(0), 0.0, 1e-6 * free_fall);
+        EXPECT_NEAR(model->position(0), q0, 1e-6 * free_fall * t);
+      } else {  // (gravity's torque falls with q by 2e-4 of the net torque over 10 ms)
+        const double a = (mgL * std::cos(q0) - N * f_m) / I;
+        EXPECT_NEAR(model->velocity(0), a * t, 1e-3 * a * t);
+      }
+      std::printf("[motor friction, %s] m g L cos q0 = %.2f N f_m: after %.2f s q_dot = %.3e rad/s\n", f, share, t,
+                  model->velocity(0));
+    }
+  }
+}
+
+// Two discs about the vertical behind a differential (E = [20 40; 30 -60]), the first
+// motor's damping c_m = 1e-5 N m s/rad, the rotors B = E^T diag(J) E: at the start,
+// (M + B) q_ddot = -D q_dot with D = E^T diag(c_m, 0) E the full coupled matrix, and the
+// power the motion loses is c_m theta_dot_1^2; over 1 s the kinetic energy falls by the
+// integral of c_m theta_dot_1^2.
+TEST(Actuators, DifferentialMotorDampingTakesItsMotorsPower) {
+  const std::string xml =
+      "<robot name=\"diff\" xmlns:mechanism_sim=\"https://mechanism-sim.github.io/urdf-extension\"><link name=\"base\"/>"
+      "<link name=\"a\"><inertial><mass value=\"1\"/><inertia ixx=\"0.01\" iyy=\"0.01\" izz=\"0.02\" "
+      "ixy=\"0\" ixz=\"0\" iyz=\"0\"/></inertial></link>"
+      "<link name=\"b\"><inertial><mass value=\"1.2\"/><inertia ixx=\"0.015\" iyy=\"0.015\" izz=\"0.03\" "
+      "ixy=\"0\" ixz=\"0\" iyz=\"0\"/></inertial></link>"
+      "<joint name=\"ja\" type=\"continuous\"><parent link=\"base\"/><child link=\"a\"/><axis xyz=\"0 0 1\"/></joint>"
+      "<joint name=\"jb\" type=\"continuous\"><parent link=\"base\"/><child link=\"b\"/><origin xyz=\"0.3 0 0\"/>"
+      "<axis xyz=\"0 0 1\"/></joint>"
+      "<transmission name=\"wrist\"><type>transmission_interface/DifferentialTransmission</type>"
+      "<actuator name=\"m1\"><role>actuator1</role><mechanicalReduction>20</mechanicalReduction></actuator>"
+      "<actuator name=\"m2\"><role>actuator2</role><mechanicalReduction>30</mechanicalReduction></actuator>"
+      "<joint name=\"ja\"><role>joint1</role><mechanicalReduction>1</mechanicalReduction></joint>"
+      "<joint name=\"jb\"><role>joint2</role><mechanicalReduction>2</mechanicalReduction></joint></transmission>"
+      "<mechanism_sim:actuator name=\"m1\" rotor_inertia=\"1e-5\" damping=\"1e-5\"/>"
+      "<mechanism_sim:actuator name=\"m2\" rotor_inertia=\"2e-5\"/>"
+      "<mechanism_sim:initial joint=\"ja\" velocity=\"1.5\"/><mechanism_sim:initial joint=\"jb\" velocity=\"-2\"/>"
+      "</robot>";
+  Eigen::Matrix2d E;
+  E << 20, 40, 30, -60;
+  const double c_m = 1e-5;
+  const Eigen::Matrix2d B = E.transpose() * Eigen::Vector2d(1e-5, 2e-5).asDiagonal() * E;
+  const Eigen::Matrix2d D = E.transpose() * Eigen::Vector2d(c_m, 0.0).asDiagonal() * E;
+  const Eigen::Matrix2d M = Eigen::Vector2d(0.02, 0.03).asDiagonal();
+  const Eigen::Vector2d qd(1.5, -2.0);
+  const Eigen::Vector2d qdd = -(M + B).ldlt().solve(D * qd);
+  auto model = loadModelString(xml, "diff.urdf");  // (a coupled matrix: absolute coordinates)
+  EXPECT_STREQ(model->mechanism().formulation(), "absolute");
+  for (int i = 0; i < 2; ++i) EXPECT_NEAR(model->acceleration(i), qdd[i], 1e-10 * qdd.norm()) << i;
+  const double theta_dot = E.row(0).dot(qd);
+  EXPECT_NEAR(qd.dot((M + B) * qdd), -c_m * theta_dot * theta_dot, 1e-12 * c_m * theta_dot * theta_dot);
+  const double T0 = model->kineticEnergy();
+  double lost = 0.0, p_prev = c_m * std::pow(model->actuatorState(0).velocity, 2);
+  const double h = 1e-3;
+  for (int s = 0; s < 1000; ++s) {
+    model->step(h);
+    const double p = c_m * std::pow(model->actuatorState(0).velocity, 2);
+    lost += 0.5 * h * (p + p_prev), p_prev = p;
+  }
+  // (the trapezoidal rule's error at 1 ms: the decay rate is 0.5/s, (h k)^2 / 12 of it)
+  EXPECT_NEAR(T0 - model->kineticEnergy(), lost, 1e-6 * lost);
+  std::printf("[differential motor damping] kinetic energy lost over 1 s %.9f J, integral of c_m theta_dot^2 %.9f J\n",
+              T0 - model->kineticEnergy(), lost);
+}
+
+// Energy: the geared pendulum driven q = 0.6 sin(2 pi t), its motor's damping and friction
+// on the motion: the motor's work, the integral of tau_m theta_dot, equals the change of the
+// energy (the arm's and the rotor's kinetic, gravity's) plus what the damping, c_m
+// theta_dot^2, and the friction, f_m |theta_dot|, took. Both formulations.
+TEST(Actuators, MotorWorkIsTheEnergyChangePlusWhatDampingAndFrictionTook) {
+  const double c_m = 2e-6, f_m = 0.01, h = 1e-4;
+  const std::string xml = pendulum(std::string(kSimple) +
+                                   "<mechanism_sim:actuator name=\"motor\" rotor_inertia=\"4e-5\" friction=\"0.01\" "
+                                   "damping=\"2e-6\"/><mechanism_sim:drive joint=\"hinge\" profile=\"harmonic\" "
+                                   "offset=\"0\" amplitude=\"0.6\" frequency=\"1\" phase=\"0\"/>");
+  for (const char* f : {"absolute", "joint"}) {
+    SCOPED_TRACE(f);
+    LoadOptions o;
+    o.formulation = f;
+    auto model = loadModelString(xml, "geared.urdf", o);
+    model->step(h);  // (the balance starts after the first step, where the friction starts)
+    const double E0 = model->kineticEnergy() + model->potentialEnergy();
+    double work = 0.0, damped = 0.0, rubbed = 0.0;
+    ActuatorState prev = model->actuatorState(0);
+    for (int s = 0; s < 7500; ++s) {  // 0.75 s: through a reversal
+      model->step(h);
+      const ActuatorState a = model->actuatorState(0);
+      work += 0.5 * h * (a.power + prev.power);
+      damped += 0.5 * h * c_m * (a.velocity * a.velocity + prev.velocity * prev.velocity);
+      rubbed += 0.5 * h * f_m * (std::fabs(a.velocity) + std::fabs(prev.velocity));
+      prev = a;
+    }
+    const double dE = model->kineticEnergy() + model->potentialEnergy() - E0;
+    const double balance = work - (dE + damped + rubbed);
+    std::printf("[motor energy, %s] work %.6f J = energy change %.6f J + damping %.6f J + friction %.6f J "
+                "(off by %.1e J)\n",
+                f, work, dE, damped, rubbed, balance);
+    EXPECT_GT(damped, 0.05 * std::fabs(work));
+    EXPECT_GT(rubbed, 0.05 * std::fabs(work));
+    EXPECT_NEAR(balance, 0.0, 1e-4 * (std::fabs(work) + damped + rubbed));
+  }
+}
+
+// Two discs about the vertical behind a differential (E = [20 40; 30 -60]), the first
+// motor's Coulomb friction f_m on its own shaft theta_1 = 20 q_a + 40 q_b, a row on both
+// joints. In motor coordinates the inertia is M_theta = E^-T M E^-1. With
+// motor torques tau_theta applied as joint efforts E^T tau_theta from rest: below the bound
+// theta_1 sticks (its rate 0 to round-off) while theta_2 turns at tau_2 / M_theta(1, 1); above
+// it the motor slides against f_m and theta_dot = M_theta^-1 (tau_theta - (f_m, 0)) t.
+// Both formulations (the rotors left out: a differential's B couples the joints, which the
+// joint formulation does not take).
+TEST(Actuators, DifferentialMotorFrictionActsOnItsShaft) {
+  const double f_m = 0.02;
+  const std::string actuators = "<mechanism_sim:actuator name=\"m1\" friction=\"0.02\"/>";
+  const std::string xml =
+      "<robot name=\"diff\" xmlns:mechanism_sim=\"https://mechanism-sim.github.io/urdf-extension\"><link name=\"base\"/>"
+      "<link name=\"a\"><inertial><mass value=\"1\"/><inertia ixx=\"0.01\" iyy=\"0.01\" izz=\"0.02\" "
+      "ixy=\"0\" ixz=\"0\" iyz=\"0\"/></inertial></link>"
+      "<link name=\"b\"><inertial><mass value=\"1.2\"/><inertia ixx=\"0.015\" iyy=\"0.015\" izz=\"0.03\" "
+      "ixy=\"0\" ixz=\"0\" iyz=\"0\"/></inertial></link>"
+      "<joint name=\"ja\" type=\"continuous\"><parent link=\"base\"/><child link=\"a\"/><axis xyz=\"0 0 1\"/></joint>"
+      "<joint name=\"jb\" type=\"continuous\"><parent link=\"base\"/><child link=\"b\"/><origin xyz=\"0.3 0 0\"/>"
+      "<axis xyz=\"0 0 1\"/></joint>"
+      "<transmission name=\"wrist\"><type>transmission_interface/DifferentialTransmission</type>"
+      "<actuator name=\"m1\"><role>actuator1</role><mechanicalReduction>20</mechanicalReduction></actuator>"
+      "<actuator name=\"m2\"><role>actuator2</role><mechanicalReduction>30</mechanicalReduction></actuator>"
+      "<joint name=\"ja\"><role>joint1</role><mechanicalReduction>1</mechanicalReduction></joint>"
+      "<joint name=\"jb\"><role>joint2</role><mechanicalReduction>2</mechanicalReduction></joint></transmission>" +
+      actuators + "</robot>";
+  Eigen::Matrix2d E;
+  E << 20, 40, 30, -60;
+  const Eigen::Matrix2d Einv = E.inverse();
+  const Eigen::Matrix2d M_theta = Einv.transpose() * Eigen::Vector2d(0.02, 0.03).asDiagonal() * Einv;
+  for (const char* f : {"absolute", "joint"}) {
+    for (double share : {0.5, 1.5}) {
+      SCOPED_TRACE(std::string(f) + " share " + std::to_string(share));
+      LoadOptions o;
+      o.formulation = f;
+      auto model = loadModelString(xml, "diff.urdf", o);
+      EXPECT_STREQ(model->mechanism().formulation(), f);
+      for (const std::string& note : model->notes()) EXPECT_EQ(note.find("friction"), std::string::npos) << note;
+      // tau_2 chosen so that, with theta_1 held, its reaction M_theta(0, 1) theta_ddot_2 is
+      // within the bound: the friction holds tau_1 - M_theta(0, 1) tau_2 / M_theta(1, 1)
+      const double tau2 = 0.01;
+      const double held = M_theta(0, 1) * tau2 / M_theta(1, 1);
+      const Eigen::Vector2d tau_theta(held + share * f_m, tau2);
+      const Eigen::Vector2d tau_q = E.transpose() * tau_theta;
+      model->setEffort(model->dofIndex("ja"), tau_q[0]);
+      model->setEffort(model->dofIndex("jb"), tau_q[1]);
+      for (int s = 0; s < 200; ++s) model->step(1e-3);
+      const double t = model->mechanism().time();
+      const Eigen::Vector2d qd(model->velocity(model->dofIndex("ja")), model->velocity(model->dofIndex("jb")));
+      const Eigen::Vector2d theta_dot = E * qd;
+      if (share < 1) {
+        EXPECT_NEAR(theta_dot[0], 0.0, 1e-9 * std::fabs(theta_dot[1]));
+        EXPECT_NEAR(theta_dot[1], tau2 / M_theta(1, 1) * t, 1e-9 * std::fabs(theta_dot[1]));
+      } else {
+        const Eigen::Vector2d expected = M_theta.ldlt().solve(tau_theta - Eigen::Vector2d(f_m, 0.0)) * t;
+        for (int k = 0; k < 2; ++k) EXPECT_NEAR(theta_dot[k], expected[k], 1e-9 * expected.norm()) << k;
+      }
+      std::printf("[differential motor friction, %s, %.1f f_m] theta_dot = (%.3e, %.6f) rad/s after %.1f s\n", f, share,
+                  theta_dot[0], theta_dot[1], t);
+    }
+  }
 }
 
 }  // namespace

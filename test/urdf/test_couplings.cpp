@@ -183,5 +183,48 @@ TEST(Couplings, TwoCoordinatesOfOneJointMakeAScrew) {
   }
 }
 
+// Backlash (urdf/gear_pair_backlash.urdf): the pinion driven q_p = 0.5 sin(pi t) from the
+// centre of a clearance |20 q_p + 40 q_w| <= 0.2 turns alone, the wheel exactly at rest and
+// the mesh's reaction 0, until 20 q_p = 0.2 (t* = asin(0.02) / pi); from the step that
+// reaches the stop the wheel follows at -20/40 of the pinion's speed, the stop holding the
+// sum at 0.2, and the mesh carries what the damped wheel needs: on the wheel
+// -40 lambda = I_w w_dot + c w. Both formulations, which agree.
+TEST(Couplings, GearPairWithBacklashTakesUpTheClearanceFirst) {
+  const double A = 0.5, w = M_PI, c = 0.02, I_w = 0.00032, h = 1e-3;
+  const double t_contact = std::asin(0.2 / 20 / A) / w;
+  double end[2];
+  int n = 0;
+  for (const char* f : {"absolute", "joint"}) {
+    SCOPED_TRACE(f);
+    auto m = loadIn("urdf/gear_pair_backlash.urdf", f);
+    const int p = m->dofIndex("pinion_joint"), wh = m->dofIndex("wheel_joint");
+    const int mesh = coupling(*m, "mesh");
+    int engaged = 0;
+    for (int s = 0; s < 400; ++s) {
+      m->step(h);
+      const double t = m->mechanism().time();
+      if (t < t_contact) {
+        EXPECT_NEAR(m->position(wh), 0.0, 1e-15) << "t = " << t;
+        EXPECT_NEAR(m->velocity(wh), 0.0, 1e-15) << "t = " << t;
+        EXPECT_EQ(m->couplingReactions()[mesh], 0.0) << "t = " << t;
+      } else if (t > t_contact + h) {
+        ++engaged;
+        const double qd = A * w * std::cos(w * t), qdd = -A * w * w * std::sin(w * t);
+        EXPECT_NEAR(m->velocity(p), qd, 1e-12);
+        EXPECT_NEAR(20 * m->position(p) + 40 * m->position(wh), 0.2, 1e-12) << "t = " << t;
+        EXPECT_NEAR(m->velocity(wh), -0.5 * qd, 1e-12) << "t = " << t;
+        const double lambda = -(I_w * (-0.5 * qdd) + c * (-0.5 * qd)) / 40;
+        EXPECT_NEAR(m->couplingReactions()[mesh], lambda, 1e-9 * std::fabs(lambda)) << "t = " << t;
+      }
+    }
+    EXPECT_GT(engaged, 300);
+    for (int s = 0; s < 1600; ++s) m->step(h);  // through the reversals
+    end[n++] = m->position(wh);
+    std::printf("[backlash, %s] the wheel at rest until %.6f s; at 2 s q_wheel = %.12f, q_pinion = %.12f\n", f,
+                t_contact, m->position(wh), m->position(p));
+  }
+  EXPECT_NEAR(end[0], end[1], 1e-6);
+}
+
 }  // namespace
 }  // namespace mechanism_sim

@@ -50,7 +50,8 @@ INSTANTIATE_TEST_SUITE_P(Urdf, Examples,
                                            "screw_jack.urdf", "cylindrical_pendulum.urdf", "cardan_shaft.urdf",
                                            "rssr_linkage.urdf", "parallel_gripper.urdf",
                                            "slider_crank_driven.urdf", "four_bar_driven.urdf", "planetary_gear.urdf",
-                                           "differential.urdf", "rack_and_pinion_steering.urdf"),
+                                           "differential.urdf", "rack_and_pinion_steering.urdf",
+                                           "gear_pair_backlash.urdf"),
                          [](const auto& info) { return info.param.substr(0, info.param.size() - 5); });
 
 // x = r cos(theta) + sqrt(l^2 - (r sin(theta) - e)^2) along a simulated run.

@@ -64,11 +64,20 @@ class Mechanism {
     double c = 0.0;
   };
   int addCoupling(const std::string& name, const std::vector<CouplingCoordinate>& terms, double c0);
+  // The same coupling with a backlash b > 0: a clearance |sum_i c_i q_i - c_0| <= b/2 instead
+  // of the equation, two stops on the sum that act as a joint's limits do (inelastic
+  // impacts, released when they would pull; LimitSpec::terms). Returns its limit, whose
+  // multiplier (limitReaction; 0 in the gap) stands for the effort -c_i lambda along each q_i.
+  int addBacklashCoupling(const std::string& name, const std::vector<CouplingCoordinate>& terms, double c0,
+                          double backlash);
   int addSpring(const SpringDamper& spring);
   // The reflected inertia of a transmission's rotors on one or two joint coordinates
   // (transmission.h): the kinetic energy 1/2 q_dot^T B q_dot, in both formulations (a
   // coupled B runs in absolute coordinates). Before build(); build() validates it.
   void addRotorInertia(const RotorInertia& rotor);
+  // Coulomb friction of bound f on a sum of joint coordinates (System::sum_friction; a
+  // differential motor's shaft). Before build(); build() validates it.
+  void addSumFriction(const SumFriction& friction);
   // Position limits of a coordinate: unilateral, activated on contact with no rebound,
   // released when the joint pulls away.
   void setJointLimits(int joint, int k, double lower, double upper);
@@ -184,6 +193,9 @@ class Mechanism {
   // effort -c_i lambda (the mesh's load, in the units of the coordinates' efforts per unit
   // coefficient). Least-norm where equations are dependent, as jointReactions.
   double couplingReaction(int constraint) const;
+  // A limit's multiplier lambda (System::limits, e.g. addBacklashCoupling's): 0 while it is
+  // free; while it presses, each of its coordinates i carries the effort -c_i lambda.
+  double limitReaction(int limit) const;
   // Per joint: the force and torque (global, torque about the joint point B_j) that the
   // joint exerts on its body j: its constraint, its limits, its drives, its share of the
   // couplers (along its own coordinate) and the efforts applied along its coordinates

@@ -116,10 +116,11 @@ struct JointReaction {
 };
 
 // A <mechanism_sim:coupling> of the file (sum_i c_i q_i = c_0): its name and core
-// constraint (Mechanism::addCoupling).
+// constraint (Mechanism::addCoupling), or with backlash its limit (addBacklashCoupling).
 struct CouplingInfo {
   std::string name;
   int constraint = -1;
+  int limit = -1;
 };
 
 // A <transmission> the model simulates (doc/actuators.md): its maps (transmission.h), the

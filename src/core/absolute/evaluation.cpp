@@ -131,6 +131,13 @@ Row jointRow(const System& sys, const Evaluation& ev, const State& s, int j, int
   return rows[k];
 }
 
+double limitValue(const System& sys, const Evaluation& ev, const State& s, const LimitSpec& L) {
+  if (L.terms.empty()) return jointRow(sys, ev, s, L.joint, L.k).Phi;
+  double q = 0.0;
+  for (const LimitTerm& t : L.terms) q += t.c * jointRow(sys, ev, s, t.joint, t.k).Phi;
+  return q;
+}
+
 void coulombFriction(const std::array<double, 3>& f, bool planar, const double rate[3], const double gPg[3][3],
                      std::array<double, 3>& out) {
   out = {0.0, 0.0, 0.0};
@@ -149,7 +156,11 @@ void coulombFriction(const std::array<double, 3>& f, bool planar, const double r
     }
   }
   for (int k = disc ? 2 : 0; k < 3; ++k) {
-    if (f[k] <= 0.0 || !(gPg[k][k] > 0)) continue;
+    if (f[k] <= 0.0) continue;
+    if (!(gPg[k][k] > 0)) {  // no free motion along it (a drive holds it): it slides as moved, against f
+      out[k] = rate[k] > 0 ? -f[k] : rate[k] < 0 ? f[k] : 0.0;
+      continue;
+    }
     needed[k] = rate[k] / gPg[k][k];
     out[k] = -std::max(-f[k], std::min(f[k], needed[k]));
   }
@@ -191,13 +202,24 @@ void appliedForces(const System& sys, const State& s, const Inputs& in,
     for (int k = 0; k < dof; ++k)
       scatterRow(sys, j, rows[k], appliedEffort(tau[k], c[k], rows[k].Phi_dot, fr[k]), Q.data());
   }
-  // the rotors' -G^T B (G a - gamma): its G^T B gamma part (addRotorMass has the other)
+  // Coulomb friction on sums of coordinates: its effort F as c_i F along each q_i
+  for (size_t r = 0; r < sys.sum_friction.size() && r < s.sum_friction.size(); ++r) {
+    if (s.sum_friction[r] == 0.0) continue;
+    for (const LimitTerm& t : sys.sum_friction[r].terms)
+      scatterRow(sys, t.joint, jointRow(sys, ev, s, t.joint, t.k), t.c * s.sum_friction[r], Q.data());
+  }
+  // the rotors' -G^T B (G a - gamma): its G^T B gamma part (addRotorMass has the other);
+  // the motors' coupled damping
   for (size_t r = 0; r < sys.rotors.size(); ++r) {
     const RotorInertia& R = sys.rotors[r];
     const int n = static_cast<int>(R.coords.size());
     Eigen::Vector2d g = Eigen::Vector2d::Zero();
     for (int c = 0; c < n; ++c) g[c] = ev.rotor_rows[2 * r + c].gamma;
-    const Eigen::Vector2d f = R.B * g;
+    Eigen::Vector2d f = R.B * g;
+    if (R.damping_coupling != 0.0) {  // the motors' coupled damping, -D_01 q_dot of the other coordinate
+      f[0] -= R.damping_coupling * ev.rotor_rows[2 * r + 1].Phi_dot;
+      f[1] -= R.damping_coupling * ev.rotor_rows[2 * r].Phi_dot;
+    }
     for (int c = 0; c < n; ++c) scatterRow(sys, R.coords[c].first, ev.rotor_rows[2 * r + c], f[c], Q.data());
   }
 }

@@ -106,16 +106,21 @@ inline double appliedEffort(double tau, double c, double q_dot, double friction)
 // The effort that stops coordinate k within the step, needed_k = rate_k / gPg_kk, is
 // supplied up to f_k; a planar joint's two in-plane translations (planar) are taken
 // together, the effort vector that stops both from their 2x2 block, clamped radially to
-// the friction ellipse (Coulomb's law in the plane). out: the friction efforts (-needed).
+// the friction ellipse (Coulomb's law in the plane). out: the friction efforts (-needed);
+// a coordinate with no free motion (gPg_kk = 0: a drive moves it) slides against the
+// whole f (the drive overcomes it).
 void coulombFriction(const std::array<double, 3>& f, bool planar, const double rate[3], const double gPg[3][3],
                      std::array<double, 3>& out);
 // The coordinate rows of joint j at the loaded kinematics (Joint::coordinates).
 void jointRows(const System& sys, const Evaluation& ev, const State& s, int j, Row* rows);
 // Coordinate k's row of joint j (one of jointRows).
 Row jointRow(const System& sys, const Evaluation& ev, const State& s, int j, int k);
+// A limit's sum s = sum_i c_i q_i at the loaded kinematics (LimitSpec::terms, or its one
+// coordinate before finalize() wrote them).
+double limitValue(const System& sys, const Evaluation& ev, const State& s, const LimitSpec& L);
 // ev.Q per body: [f (global, at the centre of mass); n' (body components)] from gravity,
 // the inputs, springs, and the joints' applied efforts (damping c and friction per joint
-// coordinate).
+// coordinate, and s.sum_friction on sums of coordinates).
 void appliedForces(const System& sys, const State& s, const Inputs& in,
                    const std::vector<std::array<double, 3>>& damping,
                    const std::vector<std::array<double, 3>>& friction, Evaluation& ev);

@@ -71,7 +71,7 @@ KktTopology kktTopology(const System& sys) {
   // form, so mechanisms with loops keep H.
   std::vector<char> allowed(nc, 0);
   for (const DriveSpec& D : sys.drives) allowed[D.constraint] = T.node[sys.joint_constraint[D.joint]] >= 0;
-  for (const LimitSpec& L : sys.limits) allowed[L.constraint] = T.node[sys.joint_constraint[L.joint]] >= 0;
+  for (const LimitSpec& L : sys.limits) allowed[L.constraint] = L.single() && T.node[sys.joint_constraint[L.joint]] >= 0;
   bool tree = false;
   for (int ci = 0; ci < nc; ++ci) {
     if (T.node[ci] >= 0) tree = true;
@@ -133,7 +133,8 @@ KktTopology kktTopology(const System& sys) {
     merged[c] = 1;
   };
   for (const DriveSpec& D : sys.drives) attach(D.constraint, D.joint);
-  for (const LimitSpec& L : sys.limits) attach(L.constraint, L.joint);
+  for (const LimitSpec& L : sys.limits)
+    if (L.single()) attach(L.constraint, L.joint);
   std::vector<signed char> signs(nodes, 1);
   for (int k = sys.nb; k < nodes; ++k) signs[k] = -1;
   std::vector<std::pair<int, int>> edges;

@@ -102,6 +102,7 @@ void Stepper::rates(const System& sys, const State& s, const Inputs& in,
 // the rule the joint formulation shares).
 void Stepper::frictionFor(const System& sys, State& s, const Inputs& in, double h) {
   for (auto& f : s.friction) f = {0.0, 0.0, 0.0};
+  std::fill(s.sum_friction.begin(), s.sum_friction.end(), 0.0);
   forces(sys, s, in, s.friction);
   a_ = s.acc;
   lam_ = s.lambda;
@@ -134,6 +135,28 @@ void Stepper::frictionFor(const System& sys, State& s, const Inputs& in, double 
         if (f[l] > 0.0) gHg[l][k] = dotRow(l, Pg);
     }
     coulombFriction(f, jt.planarTranslation(), rate, gHg, s.friction[j]);
+  }
+  // friction on sums of coordinates: the same rule on the row g = sum_i c_i q_x,i, its rate
+  // sum_i c_i (q_dot_i / h + q_ddot_free,i) and inverse effective inertia g P g^T
+  for (size_t r = 0; r < sys.sum_friction.size(); ++r) {
+    const SumFriction& F = sys.sum_friction[r];
+    if (!(F.f > 0.0)) continue;
+    Row term_rows[kMaxCoordinateEfforts];
+    Eigen::VectorXd& Pg = solver_->dn();
+    Pg.setZero();
+    double rate[3] = {0, 0, 0}, gPg[3][3] = {{0}};
+    for (size_t i = 0; i < F.terms.size(); ++i) {
+      const LimitTerm& t = F.terms[i];
+      term_rows[i] = jointRow(sys, ev_, s, t.joint, t.k);
+      rate[0] += t.c * (term_rows[i].Phi_dot / h - term_rows[i].gamma + rowDot(sys, t.joint, term_rows[i], a_.data()));
+      scatterRow(sys, t.joint, term_rows[i], t.c, Pg.data());
+    }
+    solver_->applyInverseMass(sys, ev_);
+    for (size_t i = 0; i < F.terms.size(); ++i)
+      gPg[0][0] += F.terms[i].c * rowDot(sys, F.terms[i].joint, term_rows[i], Pg.data());
+    std::array<double, 3> out;
+    coulombFriction({F.f, 0.0, 0.0}, false, rate, gPg, out);
+    s.sum_friction[r] = out[0];
   }
 }
 
@@ -246,6 +269,7 @@ void Stepper::stepOnce(const System& sys, State& s, const Inputs& in, double h) 
     frictionFor(sys, s, in, h);
   } else {
     for (auto& f : s.friction) f = {0.0, 0.0, 0.0};  // (friction set to 0 since the last step)
+    std::fill(s.sum_friction.begin(), s.sum_friction.end(), 0.0);
   }
   forces(sys, s, in, s.friction);
   a_ = s.acc;
@@ -313,6 +337,8 @@ void Stepper::resolve(const System& sys, State& s, const Inputs& in) {
 bool Stepper::frictionActs(const System& sys) const {
   for (const auto& f : sys.friction)
     if (f[0] > 0 || f[1] > 0 || f[2] > 0) return true;
+  for (const SumFriction& F : sys.sum_friction)
+    if (F.f > 0) return true;
   return false;
 }
 
@@ -399,12 +425,10 @@ void Stepper::finishStep(const System& sys, State& s, const Inputs& in, bool aft
 // Activates a limit whose coordinate has passed its bound; returns whether any did.
 bool Stepper::updateLimits(const System& sys, State& s) {
   bool changed = false;
-  Row rows[kMaxJointDofs];
   for (size_t l = 0; l < sys.limits.size(); ++l) {
     const LimitSpec& L = sys.limits[l];
     if (s.limit_side[l]) continue;
-    jointRows(sys, ev_, s, L.joint, rows);
-    const double q = rows[L.k].Phi;
+    const double q = limitValue(sys, ev_, s, L);
     const int side = limitSide(L, q);
     if (!side) continue;
     if (drivenAtLimit(sys, L, q, s.t)) continue;

@@ -119,6 +119,7 @@ void checkTargets(const System& sys, const std::vector<CoordinateTarget>& positi
 }
 
 bool targets(const std::vector<CoordinateTarget>& positions, const LimitSpec& L) {
+  if (!L.single()) return true;  // (a sum: no one coordinate to hold on a bound, its start is the targets')
   for (const auto& p : positions)
     if (p.joint == L.joint && p.k == L.k) return true;
   return false;
@@ -194,7 +195,7 @@ class PositionClosing {
   // (a coordinate no target names outside its limits: the tree holds it within them)
   bool outsideLimits() const {
     for (const LimitSpec& L : sys_.limits) {
-      const double q = jointRow(sys_, ev_, s_, L.joint, L.k).Phi, slack = limitSlack(sys_, L);
+      const double q = limitValue(sys_, ev_, s_, L), slack = limitSlack(sys_, L);
       if (!targets(positions_, L) && (q < L.lower - slack || q > L.upper + slack)) return true;
     }
     return false;
@@ -354,12 +355,16 @@ void checkLimits(const System& sys, const State& s, const Evaluation& ev, const 
   for (const bool targeted : {true, false})
     for (const LimitSpec& L : sys.limits) {
       if (targets(positions, L) != targeted) continue;
-      const double q = jointRow(sys, ev, s, L.joint, L.k).Phi;
+      const double q = limitValue(sys, ev, s, L);
       const double slack = limitSlack(sys, L);
       if (q >= L.lower - slack && q <= L.upper + slack) continue;
       std::ostringstream os;
-      os << "joint '" << sys.joints[L.joint]->name() << "': initial position " << fmt(q)
-         << " is outside its limits [" << fmt(L.lower) << ", " << fmt(L.upper) << "]";
+      if (L.single())
+        os << "joint '" << sys.joints[L.joint]->name() << "': initial position " << fmt(q)
+           << " is outside its limits [" << fmt(L.lower) << ", " << fmt(L.upper) << "]";
+      else
+        os << limitSubject(sys, L) << ": the initial positions give sum_i c_i q_i = " << fmt(q)
+           << ", outside its backlash [" << fmt(L.lower) << ", " << fmt(L.upper) << "]";
       if (!targeted) throw OutsideLimit{CoordinateTarget{L.joint, L.k, q < L.lower ? L.lower : L.upper}, os.str()};
       throw ModelError(os.str());
     }

@@ -81,11 +81,12 @@ class TreeAssembly {
     limit_v_.assign(sys.limits.size(), -1);
     for (size_t k = 0; k < sys.limits.size(); ++k) {
       const int link = model.joint_link[sys.limits[k].joint];
-      if (link >= 0 && model.links[link].nq == model.links[link].nv && sys.limits[k].k < model.links[link].nq)
+      if (sys.limits[k].single() && link >= 0 && model.links[link].nq == model.links[link].nv &&
+          sys.limits[k].k < model.links[link].nq)
         limit_q_[k] = model.links[link].iq + sys.limits[k].k, limit_v_[k] = model.links[link].iv + sys.limits[k].k;
       runit_[r_limit_ + k] = coordinateUnit({sys.limits[k].joint, sys.limits[k].k, 0.0});
       for (const auto& t : targets)
-        if (t.joint == sys.limits[k].joint && t.k == sys.limits[k].k) targeted_[k] = 1;
+        if (sys.limits[k].single() && t.joint == sys.limits[k].joint && t.k == sys.limits[k].k) targeted_[k] = 1;
     }
   }
 
@@ -263,7 +264,7 @@ class TreeAssembly {
       R.segment<3>(r) = mr.twist ? Vector3d(g.bx_j.a - g.bx_i.a) : Vector3d(g.bz_j.a - g.bz_i.a);
       r += 3;
     }
-    for (const LimitSpec& Lm : sys_.limits) R[r++] = jointRow(sys_, ev, s_, Lm.joint, Lm.k).Phi;
+    for (const LimitSpec& Lm : sys_.limits) R[r++] = limitValue(sys_, ev, s_, Lm);
     return R.cwiseQuotient(runit_);
   }
 
@@ -278,9 +279,10 @@ class TreeAssembly {
   void jacobian(Eigen::MatrixXd& G) {
     const Evaluation& ev = st_.evaluation();
     G.setZero(nr_, model_.nv);
-    std::vector<Row> trows, lrows;
+    std::vector<Row> trows, lrows;  // (lrows: each limit's terms' rows in turn)
     for (const auto& t : targets_) trows.push_back(jointRow(sys_, ev, s_, t.joint, t.k));
-    for (const LimitSpec& Lm : sys_.limits) lrows.push_back(jointRow(sys_, ev, s_, Lm.joint, Lm.k));
+    for (const LimitSpec& Lm : sys_.limits)
+      for (const LimitTerm& t : Lm.terms) lrows.push_back(jointRow(sys_, ev, s_, t.joint, t.k));
     std::vector<JointGeometry> geo;
     for (const auto& mr : mirror_) geo.push_back(axes(mr.joint));
     Eigen::VectorXd e = Eigen::VectorXd::Zero(model_.nv), out(sys_.m);
@@ -302,7 +304,11 @@ class TreeAssembly {
         if (jt.bodyI() != System::kGround) d -= ai.a_th * u_.segment<3>(BodyCoordinates::u(jt.bodyI() - 1) + 3);
         G.col(c).segment<3>(r) = d;
       }
-      for (size_t k = 0; k < lrows.size(); ++k) G(r_limit_ + k, c) = rowDot(sys_, sys_.limits[k].joint, lrows[k], u_.data());
+      size_t i = 0;
+      for (size_t k = 0; k < sys_.limits.size(); ++k) {
+        G(r_limit_ + k, c) = 0.0;
+        for (const LimitTerm& t : sys_.limits[k].terms) G(r_limit_ + k, c) += t.c * rowDot(sys_, t.joint, lrows[i++], u_.data());
+      }
     }
     for (int r = 0; r < nr_; ++r) G.row(r) /= runit_[r];
   }

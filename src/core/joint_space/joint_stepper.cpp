@@ -28,6 +28,16 @@ std::string jointFormulationUnsupported(const System& sys) {
     for (int k = 0; k < sys.joints[j]->dof(); ++k)
       if (j < static_cast<int>(sys.friction.size()) && sys.friction[j][k] != 0.0)
         return "joint '" + sys.joints[j]->name() + "' closes a loop: the joint formulation has no Coulomb friction on it";
+  // friction on a sum of coordinates: on coordinates the tree's own (q_dot's entries)
+  for (const SumFriction& F : sys.sum_friction)
+    for (const LimitTerm& t : F.terms) {
+      const int link = tree.joint_link[t.joint];
+      if (link < 0 || tree.links[link].kind == TreeJointKind::kSpherical || tree.links[link].kind == TreeJointKind::kFree ||
+          tree.links[link].tie >= 0 || tree.links[link].tie_master)
+        return "friction '" + F.name + "' on joint '" + sys.joints[t.joint]->name() +
+               "', which closes a loop, is coupled or is not a tree coordinate: the joint formulation has no friction "
+               "on it";
+    }
   // A link whose whole subtree has neither mass nor inertia (a motor's rotor of mass 0,
   // whose inertia the loader drops, turned by a coupler) has no inertia along its joint:
   // the articulated-body recursion divides by it. The absolute formulation runs it (its
@@ -113,6 +123,10 @@ void JointStepper::accelerations(const System& sys, const State& s, const Inputs
   for (const TreeLink& L : model_.links)
     if (L.joint >= 0)
       for (int k = 0; k < L.nv; ++k) tau_(L.iv + k) += s.friction[L.joint][k];
+  for (size_t r = 0; r < sys.sum_friction.size(); ++r)  // on sums of coordinates: c_i F along each
+    if (s.sum_friction[r] != 0.0)
+      for (const LimitTerm& t : sys.sum_friction[r].terms)
+        tau_(model_.links[model_.joint_link[t.joint]].iv + t.k) += t.c * s.sum_friction[r];
   const Inputs* loads = &in;
   if (!sys.springs.empty() || !damping_.cutDamped().empty()) {
     // springs act between points of bodies: body loads at the tree's poses (appliedForces)
@@ -430,6 +444,7 @@ void JointStepper::stepOnce(const System& sys, State& s, const Inputs& in, doubl
     closures_.passage_ref = &a_ref_;
   }
   friction0_ = s.friction;
+  sum_friction0_ = s.sum_friction;
   if (!model_.cut_joints.empty()) qddot_ref0_ = s.qddot_ref;
   // stage 1: the accelerations the last step (or settle) left, when they are of this state
   // under these inputs; else computed here (with friction: without it, frictionFor's)
@@ -497,6 +512,7 @@ void JointStepper::restoreStart(State& s) const {
   s.q = q0_, s.qdot = v0_;
   s.limit_side = limit_side0_;
   s.friction = friction0_;
+  s.sum_friction = sum_friction0_;
   s.q_round = comp_q_, s.qdot_round = comp_v_;
   if (!model_.cut_joints.empty()) s.qddot_ref = qddot_ref0_;
 }
@@ -506,6 +522,10 @@ bool JointStepper::clearFriction(const System& sys, State& s) const {
   for (int j = 0; j < sys.numJoints(); ++j) {
     s.friction[j] = {0.0, 0.0, 0.0};
     any = any || sys.friction[j][0] > 0.0 || sys.friction[j][1] > 0.0 || sys.friction[j][2] > 0.0;
+  }
+  for (size_t r = 0; r < sys.sum_friction.size(); ++r) {
+    s.sum_friction[r] = 0.0;
+    any = any || sys.sum_friction[r].f > 0.0;
   }
   return any;
 }
@@ -552,6 +572,39 @@ void JointStepper::frictionFor(const System& sys, State& s, double h) {
         if (f[l] > 0.0) gPg[l][k] = fric_y_(L.iv + l);
     }
     coulombFriction(f, L.ptr->planarTranslation(), rate, gPg, s.friction[L.joint]);
+  }
+  // friction on sums of coordinates: the same rule on the row g = sum_i c_i e_i, its rate
+  // sum_i c_i (q_dot_i / h + q_ddot_i) and inverse effective inertia g P g^T
+  for (size_t r = 0; r < sys.sum_friction.size(); ++r) {
+    const SumFriction& F = sys.sum_friction[r];
+    if (!(F.f > 0.0)) continue;
+    double rate[3] = {0, 0, 0}, gPg[3][3] = {{0}};
+    const bool ties = !model_.ties.empty();
+    if (!mass && !ties) closures_.factorMass(model_, ws_), mass = true;
+    fric_y_.setZero();
+    for (const LimitTerm& t : F.terms) {
+      const int iv = model_.links[model_.joint_link[t.joint]].iv + t.k;
+      rate[0] += t.c * (s.qdot(iv) / h + s.qddot(iv));
+      fric_y_(iv) += t.c;
+    }
+    if (ties) closures_.applyInverseMass(model_, ws_, fric_y_.data(), fric_y_.data());
+    else closures_.inverseMass(fric_y_.data());
+    if (closures_.m > 0) {
+      closures_.timesG(fric_y_, fric_r_);
+      closures_.solve(fric_r_, fric_mu_);
+      if (ties) {
+        const int m = closures_.m;
+        fric_e_.noalias() = closures_.G.topRows(m).transpose() * fric_mu_.head(m);
+        closures_.applyInverseMass(model_, ws_, fric_e_.data(), fric_e_.data());
+      } else {
+        closures_.inverseMassGT(fric_mu_, fric_e_);
+      }
+      fric_y_ -= fric_e_;
+    }
+    for (const LimitTerm& t : F.terms) gPg[0][0] += t.c * fric_y_(model_.links[model_.joint_link[t.joint]].iv + t.k);
+    std::array<double, 3> out;
+    coulombFriction({F.f, 0.0, 0.0}, false, rate, gPg, out);
+    s.sum_friction[r] = out[0];
   }
 }
 int JointStepper::stateCoordinate(const State& s, int joint, bool rate) const {

@@ -128,6 +128,7 @@ class JointStepper final : public FormulationStepper {
   LoopClosures closures_;  // drives, limits and couplers: equations on the tree
   std::vector<signed char> limit_side0_;
   std::vector<std::array<double, 3>> friction0_;  // s.friction at the step's start
+  std::vector<double> sum_friction0_;             // s.sum_friction at the step's start
   Eigen::VectorXd fric_e_, fric_y_;               // e_k and P e_k (frictionFor)
   const Tableau* tableau_ = &kRk4;
   SolverStats stats_;

@@ -76,12 +76,12 @@ LoopClosures::LoopClosures(const TreeModel& model, const System& sys) : model_(&
     bool driven = false;  // (a driven slave's limit stays: drivenAtLimit names it)
     for (const DriveSpec& d : sys.drives) driven = driven || (d.joint == S.joint && d.k == 0);
     for (size_t ls = 0; ls < sys.limits.size() && !driven; ++ls) {
-      if (sys.limits[ls].joint != S.joint || sys.limits[ls].k != 0) continue;
+      if (!sys.limits[ls].single() || sys.limits[ls].joint != S.joint || sys.limits[ls].k != 0) continue;
       double lo = (sys.limits[ls].lower - S.tie_offset) / S.tie_mult, hi = (sys.limits[ls].upper - S.tie_offset) / S.tie_mult;
       if (lo > hi) std::swap(lo, hi);
       const double slack = 1e-12 * std::max({std::fabs(lo), std::fabs(hi), 1e-300});
       for (const LimitSpec& lm : sys.limits)
-        if (lm.joint == M.joint && lm.k == 0 && lm.lower >= lo - slack && lm.upper <= hi + slack) {
+        if (lm.single() && lm.joint == M.joint && lm.k == 0 && lm.lower >= lo - slack && lm.upper <= hi + slack) {
           implied_[ls] = 1;
           tree_joint[sys.limits[ls].constraint] = 1;
         }
@@ -120,9 +120,14 @@ LoopClosures::LoopClosures(const TreeModel& model, const System& sys) : model_(&
   for (size_t i = 0; i < constraints.size(); ++i) {
     const Constraint& C = *sys.constraints[constraints[i]];
     DirectRow d;
-    if (C.limit() >= 0) {
-      const LimitSpec& spec = sys.limits[C.limit()];
-      if (coordinate(*sys.joints[spec.joint], spec.k, d, 0)) d.n = 1, d.coef[0] = 1.0, d.limit = C.limit();
+    if (const auto* lim = dynamic_cast<const LimitConstraint*>(&C)) {  // sum_i c_i q_i - bound
+      const auto& terms = lim->terms();
+      bool all = true;
+      for (size_t t = 0; t < terms.size() && all; ++t) {
+        all = coordinate(*terms[t].joint, terms[t].k, d, static_cast<int>(t));
+        d.coef[t] = terms[t].c;
+      }
+      if (all) d.n = static_cast<int>(terms.size()), d.limit = C.limit();
     } else if (const auto* cc = dynamic_cast<const CoordinateCoupler*>(&C)) {
       if (coordinate(cc->jointA(), cc->coordinateA(), d, 0) && coordinate(cc->jointB(), cc->coordinateB(), d, 1))
         d.n = 2, d.coef[0] = 1.0, d.coef[1] = -cc->multiplier(), d.offset = cc->offset();
@@ -139,10 +144,10 @@ LoopClosures::LoopClosures(const TreeModel& model, const System& sys) : model_(&
   }
   only_limits_ = true;
   for (int c : constraints) only_limits_ = only_limits_ && sys.constraints[c]->limit() >= 0;
-  limit_qcol_.assign(sys.limits.size(), -1);
+  limit_direct_.assign(sys.limits.size(), -1);
   for (size_t i = 0; i < constraints.size(); ++i) {
     const int l = sys.constraints[constraints[i]]->limit();
-    if (l >= 0 && direct_[i].n == 1) limit_qcol_[l] = direct_[i].qcol[0];
+    if (l >= 0 && direct_[i].n > 0) limit_direct_[l] = static_cast<int>(i);
   }
   {
     const State s0 = initialState(sys);
@@ -368,14 +373,17 @@ int LoopClosures::activateReachedLimits(const System& sys, const TreeModel& mode
     }
     if (limit_side[l]) continue;
     const LimitSpec& L = sys.limits[l];
-    double q;
-    if (limit_qcol_[l] >= 0) {  // a tree coordinate: the limit's row is q's own
-      q = qv(limit_qcol_[l]);
+    double q = 0.0;
+    if (limit_direct_[l] >= 0) {  // tree coordinates: the limit's sum is q's own
+      const DirectRow& d = direct_[limit_direct_[l]];
+      for (int k = 0; k < d.n; ++k) q += d.coef[k] * qv(d.qcol[k]);
     } else {
       if (!kinematics) forwardKinematics(model, qv, qdot, ws), loadKin(ws), kinematics = true;
-      const Joint& J = *sys.joints[L.joint];
-      J.coordinates(kin_[J.bodyI()], kin_[J.bodyJ()], ctx.tracked[sys.joint_constraint[L.joint]], rows);
-      q = rows[L.k].Phi;
+      for (const LimitTerm& term : L.terms) {
+        const Joint& J = *sys.joints[term.joint];
+        J.coordinates(kin_[J.bodyI()], kin_[J.bodyJ()], ctx.tracked[sys.joint_constraint[term.joint]], rows);
+        q += term.c * rows[term.k].Phi;
+      }
     }
     const int side = limitSide(L, q);
     if (!side) continue;

@@ -30,8 +30,8 @@
 // reproduces them to round-off whatever the joint type, the link's direction (reversed) or
 // the coordinate's branch (tracked angles). Limits, couplers and couplings on coordinates
 // of tree links other than spherical ones (whose q are the joints' own coordinates,
-// Joint::coordinates) skip that mapping: their rows are e_k^T, e_a^T - r e_b^T and
-// sum_i c_i e_i^T, gamma_q 0 (DirectRow); Phi still comes from their absolute equations.
+// Joint::coordinates) skip that mapping: their rows are e_k^T (a limit on a sum: sum_i
+// c_i e_i^T), e_a^T - r e_b^T and sum_i c_i e_i^T, gamma_q 0 (DirectRow); Phi still comes from their absolute equations.
 // A free limit (side 0) is a zero row and is not evaluated at all. Drives, and rows on
 // spherical coordinates or cut joints, go through the mapping.
 // Closures are listed in System order, so closure row e is System row sys_row[e] and
@@ -316,22 +316,21 @@ class LoopClosures {
  private:
   void loadKin(const TreeWorkspace& ws);
   // A limit or a coupler on coordinates of tree joints whose coordinates are q's own
-  // (every link but a spherical one): its row of G is e_k (limit) or e_a - r e_b (coupler)
-  // and gamma_q is 0, without the mapping through J(q).
+  // (every link but a spherical one): its row of G is sum_i c_i e_i (limit, coupling) or
+  // e_a - r e_b (coupler) and gamma_q is 0, without the mapping through J(q).
   struct DirectRow {
     int n = 0;           // entries (0: not direct)
     int col[kMaxCoordinateEfforts] = {};   // velocity coordinates
     int qcol[kMaxCoordinateEfforts] = {};  // their position coordinates
     double coef[kMaxCoordinateEfforts] = {};
     double offset = 0.0;  // a coupler's or coupling's: Phi = sum coef q - offset
-    int limit = -1;       // a limit's (System limit index): Phi = q - its bound on the active side
+    int limit = -1;       // a limit's (System limit index): Phi = sum coef q - its bound on the active side
     bool angle[kMaxCoordinateEfforts] = {};
   };
   const Eigen::VectorXd* q_ = nullptr;  // evaluate()'s q, for the direct rows' Phi
   std::vector<DirectRow> direct_;  // per closure
-  // per sys limit: its position coordinate in q (a direct row; past a spherical or free link
-  // not its velocity coordinate's index), or -1
-  std::vector<int> limit_qcol_;
+  // per sys limit: its closure where that is a direct row (its sum over coordinates of q), or -1
+  std::vector<int> limit_direct_;
   std::vector<char> implied_;      // per sys limit: a held slave's, implied by its master's (never active)
   std::vector<int> nrows_;         // per closure: its rows (the constraint's, less its idle ones)
   // Idle rows (idleRows()): rows of a closure's equations whose G row is zero wherever the

@@ -116,7 +116,7 @@ std::string jointSpaceUnsupported(const System& sys, bool loops_as_closures) {
     for (const RotorInertia& R : sys.rotors) {
       if (R.coupled())
         return "rotor inertia '" + R.name + "' couples two joints (" + sys.joints[R.coords[0].first]->name() + ", " +
-               sys.joints[R.coords[1].first]->name() + "): the joint-space recursions take a diagonal rotor inertia";
+               sys.joints[R.coords[1].first]->name() + "): the joint-space recursions take a diagonal rotor inertia and motor damping";
       for (const auto& c : R.coords) {
         const int link = model.joint_link[c.first];
         if (link < 0 || model.links[link].tie >= 0 || model.links[link].tie_master)

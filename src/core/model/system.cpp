@@ -10,6 +10,7 @@
 #include <Eigen/Eigenvalues>
 
 #include "mechanism_sim/core/model/couplers.h"
+#include "mechanism_sim/core/model/coupling.h"
 #include "mechanism_sim/core/model/errors.h"
 #include "mechanism_sim/core/model/primitives.h"
 #include "core/absolute/evaluation.h"
@@ -84,6 +85,18 @@ void System::finalize() {
   if (!gravity.allFinite()) throw ModelError("gravity must be finite");
   options.validate();
   validateRotors(*this);
+  for (const SumFriction& F : sum_friction) {
+    if (F.terms.empty() || F.terms.size() > static_cast<size_t>(kMaxCoordinateEfforts))
+      throw ModelError("friction '" + F.name + "': on 1 to " + std::to_string(kMaxCoordinateEfforts) + " coordinates");
+    if (!(F.f >= 0.0) || !std::isfinite(F.f)) throw ModelError("friction '" + F.name + "': its bound must be finite and >= 0");
+    LimitSpec as_limit;  // (the same terms as a limit's: joints' coordinates, coefficients)
+    as_limit.joint = F.terms[0].joint, as_limit.k = F.terms[0].k, as_limit.terms = F.terms;
+    try {
+      validateLimit(*this, as_limit);
+    } catch (const ModelError& e) {
+      throw ModelError("friction '" + F.name + "': " + e.what());
+    }
+  }
 
   // Drives become constraints after joints and couplers, limits after all others (free
   // until reached).
@@ -112,8 +125,11 @@ void System::finalize() {
     LimitSpec& L = limits[l];
     validateLimit(*this, L);
     L.constraint = numConstraints();
-    constraints.push_back(std::make_shared<LimitConstraint>(*joints[L.joint], L.k,
-                                                            static_cast<int>(l), L.lower, L.upper));
+    if (L.terms.empty()) L.terms = {{L.joint, L.k, 1.0}};
+    std::vector<CouplingTerm> terms;
+    for (const LimitTerm& t : L.terms) terms.push_back({joints[t.joint], t.k, t.c});
+    constraints.push_back(std::make_shared<LimitConstraint>(L.name.empty() ? joints[L.joint]->name() + " limit" : L.name,
+                                                            std::move(terms), static_cast<int>(l), L.lower, L.upper));
   }
   rheonomic.clear();
   for (int c = 0; c < numConstraints(); ++c) {
@@ -209,6 +225,7 @@ State initialState(const System& sys) {
   s.lambda = Eigen::VectorXd::Zero(sys.m);
   s.acc = Eigen::VectorXd::Zero(sys.n);
   s.friction.assign(sys.joints.size(), {0, 0, 0});
+  s.sum_friction.assign(sys.sum_friction.size(), 0.0);
   for (const DriveSpec& D : sys.drives) {
     const double v = D.profile.kind() == DriveProfile::Kind::kVelocity ? D.profile.velocity() : 0.0;
     s.drive.push_back(DriveRamp{0.0, D.q0, v, v, 0.0});
@@ -231,14 +248,31 @@ int limitSide(const LimitSpec& L, double q) {
 }
 
 void validateLimit(const System& sys, const LimitSpec& L) {
-  if (L.joint < 0 || L.joint >= sys.numJoints())
-    throw ModelError("limit on joint " + std::to_string(L.joint) + ": no such joint");
-  const Joint& j = *sys.joints[L.joint];
-  if (L.k < 0 || L.k >= j.dof())
-    throw ModelError("joint '" + j.name() + "': a limit on coordinate " + std::to_string(L.k) + ", which it does not have");
-  if (!j.holonomicCoordinates()) throw ModelError("joint '" + j.name() + "': limits need a position coordinate");
+  const std::vector<LimitTerm> terms = L.terms.empty() ? std::vector<LimitTerm>{{L.joint, L.k, 1.0}} : L.terms;
+  if (terms[0].joint != L.joint || terms[0].k != L.k)
+    throw ModelError(limitSubject(sys, L) + ": a limit's (joint, k) is its first term's");
+  for (size_t i = 0; i < terms.size(); ++i) {
+    const LimitTerm& t = terms[i];
+    if (t.joint < 0 || t.joint >= sys.numJoints())
+      throw ModelError("limit on joint " + std::to_string(t.joint) + ": no such joint");
+    const Joint& j = *sys.joints[t.joint];
+    if (t.k < 0 || t.k >= j.dof())
+      throw ModelError("joint '" + j.name() + "': a limit on coordinate " + std::to_string(t.k) + ", which it does not have");
+    if (!j.holonomicCoordinates()) throw ModelError("joint '" + j.name() + "': limits need a position coordinate");
+    if (!std::isfinite(t.c) || t.c == 0.0)
+      throw ModelError(limitSubject(sys, L) + ": the limit's coefficient of joint '" + j.name() + "' must be finite and non-zero");
+    for (size_t e = 0; e < i; ++e)
+      if (terms[e].joint == t.joint && terms[e].k == t.k)
+        throw ModelError(limitSubject(sys, L) + ": joint '" + j.name() + "' appears twice in one limit");
+  }
   if (!(L.lower <= L.upper) || !std::isfinite(L.lower) || !std::isfinite(L.upper))
-    throw ModelError("joint '" + j.name() + "': limits need finite lower <= upper");
+    throw ModelError(limitSubject(sys, L) + ": limits need finite lower <= upper");
+}
+
+std::string limitSubject(const System& sys, const LimitSpec& L) {
+  if (!L.name.empty()) return "coupling '" + L.name + "'";
+  return L.joint >= 0 && L.joint < sys.numJoints() ? "joint '" + sys.joints[L.joint]->name() + "'"
+                                                    : "limit on joint " + std::to_string(L.joint);
 }
 
 double limitSlack(const System& sys, const LimitSpec& L) {
@@ -246,18 +280,25 @@ double limitSlack(const System& sys, const LimitSpec& L) {
 }
 
 bool drivenAtLimit(const System& sys, const LimitSpec& L, double q, double t) {
-  for (const DriveSpec& D : sys.drives)
-    if (D.joint == L.joint && D.k == L.k) {
-      // within the assembly's slack of the bound (a gripper's finger held at its stop, off by
-      // round-off): the drive holds it there, no limit to activate
-      const double slack = limitSlack(sys, L);
-      if (q >= L.lower - slack && q <= L.upper + slack) return true;
-      std::ostringstream os;
-      os << "at t = " << t << " s: the drive of joint '" << sys.joints[L.joint]->name() << "' moves it to " << fmt(q)
-         << ", past its limits [" << fmt(L.lower) << ", " << fmt(L.upper) << "]; change the drive or the limits";
-      throw SimulationError(os.str());
-    }
-  return false;
+  // (no copy of the terms: a step allocates nothing)
+  auto driven = [&](int joint, int k) {
+    for (const DriveSpec& D : sys.drives)
+      if (D.joint == joint && D.k == k) return true;
+    return false;
+  };
+  if (L.terms.empty() && !driven(L.joint, L.k)) return false;
+  for (const LimitTerm& term : L.terms)
+    if (!driven(term.joint, term.k)) return false;  // a coordinate free to stop
+  const size_t n = std::max<size_t>(1, L.terms.size());
+  // within the assembly's slack of the bound (a gripper's finger held at its stop, off by
+  // round-off): the drive holds it there, no limit to activate
+  const double slack = limitSlack(sys, L);
+  if (q >= L.lower - slack && q <= L.upper + slack) return true;
+  std::ostringstream os;
+  os << "at t = " << t << " s: the drive" << (n > 1 ? "s of " : " of ") << limitSubject(sys, L)
+     << " move" << (n > 1 ? " its sum" : "s it") << " to " << fmt(q) << ", past its limits ["
+     << fmt(L.lower) << ", " << fmt(L.upper) << "]; change the drive or the limits";
+  throw SimulationError(os.str());
 }
 
 Vector3d SpringDamper::forceOnI(const BodyKin& ki, const BodyKin& kj, double actuation, double length_scale) const {

@@ -112,6 +112,8 @@ void validateRotors(const System& sys) {
     const double scale = B.cwiseAbs().maxCoeff();
     if (!B.allFinite() || std::fabs(B(0, n - 1) - B(n - 1, 0)) > 1e-12 * scale)
       throw ModelError("rotor inertia '" + r.name + "': not finite or not symmetric");
+    if (!std::isfinite(r.damping_coupling) || (n < 2 && r.damping_coupling != 0.0))
+      throw ModelError("rotor inertia '" + r.name + "': a damping coupling needs two coordinates and a finite value");
     // positive semidefinite: the diagonal and the determinant (2 x 2) not negative, to round-off
     if (B(0, 0) < 0.0 || B(n - 1, n - 1) < 0.0 || (n == 2 && B.determinant() < -1e-12 * scale * scale))
       throw ModelError("rotor inertia '" + r.name + "': negative (a kinetic energy below zero)");

@@ -210,6 +210,70 @@ TEST(LimitConstraint, RowFollowsTheSideItPressesAndMatchesFiniteDifferences) {
   }
 }
 
+// A limit on a linear combination s = c_a q_a + c_b q_b of two joints' coordinates (a
+// coupling's backlash): its bodies the union of the joints', its row zero while free,
+// s - bound on a side, its Jacobian and gamma those of the sum (finite differences), its
+// efforts -c_i lambda along each q_i.
+TEST(LimitConstraint, ALimitOnASumOfCoordinatesMatchesFiniteDifferences) {
+  std::mt19937 rng(37);
+  const double lower = -0.3, upper = 0.5, ca = 2.5, cb = -0.8;
+  for (int n = 0; n < 60; ++n) {
+    const CoordinateCase& c1 = kCases[n % 4];
+    const CoordinateCase& c2 = kCases[(n / 4) % 4];
+    auto a = randomJoint(c1, "a", 1, 2, rng), b = randomJoint(c2, "b", 3, 4, rng);
+    a->setId(0), b->setId(1);
+    const int ka = n % c1.dof, kb = (n / 3) % c2.dof;
+    std::uniform_real_distribution<double> u(-1.5, 1.5);
+    const double qa = u(rng), qb = u(rng);
+    std::vector<BodyKin> kin = {test::randomBody(rng), test::randomBody(rng), test::randomBody(rng),
+                                test::randomBody(rng)};
+    kin[1] = placeJ(*a, c1, ka, qa, kin[0], kin[1]);
+    kin[3] = placeJ(*b, c2, kb, qb, kin[2], kin[3]);
+    std::vector<Tracked> tracked = {a->initialTracked(), b->initialTracked()};
+    if (a->trackedSlot(ka) >= 0) tracked[0][a->trackedSlot(ka)] = qa;
+    if (b->trackedSlot(kb) >= 0) tracked[1][b->trackedSlot(kb)] = qb;
+    LimitConstraint limit("backlash", {{a.get(), ka, ca}, {b.get(), kb, cb}}, 0, lower, upper);
+    EXPECT_EQ(limit.bodies(), std::vector<int>({1, 2, 3, 4}));
+    for (signed char side : {0, -1, 1}) {
+      const signed char sides[1] = {side};
+      const EvalContext ctx{tracked.data(), sides};
+      auto eval = [&](const std::vector<BodyKin>& kk, Eigen::MatrixXd* J, Eigen::VectorXd* gamma) {
+        const BodyKin* ptrs[4] = {&kk[0], &kk[1], &kk[2], &kk[3]};
+        Eigen::VectorXd Phi(1), g(1);
+        Phi(0) = g(0) = 7.0;
+        Eigen::MatrixXd Jl = Eigen::MatrixXd::Constant(1, 24, 7.0);
+        limit.evaluate(ptrs, ctx, Phi, Jl, g);
+        if (J) *J = Jl;
+        if (gamma) *gamma = g;
+        return Phi;
+      };
+      Eigen::MatrixXd J;
+      Eigen::VectorXd gamma;
+      const double Phi = eval(kin, &J, &gamma)(0);
+      CoordinateEffort effort[kMaxCoordinateEfforts];
+      const int efforts = limit.coordinateEfforts(ctx, effort);
+      if (side == 0) {
+        EXPECT_EQ(Phi, 0.0);
+        EXPECT_EQ(J.cwiseAbs().maxCoeff(), 0.0);
+        EXPECT_EQ(efforts, 0);
+        continue;
+      }
+      EXPECT_NEAR(Phi, ca * qa + cb * qb - (side < 0 ? lower : upper), 1e-12 * (1 + std::fabs(ca * qa) + std::fabs(cb * qb)))
+          << n;
+      auto f = [&](const std::vector<BodyKin>& kk) { return eval(kk, nullptr, nullptr); };
+      const double scale = 1.0 + J.cwiseAbs().maxCoeff();
+      EXPECT_LT((test::fdJacobian(f, kin) - J).cwiseAbs().maxCoeff(), 1e-7 * scale) << n;
+      EXPECT_LT(std::fabs(test::fdGamma(f, kin)(0) - gamma(0)), 2e-5 * scale * (1.0 + std::fabs(gamma(0)))) << n;
+      ASSERT_EQ(efforts, 2);
+      EXPECT_EQ(effort[0].joint, a.get());
+      EXPECT_EQ(effort[0].sign, -ca);
+      EXPECT_EQ(effort[1].joint, b.get());
+      EXPECT_EQ(effort[1].k, kb);
+      EXPECT_EQ(effort[1].sign, -cb);
+    }
+  }
+}
+
 constexpr double kG = 9.81;
 
 // A bob of mass m (central inertia Ic about y) hanging at L below a pivot, on a revolute

@@ -401,5 +401,123 @@ TEST(LinearCoupling, BadCouplingsAreNamed) {
   expectError({{0, 0, 1.0}, {2, 0, 2.0}}, 0.0, "no such joint coordinate");
 }
 
+// Backlash: Z_a q_a + Z_b q_b = 0 with a clearance b, |Z_a q_a + Z_b q_b| <= b/2
+// (addBacklashCoupling). The pinion a, driven at w from the centre of the gap, turns alone:
+// the wheel stays exactly at rest, its reaction 0, until the pinion has turned b / (2 Z_a)
+// (t* = b / (2 Z_a w)); the stop it then reaches is inelastic, as a joint limit's: the
+// wheel takes the speed the mesh gives, w_b = -Z_a w / Z_b, at once, and carries its
+// damping's load through the mesh, lambda = c Z_a w / Z_b^2 (on the wheel, -Z_b lambda =
+// c w_b). Both formulations, which agree.
+TEST(LinearCoupling, ADrivenGearWithBacklashMovesItsLoadOnlyAfterTakingUpTheClearance) {
+  const double Za = 20, Zb = 50, b = 0.4, w = 2.0, c = 0.3, h = 1e-3;
+  const double t_contact = b / (2 * Za * w), w_b = -Za * w / Zb, lambda = c * Za * w / (Zb * Zb);
+  double after[2][2];
+  int n = 0;
+  for (const char* f : {"absolute", "joint"}) {
+    SCOPED_TRACE(f);
+    Mechanism mech;
+    const int a = addDisc(mech, "pinion", Vector3d::Zero(), 0.3, 0.002);
+    const int wheel = addDisc(mech, "wheel", Vector3d(0.35, 0, 0), 2.0, 0.05);
+    const int gap = mech.addBacklashCoupling("mesh", {{a, 0, Za}, {wheel, 0, Zb}}, 0.0, b);
+    mech.addDrive(a, 0, DriveProfile::velocity(w));
+    mech.setJointDamping(wheel, 0, c);
+    mech.setGravity(Vector3d(0, 0, -kG));
+    mech.setIntegrator(formulation(f));
+    mech.build();
+    mech.assemble();
+    ASSERT_STREQ(mech.formulation(), f);
+    double first_motion = -1;
+    for (int s = 0; s < 100; ++s) {
+      const double t0 = mech.time();
+      mech.step(h);
+      const double t = mech.time();
+      if (t < t_contact) {  // in the gap: the wheel at rest, no load through the mesh
+        EXPECT_NEAR(mech.jointPosition(wheel, 0), 0.0, 1e-15) << "t = " << t;
+        EXPECT_NEAR(mech.jointVelocity(wheel, 0), 0.0, 1e-14 * std::fabs(w_b)) << "t = " << t;
+        EXPECT_EQ(mech.limitReaction(gap), 0.0) << "t = " << t;
+      }
+      if (first_motion < 0 && std::fabs(mech.jointVelocity(wheel, 0)) > 1e-6 * std::fabs(w_b)) {
+        first_motion = t;
+        EXPECT_LE(t0, t_contact + 1e-12) << "the stop is taken at the end of the step that reaches it";
+        EXPECT_GE(t, t_contact - 1e-12);
+      }
+      if (t > t_contact + h) {  // engaged: on the stop, the mesh's speed and load
+        EXPECT_NEAR(Za * mech.jointPosition(a, 0) + Zb * mech.jointPosition(wheel, 0), b / 2, 1e-12 * b);
+        EXPECT_NEAR(mech.jointVelocity(wheel, 0), w_b, 1e-12 * std::fabs(w_b));
+        EXPECT_NEAR(mech.limitReaction(gap), lambda, 1e-9 * lambda);
+      }
+    }
+    ASSERT_GT(first_motion, 0.0) << "the wheel never moved";
+    after[n][0] = mech.jointPosition(wheel, 0), after[n][1] = mech.limitReaction(gap);
+    std::printf("[backlash, driven, %s] wheel first moves in the step ending at %.4f s (contact %.4f s); w_b %.15f "
+                "(-Z_a w / Z_b %.15f), lambda %.12f (c Z_a w / Z_b^2 %.12f)\n",
+                f, first_motion, t_contact, mech.jointVelocity(wheel, 0), w_b, mech.limitReaction(gap), lambda);
+    ++n;
+  }
+  EXPECT_NEAR(after[0][0], after[1][0], 1e-12);
+  EXPECT_NEAR(after[0][1], after[1][1], 1e-9 * lambda);
+}
+
+// A free pinion spinning at w0 meets a wheel at rest across the clearance: the wheel stays
+// at rest until the pinion has turned b / (2 Z_a); the stop is the limits' inelastic impact,
+// an impulse P along the stop's row (-Z_a P on the pinion, -Z_b P on the wheel), so
+// I_a w_a / Z_a - I_b w_b / Z_b is kept and Z_a w_a + Z_b w_b = 0 after:
+// w_a = I_a w0 / (I_a + I_b Z_a^2 / Z_b^2), and the kinetic energy falls by the impact's loss.
+TEST(LinearCoupling, AFreePinionMeetsItsWheelAcrossTheBacklashInelastically) {
+  const double Za = 12, Zb = 36, b = 0.3, w0 = 5.0, Ia = 0.004, Ib = 0.06, h = 1e-3;
+  const double t_contact = b / (2 * Za * w0);
+  const double w_a = Ia * w0 / (Ia + Ib * Za * Za / (Zb * Zb)), w_b = -Za * w_a / Zb;
+  for (const char* f : {"absolute", "joint"}) {
+    SCOPED_TRACE(f);
+    Mechanism mech;
+    const int a = addDisc(mech, "pinion", Vector3d::Zero(), 0.2, Ia);
+    const int wheel = addDisc(mech, "wheel", Vector3d(0.3, 0, 0), 1.5, Ib);
+    const int gap = mech.addBacklashCoupling("mesh", {{a, 0, Za}, {wheel, 0, Zb}}, 0.0, b);
+    mech.setGravity(Vector3d(0, 0, -kG));
+    mech.setIntegrator(formulation(f));
+    mech.build();
+    mech.assemble({}, {{a, 0, w0}});
+    ASSERT_STREQ(mech.formulation(), f);
+    const double T0 = mech.kineticEnergy();
+    for (int s = 0; s < 30; ++s) {
+      mech.step(h);
+      if (mech.time() < t_contact) {
+        EXPECT_NEAR(mech.jointVelocity(wheel, 0), 0.0, 1e-14 * w0);
+        EXPECT_NEAR(mech.jointVelocity(a, 0), w0, 1e-13 * w0);
+      } else if (mech.time() > t_contact + h) {
+        // (the joint formulation's impact projection keeps them to round-off, the absolute
+        // formulation's, whose solves hold the joints in penalty form, to 1e-9)
+        const double tol = std::string(f) == "joint" ? 1e-13 : 1e-8;
+        EXPECT_NEAR(mech.jointVelocity(a, 0), w_a, tol * w0);
+        EXPECT_NEAR(mech.jointVelocity(wheel, 0), w_b, tol * w0);
+        EXPECT_NEAR(Za * mech.jointVelocity(a, 0) + Zb * mech.jointVelocity(wheel, 0), 0.0, 1e-12 * Za * w0);
+        EXPECT_NEAR(Ia * mech.jointVelocity(a, 0) / Za - Ib * mech.jointVelocity(wheel, 0) / Zb, Ia * w0 / Za,
+                    tol * Ia * w0 / Za);
+      }
+    }
+    // the pair's rotational energy after the impact (the discs' centres stay put)
+    const double T1 = 0.5 * (Ia * w_a * w_a + Ib * w_b * w_b);
+    EXPECT_NEAR(mech.kineticEnergy(), T1, (std::string(f) == "joint" ? 1e-13 : 1e-8) * T0);
+    std::printf("[backlash, free, %s] after the impact w_a %.15f (%.15f), w_b %.15f (%.15f); kinetic energy %.6f J "
+                "of %.6f J before\n",
+                f, mech.jointVelocity(a, 0), w_a, mech.jointVelocity(wheel, 0), w_b, mech.kineticEnergy(), T0);
+  }
+}
+
+// addBacklashCoupling refuses a backlash that is not a positive finite clearance, naming it.
+TEST(LinearCoupling, ABacklashMustBePositiveAndFinite) {
+  for (double bad : {0.0, -0.1, std::nan("")}) {
+    Mechanism mech;
+    const int a = addDisc(mech, "a", Vector3d::Zero(), 1.0, 0.01);
+    const int c = addDisc(mech, "c", Vector3d(1, 0, 0), 1.0, 0.01);
+    try {
+      mech.addBacklashCoupling("g", {{a, 0, 1.0}, {c, 0, 2.0}}, 0.0, bad);
+      ADD_FAILURE() << "accepted backlash " << bad;
+    } catch (const ModelError& e) {
+      EXPECT_NE(std::string(e.what()).find("coupling 'g': its backlash"), std::string::npos) << e.what();
+    }
+  }
+}
+
 }  // namespace
 }  // namespace mechanism_sim

@@ -3,6 +3,9 @@
 #pragma once
 #include <array>
 
+#include <vector>
+
+#include "mechanism_sim/core/model/coupling.h"
 #include "mechanism_sim/core/model/joint.h"
 
 namespace mechanism_sim {
@@ -44,31 +47,41 @@ class CoordinateCoupler : public Constraint {
   std::array<int, 2> slot_a_{}, slot_b_{};  // positions of each joint's bodies in bodies()
 };
 
-// Position limit lower <= q_k <= upper of a joint coordinate. Its side (State::limit_side,
-// entry `limit`: -1 pressing on lower, +1 on upper, 0 free) decides the row: while active
-// Phi = q_k - bound (one row), while free the row is zero.
+// Position limit lower <= s <= upper on s = sum_i c_i q_i, a linear combination of joint
+// coordinates (one coordinate q_k with c = 1: a joint's limit; a coupling's terms: its
+// backlash, coupling.h). Its side (State::limit_side, entry `limit`: -1 pressing on lower,
+// +1 on upper, 0 free) decides the row: while active Phi = s - bound with Phi_q =
+// sum_i c_i q_x,i and gamma = sum_i c_i gamma_i (one row, as LinearCoupling's), while free
+// the row is zero. Its bodies are the union of the joints'.
 class LimitConstraint : public Constraint {
  public:
+  LimitConstraint(const std::string& name, std::vector<CouplingTerm> terms, int limit, double lower, double upper);
   LimitConstraint(const Joint& joint, int k, int limit, double lower, double upper)
-      : Constraint(joint.name() + " limit", {joint.bodyI(), joint.bodyJ()}),
-        joint_(joint), k_(k), limit_(limit), lower_(lower), upper_(upper) {}
+      : LimitConstraint(joint.name() + " limit", {{&joint, k, 1.0}}, limit, lower, upper) {}
   std::string type() const override { return "limit"; }
   int size() const override { return 1; }
   int limit() const override { return limit_; }
-  const Joint& joint() const { return joint_; }
-  const Joint* jointOn(int b) const override { return joint_.jointOn(b); }
-  // while active, -lambda along q_k
+  // the (first) limited joint
+  const Joint& joint() const { return *terms_[0].joint; }
+  const std::vector<CouplingTerm>& terms() const { return terms_; }
+  const Joint* jointOn(int b) const override {
+    for (const CouplingTerm& t : terms_)
+      if (const Joint* on = t.joint->jointOn(b)) return on;
+    return nullptr;
+  }
+  // while active, -c_i lambda along each q_i
   int coordinateEfforts(const EvalContext& ctx, CoordinateEffort* out) const override {
     if (!ctx.limit_side[limit_]) return 0;
-    out[0] = {&joint_, k_, -1.0};
-    return 1;
+    for (size_t i = 0; i < terms_.size(); ++i) out[i] = {terms_[i].joint, terms_[i].k, -terms_[i].c};
+    return static_cast<int>(terms_.size());
   }
   void evaluate(const BodyKin* const* kin, const EvalContext& ctx, Eigen::Ref<Eigen::VectorXd> Phi,
                 Eigen::Ref<Eigen::MatrixXd> J, Eigen::Ref<Eigen::VectorXd> gamma) const override;
 
  private:
-  const Joint& joint_;
-  int k_, limit_;
+  std::vector<CouplingTerm> terms_;
+  std::vector<std::array<int, 2>> slots_;  // per term: its joint's bodies i and j in bodies()
+  int limit_;
   double lower_, upper_;
 };
 

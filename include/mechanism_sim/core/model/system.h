@@ -67,11 +67,34 @@ struct IntegratorOptions {
   void validate() const;
 };
 
-// Position limit of a joint coordinate; `constraint` is its LimitConstraint.
-struct LimitSpec {
+// One term c q_k of a limited sum (LimitSpec::terms): coordinate k of joint `joint`.
+struct LimitTerm {
   int joint = 0, k = 0;
+  double c = 1.0;
+};
+
+// Position limit lower <= s <= upper on a linear combination s = sum_i c_i q_i of joint
+// coordinates: a joint coordinate's limit (one term (joint, k, 1)) or a coupling's backlash
+// (the coupling's terms, bounds c_0 -+ b/2: a clearance on its sum). `constraint` is its
+// LimitConstraint.
+struct LimitSpec {
+  int joint = 0, k = 0;  // the (first) limited coordinate
   double lower = 0.0, upper = 0.0;
   int constraint = 0;
+  std::vector<LimitTerm> terms;  // empty: {(joint, k, 1)} (finalize() writes it)
+  std::string name;              // a combination's own name (its coupling's); empty: the joint's
+  // Whether the limit is on one coordinate alone, q_k itself.
+  bool single() const { return terms.empty() || (terms.size() == 1 && terms[0].c == 1.0); }
+};
+
+// Coulomb friction of bound f on s = sum_i c_i q_i, a linear combination of joint
+// coordinates (a motor's shaft behind a differential, theta = E q: doc/actuators.md): the
+// joints' per-coordinate rule (coulombFriction) on the row sum_i c_i q_x,i, its effort F
+// acting as c_i F along each q_i.
+struct SumFriction {
+  std::string name;
+  std::vector<LimitTerm> terms;
+  double f = 0.0;
 };
 
 // Prescribed motion of joint coordinate k; `constraint` is its DriveConstraint.
@@ -102,6 +125,7 @@ class System {
   std::vector<DriveSpec> drives;
   std::vector<std::array<double, 3>> damping, friction;  // per joint coordinate
   std::vector<RotorInertia> rotors;  // reflected rotor inertias (transmission.h)
+  std::vector<SumFriction> sum_friction;  // Coulomb friction on sums of coordinates
   Vector3d gravity = Vector3d(0, 0, -9.81);
   IntegratorOptions options;
 
@@ -172,6 +196,7 @@ struct State {
   Eigen::VectorXd lambda;                  // multipliers at this state (and warm start)
   Eigen::VectorXd acc;                     // accelerations at this state
   std::vector<std::array<double, 3>> friction;  // friction effort of the step that led here
+  std::vector<double> sum_friction;             // per System::sum_friction: its effort F, the same
   std::vector<DriveRamp> drive;            // per drive: a velocity drive's reference
   // The joint formulation's state (joint_stepper.h; empty in the absolute formulation):
   // joint positions, rates and accelerations (x, u, acc above are written from them).
@@ -216,16 +241,20 @@ Inputs zeroInputs(const System& sys);
 // moves: true when q is within round-off of the bound (1e-9 of the limits' and the model's
 // scale, as assembly judges an initial position): the drive holds it, the limit is not
 // activated; throws SimulationError naming the joint when it is past by more (the drive's
-// motion is prescribed; no stop can hold it); false for a coordinate no drive moves. Both
-// formulations call it where they activate a limit.
+// motion is prescribed; no stop can hold it); false for a coordinate no drive moves (a sum:
+// unless drives move every one of its coordinates). Both formulations call it where they
+// activate a limit.
 bool drivenAtLimit(const System& sys, const LimitSpec& limit, double q, double t);
 // How far past a bound a coordinate may stand and still count as on it: the round-off of
 // an assembled or driven position, 1e-9 of the limits' and the model's scale
 // (numerics::kLimitSlack). Assembly and drivenAtLimit judge by it alike.
 double limitSlack(const System& sys, const LimitSpec& limit);
-// Throws ModelError naming the joint for a limit on no joint coordinate, on one without a
-// position coordinate, or with bounds that are not finite with lower <= upper.
+// Throws ModelError naming the joint (or the limit's name) for a limit on no joint
+// coordinate, on one without a position coordinate, a term named twice or with a zero or
+// non-finite coefficient, or with bounds that are not finite with lower <= upper.
 void validateLimit(const System& sys, const LimitSpec& limit);
+// What a limit's name is in messages: "joint 'name'" or "coupling 'name'".
+std::string limitSubject(const System& sys, const LimitSpec& limit);
 // Which bound a free limit's coordinate q is past: -1 (lower), +1 (upper) or 0, with a
 // round-off slack of a few ulps of the bounds' size: a coordinate driven exactly onto its
 // bound (q = 2 t reaching 1 at t = 0.5, t itself a sum of steps) is at it, not past it,

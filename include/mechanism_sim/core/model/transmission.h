@@ -76,8 +76,13 @@ struct RotorInertia {
   std::string name;
   std::vector<std::pair<int, int>> coords;
   Eigen::Matrix2d B = Eigen::Matrix2d::Zero();  // the top-left coords.size() square is used
-  // Whether B couples two coordinates (an off-diagonal term).
-  bool coupled() const { return coords.size() > 1 && B(0, 1) != 0.0; }
+  // The off-diagonal term D_01 of the motors' reflected damping D = E^T diag(c_m) E (a
+  // differential's; D's diagonal is the joints' own damping, System::damping, where both
+  // formulations' damping rules take it): the efforts -D_01 q_dot_1 along coords[0] and
+  // -D_01 q_dot_0 along coords[1], dissipating with the diagonal q_dot^T D q_dot.
+  double damping_coupling = 0.0;
+  // Whether B or the damping couples two coordinates (an off-diagonal term).
+  bool coupled() const { return coords.size() > 1 && (B(0, 1) != 0.0 || damping_coupling != 0.0); }
 };
 
 // Throws ModelError naming the rotor for a coordinate the System lacks, a joint that is not
