@@ -13,6 +13,7 @@
 #pragma once
 #include <array>
 #include <cmath>
+#include <limits>
 #include <vector>
 
 #include <Eigen/Core>
@@ -182,9 +183,13 @@ double velocityResidualAtScales(const System& sys, const Evaluation& ev, const E
                                 const std::vector<std::array<double, 2>>& scales);
 // |r| / scale, where scale is the size of the terms r was computed from; 0/0 = 0 (the
 // residuals above, and the joint formulation's closures).
+// A residual below the smallest normal double is zero whatever its scale: it is what is
+// left of terms that are round-off of zero (a body held at rest with nothing in the model
+// setting a speed: no gravity, no spring, so that the System's velocity scale is 0 and the
+// scale of such terms says nothing).
 inline double relative(double r, double scale) {
   r = std::fabs(r);
-  if (r == 0.0) return 0.0;
+  if (r < std::numeric_limits<double>::min()) return 0.0;
   return scale > 0.0 ? r / scale : HUGE_VAL;
 }
 // Residual floors: kFloor times the system's largest motion (force) (numerics.h).

@@ -153,11 +153,11 @@ bool LoopClosures::findPassage() {
   // (G, Gabs, Gbound and passage_hold as at the last call: its results stand)
   // (the rates matter to the held directions only: where none was held, any rates' results)
   const bool same_rate = passage_.band == 0 || (passage_rate ? passage_.rate_set && passage_.rate == *passage_rate : !passage_.rate_set);
-  if (passage_.at_g == g_gen_ && passage_.at_hold == passage_hold && same_rate) {
+  if (passage_.at_g == reuse_.g_gen && passage_.at_hold == passage_hold && same_rate) {
     if (passage_.band > 0) ++passage_.met;
     return passage_.reduce;
   }
-  passage_.at_g = g_gen_, passage_.at_hold = passage_hold;
+  passage_.at_g = reuse_.g_gen, passage_.at_hold = passage_hold;
   passage_.rate_set = passage_rate != nullptr;
   if (passage_.rate_set) passage_.rate = *passage_rate;
   ++passage_.gen;

@@ -10,7 +10,7 @@ namespace mechanism_sim {
 
 void LoopClosures::rowsTimes(const Eigen::MatrixXd& R, const Eigen::VectorXd& v, Eigen::VectorXd& out) const {
   for (int e = 0; e < m; ++e) {
-    if (rows_of_[cl_of_[e]] == RowsOf::kZero && &R == &G) {  // (a free limit's row: 0)
+    if (reuse_.rows_of[cl_of_[e]] == RowsOf::kZero && &R == &G) {  // (a free limit's row: 0)
       out(e) = 0.0;
       continue;
     }
@@ -41,36 +41,36 @@ void LoopClosures::inverseMassRowsT(const TreeModel& model, const TreeWorkspace&
     out.setZero();
     return;
   }
-  const ClosureSolver* rows = &R == &G ? &solver_ : &R == &passage_.R ? &passage_.solver : nullptr;
+  const ClosureSolver* rows = &R == &G ? &factors_.solver : &R == &passage_.R ? &passage_.solver : nullptr;
   if (rows && rows->inwardOfRowsT(x, out.data())) {
     outwardInverseMass(model, ws, out.data());
     return;
   }
-  rowsTransposeTimes(R, x, tau_);
-  applyInverseMass(model, ws, tau_.data(), out.data());
+  rowsTransposeTimes(R, x, scratch_.tau);
+  applyInverseMass(model, ws, scratch_.tau.data(), out.data());
 }
 
 void LoopClosures::inverseMassGT(const Eigen::VectorXd& x, Eigen::VectorXd& out) const {
-  if (rowsTransposeTimes(G, x, out)) mass_.solve(out.data());  // (x = 0: every row dropped, the mass perhaps not factored)
+  if (rowsTransposeTimes(G, x, out)) factors_.mass.solve(out.data());  // (x = 0: every row dropped, the mass perhaps not factored)
 }
 
 // M^-1 tau: the articulated-body algorithm's passes 2 and 3 (RBDA table 7.1) with v = 0
 // (c = 0) and no external force, on the factors U, D^-1 of ws: the inverse-mass
 // application of RBDA 8.3.
 void LoopClosures::applyInverseMass(const TreeModel& model, const TreeWorkspace& ws, const double* tau, double* out) {
-  for (int k = 0; k < model.nb; ++k) pa_[k].setZero();
+  for (int k = 0; k < model.nb; ++k) scratch_.pa[k].setZero();
   if (!model.ties.empty() && tau != out) {  // (ties: in place, inverseMassInward)
     std::copy(tau, tau + model.nv, out);
     tau = out;
   }
-  for (int n = model.nb - 1; n >= 0; --n) inverseMassInward(model, ws, model.order[n] - 1, tau, out, pa_);  // u kept in out
+  for (int n = model.nb - 1; n >= 0; --n) inverseMassInward(model, ws, model.order[n] - 1, tau, out, scratch_.pa);  // u kept in out
   outwardInverseMass(model, ws, out);
 }
 
 void LoopClosures::outwardInverseMass(const TreeModel& model, const TreeWorkspace& ws, double* out) {
   articulatedOutward<false>(
       model, ws, [&](int k) { return Eigen::Map<const SmallVector>(out + model.links[k].iv, model.links[k].nv); },
-      [&](int k) { return out[model.links[k].pivot]; }, out, a_);
+      [&](int k) { return out[model.links[k].pivot]; }, out, scratch_.a);
 }
 
 long LoopClosures::massFactorsGeneration(const TreeWorkspace& ws) { return ws.generation; }
@@ -84,12 +84,12 @@ void LoopClosures::factor(const TreeModel& model, const TreeWorkspace& ws) {
   }
   // (G, Gabs and the articulated factors as at the last factorization: it stands)
   const long ws_gen = massFactorsGeneration(ws);
-  if (fac_at_g_ == g_gen_ && fac_at_ws_ == ws_gen && (fac_Y_ || !form_Y)) {
-    info = fac_info_;
+  if (reuse_.fac_at_g == reuse_.g_gen && reuse_.fac_at_ws == ws_gen && (reuse_.fac_Y || !form_Y)) {
+    info = reuse_.fac_info;
     return;
   }
   factorNow(model, ws);
-  fac_at_g_ = g_gen_, fac_at_ws_ = ws_gen, fac_Y_ = form_Y, fac_info_ = info;
+  reuse_.fac_at_g = reuse_.g_gen, reuse_.fac_at_ws = ws_gen, reuse_.fac_Y = form_Y, reuse_.fac_info = info;
 }
 
 void LoopClosures::factorNow(const TreeModel& model, const TreeWorkspace& ws) {
@@ -98,39 +98,39 @@ void LoopClosures::factorNow(const TreeModel& model, const TreeWorkspace& ws) {
   int zero_rows = 0;
   for (int e = 0; e < m; ++e) {
     const bool zero = roundoffRow(e);
-    keep_(e) = zero ? 0.0 : 1.0;
+    factors_.keep(e) = zero ? 0.0 : 1.0;
     zero_rows += zero;
   }
   if (zero_rows == m) {  // every row zero (free limits): nothing to solve, lambda = 0
     Y.setZero();
     info.rank = 0;
     info.dependent = allRows();
-    all_zero_ = true;
+    factors_.all_zero = true;
     return;
   }
-  all_zero_ = false;
+  factors_.all_zero = false;
   // Y = M^-1 G^T and G M^-1 G^T from the factored joint-space inertia, sparse where the
   // closures are (closure_solver.h)
-  info.rank = solver_.factor(model, ws, G, keep_, least_norm_, A_) - zero_rows;
+  info.rank = factors_.solver.factor(model, ws, G, factors_.keep, factors_.least_norm, factors_.A) - zero_rows;
   if (form_Y)
     for (int e = 0; e < m; ++e) {
-      if (!solver_.kept(e)) {
+      if (!factors_.solver.kept(e)) {
         Y.col(e).setZero();
         continue;
       }
-      for (int k = 0; k < nv; ++k) tau_(k) = G(e, k);
-      applyInverseMass(model, ws, tau_.data(), Y.col(e).data());
+      for (int k = 0; k < nv; ++k) scratch_.tau(k) = G(e, k);
+      applyInverseMass(model, ws, scratch_.tau.data(), Y.col(e).data());
     }
   info.dependent = allRows() - info.rank;  // (idle rows count as dependent ones: no motion moves them)
 }
 
 void LoopClosures::solve(const Eigen::VectorXd& b, Eigen::VectorXd& x) const {
   if (m == 0) return;
-  if (all_zero_) {
+  if (factors_.all_zero) {
     x.setZero();
     return;
   }
-  solver_.solve(least_norm_, b, x);
+  factors_.solver.solve(factors_.least_norm, b, x);
 }
 
 // RBDA 8.3: q_ddot = q_ddot_free - M^-1 G^T lambda with (G M^-1 G^T) lambda =
@@ -145,10 +145,10 @@ ClosureSolveInfo constrainedForwardDynamics(const TreeModel& model, const System
   else forwardDynamics(model, sys, q, qdot, tau, ws, qddot, loads);
   // efforts on cut joints: q_ddot += M^-1 (q_x,k J)^T tau_k (the recursion is linear in tau)
   if (loads && !model.cut_joints.empty()) {
-    cl.tau_.setZero();
-    if (cl.addCutJointEfforts(model, sys, ws, *loads, cl.tau_)) {
-      cl.applyInverseMass(model, ws, cl.tau_.data(), cl.qdd_cut_.data());
-      qddot += cl.qdd_cut_;
+    cl.scratch_.tau.setZero();
+    if (cl.addCutJointEfforts(model, sys, ws, *loads, cl.scratch_.tau)) {
+      cl.applyInverseMass(model, ws, cl.scratch_.tau.data(), cl.scratch_.qdd_cut.data());
+      qddot += cl.scratch_.qdd_cut;
     }
   }
   if (cl.m == 0) return cl.info;
@@ -171,8 +171,8 @@ ClosureSolveInfo constrainedForwardDynamics(const TreeModel& model, const System
     cl.rowsTimes(cl.passage_.R, qddot, cl.passage_.mu);
     cl.passage_.mu -= cl.passage_.g;
     cl.passageSolve(cl.passage_.mu, cl.passage_.mu);
-    cl.inverseMassRowsT(model, ws, cl.passage_.R, cl.passage_.mu, cl.qdd_cut_);
-    qddot -= cl.qdd_cut_;
+    cl.inverseMassRowsT(model, ws, cl.passage_.R, cl.passage_.mu, cl.scratch_.qdd_cut);
+    qddot -= cl.scratch_.qdd_cut;
     // G^T lambda = R^T mu with R = P G: lambda = P^T mu per closure row
     cl.passageMultipliers(cl.passage_.mu);
     cl.rowsTimes(cl.G, qddot, cl.gamma_q);
@@ -181,8 +181,8 @@ ClosureSolveInfo constrainedForwardDynamics(const TreeModel& model, const System
   cl.rowsTimes(cl.G, qddot, cl.lambda);  // (the right-hand side, solved in place)
   cl.lambda -= cl.gamma_q;
   cl.solve(cl.lambda, cl.lambda);
-  cl.inverseMassRowsT(model, ws, cl.G, cl.lambda, cl.qdd_cut_);
-  qddot -= cl.qdd_cut_;
+  cl.inverseMassRowsT(model, ws, cl.G, cl.lambda, cl.scratch_.qdd_cut);
+  qddot -= cl.scratch_.qdd_cut;
   cl.rowsTimes(cl.G, qddot, cl.gamma_q);  // G q_ddot = gamma_q for the result
   return cl.info;
 }

@@ -39,9 +39,9 @@ ClosureProjectionReport projectClosurePositions(const TreeModel& model, const Sy
                                                 Eigen::VectorXd& q, TreeWorkspace& ws, double tol, int max_iterations,
                                                 const Eigen::VectorXd* rates) {
   ClosureProjectionReport rep;
-  const Eigen::VectorXd& zero = cl.zero_v_;
+  const Eigen::VectorXd& zero = cl.scratch_.zero_v;
   const Eigen::VectorXd& qdot = rates ? *rates : zero;
-  Eigen::VectorXd &qdd = cl.qdd_v_, &dv = cl.dv_v_, &x = cl.x_m_;
+  Eigen::VectorXd &qdd = cl.scratch_.qdd_v, &dv = cl.scratch_.dv_v, &x = cl.scratch_.x_m;
   // Near a branch passage (branch_passage.cpp) the equations' residual tolerance leaves
   // the coordinate across the branch off by tol / s (s the passage's singular value), and
   // the solves at the next stages see the level set through that point: there Newton goes
@@ -101,15 +101,15 @@ ClosureProjectionReport projectClosureVelocities(const TreeModel& model, const S
                                                  const Eigen::VectorXd& q, Eigen::VectorXd& qdot, TreeWorkspace& ws,
                                                  double tol, int max_iterations, bool evaluated_at_q, bool at_rates) {
   ClosureProjectionReport rep;
-  const Eigen::VectorXd& zero = cl.zero_v_;
-  Eigen::VectorXd &qdd = cl.qdd_v_, &r = cl.r_m_, &x = cl.x_m_;
+  const Eigen::VectorXd& zero = cl.scratch_.zero_v;
+  Eigen::VectorXd &qdd = cl.scratch_.qdd_v, &r = cl.scratch_.r_m, &x = cl.scratch_.x_m;
   if (!evaluated_at_q) {
     forwardKinematics(model, q, zero, ws);
     cl.evaluate(model, sys, ws, q);  // G depends on q only
   }
-  Eigen::VectorXd& reference = cl.ref_v_;
+  Eigen::VectorXd& reference = cl.scratch_.ref_v;
   reference = qdot;
-  Eigen::VectorXd& dv = cl.dv_v_;
+  Eigen::VectorXd& dv = cl.scratch_.dv_v;
   // in a branch passage (branch_passage.cpp) the regular directions onto their equations,
   // the held rates as the integration carried them, and near it on to round-off (as the
   // positions)
@@ -122,8 +122,8 @@ ClosureProjectionReport projectClosureVelocities(const TreeModel& model, const S
   int extra = 0;
   for (;;) {
     if (passage) {  // (judged as velocityResidual judges, without the held components)
-      cl.velocityRows(qdot, &reference, r, cl.vt_);
-      rep.residual = cl.passageResidual(r, cl.vt_);
+      cl.velocityRows(qdot, &reference, r, cl.scratch_.vt);
+      rep.residual = cl.passageResidual(r, cl.scratch_.vt);
     } else {
       rep.residual = cl.velocityResidual(qdot, &reference);
     }

@@ -198,29 +198,29 @@ void LoopClosures::layout(const TreeModel& model, const System& sys, const std::
   Jc.clear();
   Phi.setZero(m), gamma.setZero(m), scale.setZero(m), gamma_q.setZero(m), nu.setZero(m), lambda.setZero(m);
   G.setZero(m, nv), Gabs.setZero(m, nv), Gbound.setZero(m, nv), Y.setZero(nv, m);
-  vr_.setZero(m), vt_.setZero(m);
-  Jc_full_.clear();
+  scratch_.vr.setZero(m), scratch_.vt.setZero(m);
+  scratch_.Jc_full.clear();
   for (size_t i = 0; i < constraints.size(); ++i) {
     const Constraint& C = *sys.constraints[constraints[i]];
     const int nb = 6 * static_cast<int>(C.bodies().size());
     Jc.push_back(Eigen::MatrixXd::Zero(nrows_[i], nb));
-    Jc_full_.push_back(Eigen::MatrixXd::Zero(sel_[i].empty() ? 0 : C.size(), nb));
+    scratch_.Jc_full.push_back(Eigen::MatrixXd::Zero(sel_[i].empty() ? 0 : C.size(), nb));
   }
   int full = 0;  // (the largest closure evaluated into the scratch)
-  for (size_t i = 0; i < constraints.size(); ++i) full = std::max(full, static_cast<int>(Jc_full_[i].rows()));
-  Phi_full_.setZero(full), gamma_full_.setZero(full);
-  pose_by_q_ = pose_by_x_ = cleared_ = all_zero_ = false;
-  ++g_gen_;
-  rows_of_.assign(constraints.size(), RowsOf::kUnknown);
-  Jc_mapped_ = Jc;
-  jnorm_.setZero(nrows_.empty() ? 0 : *std::max_element(nrows_.begin(), nrows_.end()), 2);
-  kin_.assign(sys.numBodies(), BodyKin());
-  pa_.assign(model.nb, Vector6d::Zero());
-  a_ = a0_ = pa_;
-  keep_.setZero(m), tau_.setZero(nv), qdd_cut_.setZero(nv), pose_q_.setZero(model.nq);
-  zero_v_.setZero(nv), qdd_v_.setZero(nv), dv_v_.setZero(nv), ref_v_.setZero(nv), r_m_.setZero(m), x_m_.setZero(m);
-  A_.setZero(m, m);
-  least_norm_ = ScaledLeastNorm(m);
+  for (size_t i = 0; i < constraints.size(); ++i) full = std::max(full, static_cast<int>(scratch_.Jc_full[i].rows()));
+  scratch_.Phi_full.setZero(full), scratch_.gamma_full.setZero(full);
+  reuse_.pose_by_q = reuse_.pose_by_x = cleared_ = factors_.all_zero = false;
+  ++reuse_.g_gen;
+  reuse_.rows_of.assign(constraints.size(), RowsOf::kUnknown);
+  reuse_.Jc_mapped = Jc;
+  scratch_.jnorm.setZero(nrows_.empty() ? 0 : *std::max_element(nrows_.begin(), nrows_.end()), 2);
+  scratch_.kin.assign(sys.numBodies(), BodyKin());
+  scratch_.pa.assign(model.nb, Vector6d::Zero());
+  scratch_.a = scratch_.a0 = scratch_.pa;
+  factors_.keep.setZero(m), scratch_.tau.setZero(nv), scratch_.qdd_cut.setZero(nv), reuse_.pose_q.setZero(model.nq);
+  scratch_.zero_v.setZero(nv), scratch_.qdd_v.setZero(nv), scratch_.dv_v.setZero(nv), scratch_.ref_v.setZero(nv), scratch_.r_m.setZero(m), scratch_.x_m.setZero(m);
+  factors_.A.setZero(m, m);
+  factors_.least_norm = ScaledLeastNorm(m);
   info = ClosureSolveInfo{};
   info.rows = allRows();
   // The closures' blocks for the sparse solves (closure_solver.h): each closure's rows touch
@@ -245,15 +245,15 @@ void LoopClosures::layout(const TreeModel& model, const System& sys, const std::
       for (int b : sys.constraints[constraints[i]]->bodies()) addPath(b, cols[i]);
     }
   }
-  mass_ = TreeMassFactor(model);
-  solver_ = ClosureSolver(model, first, cols);
+  factors_.mass = TreeMassFactor(model);
+  factors_.solver = ClosureSolver(model, first, cols);
   ccols_.resize(constraints.size());
   cl_of_.assign(m, 0);
   for (size_t i = 0; i < constraints.size(); ++i) {
-    ccols_[i] = solver_.blockCols(static_cast<int>(i));
+    ccols_[i] = factors_.solver.blockCols(static_cast<int>(i));
     for (int e = first[i]; e < first[i + 1]; ++e) cl_of_[e] = static_cast<int>(i);
   }
-  passage_.solver = solver_;
+  passage_.solver = factors_.solver;
   passage_.keep.setZero(m);
   passage_.used.assign(constraints.size(), 0);
   passage_.release.assign(constraints.size(), 0);
@@ -297,7 +297,7 @@ std::vector<std::vector<char>> LoopClosures::idleRows(const TreeModel& model, co
       retract(model, q, dv);
     }
     try {
-      forwardKinematics(model, q, zero_v_, ws);
+      forwardKinematics(model, q, scratch_.zero_v, ws);
       evaluate(model, sys, ws, q);
     } catch (const std::exception&) {
       return {};  // (an equation that cannot be evaluated there: no row is left out)
@@ -342,7 +342,7 @@ bool LoopClosures::addCutJointEfforts(const TreeModel& model, const System& sys,
     if (!any) loadKin(ws);  // (the bodies' kinematics only for a cut joint that has an effort)
     any = true;
     Row rows[kMaxJointDofs];
-    J.coordinates(kin_[J.bodyI()], kin_[J.bodyJ()], ctx.tracked[sys.joint_constraint[j]], rows);
+    J.coordinates(scratch_.kin[J.bodyI()], scratch_.kin[J.bodyJ()], ctx.tracked[sys.joint_constraint[j]], rows);
     const int bodies[2] = {J.bodyI(), J.bodyJ()};
     for (int s = 0; s < 2; ++s) {
       const int b = bodies[s];
@@ -381,7 +381,7 @@ int LoopClosures::activateReachedLimits(const System& sys, const TreeModel& mode
       if (!kinematics) forwardKinematics(model, qv, qdot, ws), loadKin(ws), kinematics = true;
       for (const LimitTerm& term : L.terms) {
         const Joint& J = *sys.joints[term.joint];
-        J.coordinates(kin_[J.bodyI()], kin_[J.bodyJ()], ctx.tracked[sys.joint_constraint[term.joint]], rows);
+        J.coordinates(scratch_.kin[J.bodyI()], scratch_.kin[J.bodyJ()], ctx.tracked[sys.joint_constraint[term.joint]], rows);
         q += term.c * rows[term.k].Phi;
       }
     }
@@ -409,12 +409,12 @@ int LoopClosures::releasePullingLimits(const System& sys, signed char* limit_sid
 }
 
 void LoopClosures::loadKin(const TreeWorkspace& ws) {
-  for (int b = 1; b < static_cast<int>(kin_.size()); ++b) {
+  for (int b = 1; b < static_cast<int>(scratch_.kin.size()); ++b) {
     const int k = b - 1;
-    kin_[b].r = ws.r[k];
-    kin_[b].A_Oi = ws.A[k];
-    kin_[b].v = ws.A[k] * ws.v[k].tail<3>();
-    kin_[b].w = ws.v[k].head<3>();
+    scratch_.kin[b].r = ws.r[k];
+    scratch_.kin[b].A_Oi = ws.A[k];
+    scratch_.kin[b].v = ws.A[k] * ws.v[k].tail<3>();
+    scratch_.kin[b].w = ws.v[k].head<3>();
   }
 }
 
@@ -437,13 +437,13 @@ void LoopClosures::clearRows() {
   Phi.setZero(), gamma.setZero(), scale.setZero(), gamma_q.setZero(), nu.setZero(), lambda.setZero();
   G.setZero(), Gabs.setZero(), Y.setZero();
   for (Eigen::MatrixXd& J : Jc) J.setZero();
-  keep_.setZero();
+  factors_.keep.setZero();
   info.rank = 0;
   info.dependent = allRows();
-  all_zero_ = true;
+  factors_.all_zero = true;
   cleared_ = true;
-  std::fill(rows_of_.begin(), rows_of_.end(), RowsOf::kUnknown);  // (G and Gabs cleared, Gbound not)
-  ++g_gen_;
+  std::fill(reuse_.rows_of.begin(), reuse_.rows_of.end(), RowsOf::kUnknown);  // (G and Gabs cleared, Gbound not)
+  ++reuse_.g_gen;
 }
 
 void LoopClosures::evaluate(const TreeModel& model, const System& sys, const TreeWorkspace& ws) {
@@ -461,23 +461,23 @@ void LoopClosures::evaluate(const TreeModel& model, const System& sys, const Tre
     for (int b : model.order) {
       const int k = b - 1;
       const TreeLink& L = model.links[k];
-      a0_[k] = ws.c[k];
-      if (L.parent != 0) a0_[k] += transformMotion(ws.E[k], ws.rho[k], a0_[L.parent - 1]);
+      scratch_.a0[k] = ws.c[k];
+      if (L.parent != 0) scratch_.a0[k] += transformMotion(ws.E[k], ws.rho[k], scratch_.a0[L.parent - 1]);
     }
     // A closure's rows of G, Gabs and Gbound are functions of its Phi_x (Jc) and of the
     // links' poses and subspaces alone: where those hold the bits of the last mapping (the
     // stepper evaluates each new q at rest for its projections, then in motion for the
-    // accelerations) the rows are kept, and g_gen_ says whether any row changed. (Without
+    // accelerations) the rows are kept, and reuse_.g_gen says whether any row changed. (Without
     // kinematics no row is mapped: the copies stay those of the last mapping.)
     // With the tree's q given, its bits stand for the poses (forwardKinematics reads q and
     // the model alone): nq numbers compared instead of 18 a link.
     if (q_) {
-      poses_same = unchangedSince(*q_, pose_q_) & pose_by_q_;
-      pose_by_q_ = true, pose_by_x_ = false;
+      poses_same = unchangedSince(*q_, reuse_.pose_q) & reuse_.pose_by_q;
+      reuse_.pose_by_q = true, reuse_.pose_by_x = false;
     } else {
-      poses_same = unchangedSince(ws.A, pose_A_) & unchangedSince(ws.r, pose_r_) & unchangedSince(ws.S, pose_S_) &
-                   pose_by_x_;
-      pose_by_x_ = true, pose_by_q_ = false;
+      poses_same = unchangedSince(ws.A, reuse_.pose_A) & unchangedSince(ws.r, reuse_.pose_r) & unchangedSince(ws.S, reuse_.pose_S) &
+                   reuse_.pose_by_x;
+      reuse_.pose_by_x = true, reuse_.pose_by_q = false;
     }
   }
   bool changed = false;
@@ -488,9 +488,9 @@ void LoopClosures::evaluate(const TreeModel& model, const System& sys, const Tre
     changed = true;
   };
   auto directRow = [&](size_t i) {  // a coordinate row: G = its coefficients
-    if (rows_of_[i] == RowsOf::kDirect) return;
+    if (reuse_.rows_of[i] == RowsOf::kDirect) return;
     clear(i);
-    rows_of_[i] = RowsOf::kDirect;
+    reuse_.rows_of[i] = RowsOf::kDirect;
     const DirectRow& d = direct_[i];
     for (int k = 0; k < d.n; ++k) {
       G(row[i], d.col[k]) += d.coef[k];
@@ -506,7 +506,7 @@ void LoopClosures::evaluate(const TreeModel& model, const System& sys, const Tre
       Phi.segment(r0, n).setZero(), gamma.segment(r0, n).setZero(), scale.segment(r0, n).setZero();
       gamma_q.segment(r0, n).setZero();
       Jc[i].setZero();
-      if (rows_of_[i] != RowsOf::kZero) clear(i), rows_of_[i] = RowsOf::kZero;
+      if (reuse_.rows_of[i] != RowsOf::kZero) clear(i), reuse_.rows_of[i] = RowsOf::kZero;
       continue;
     }
     if (q_ && direct_[i].n > 0) {  // Phi from q itself (evaluate(..., q)); scale: the size of its terms
@@ -531,7 +531,7 @@ void LoopClosures::evaluate(const TreeModel& model, const System& sys, const Tre
       continue;
     }
     const auto& bodies = C.bodies();
-    for (size_t s = 0; s < bodies.size(); ++s) ptrs[s] = &kin_[bodies[s]];
+    for (size_t s = 0; s < bodies.size(); ++s) ptrs[s] = &scratch_.kin[bodies[s]];
     if (sel_[i].empty()) {
       C.evaluate(ptrs, ctx, Phi.segment(r0, n), Jc[i], gamma.segment(r0, n));
     } else if (sel_joint_[i]) {  // the rows some motion moves (layout(): the idle ones left out): a joint
@@ -539,19 +539,19 @@ void LoopClosures::evaluate(const TreeModel& model, const System& sys, const Tre
       sel_joint_[i]->evaluateSelected(ptrs, ctx, Phi.segment(r0, n), Jc[i], gamma.segment(r0, n), sel_mask_[i]);
     } else {  // (the whole evaluation, the kept rows copied)
       const int nc = C.size();
-      C.evaluate(ptrs, ctx, Phi_full_.head(nc), Jc_full_[i], gamma_full_.head(nc));
+      C.evaluate(ptrs, ctx, scratch_.Phi_full.head(nc), scratch_.Jc_full[i], scratch_.gamma_full.head(nc));
       for (int e = 0; e < n; ++e) {
         const int f = sel_[i][e];
-        Phi(r0 + e) = Phi_full_(f), gamma(r0 + e) = gamma_full_(f);
-        Jc[i].row(e) = Jc_full_[i].row(f);
+        Phi(r0 + e) = scratch_.Phi_full(f), gamma(r0 + e) = scratch_.gamma_full(f);
+        Jc[i].row(e) = scratch_.Jc_full[i].row(f);
       }
     }
     if (C.rheonomic()) C.velocityTerm(ctx, nu.data() + r0);  // (nu stays 0 elsewhere)
-    for (size_t s = 0; s < bodies.size(); ++s) lever_[s] = kin_[bodies[s]].r.cwiseAbs().maxCoeff() + sys.length_scale;
+    for (size_t s = 0; s < bodies.size(); ++s) scratch_.lever[s] = scratch_.kin[bodies[s]].r.cwiseAbs().maxCoeff() + sys.length_scale;
     for (int e = 0; e < n; ++e) {
       double sc = 0;
       for (size_t s = 0; s < bodies.size(); ++s)
-        sc += Jc[i].row(e).segment<3>(6 * s).cwiseAbs().sum() * lever_[s] + Jc[i].row(e).segment<3>(6 * s + 3).cwiseAbs().sum();
+        sc += Jc[i].row(e).segment<3>(6 * s).cwiseAbs().sum() * scratch_.lever[s] + Jc[i].row(e).segment<3>(6 * s + 3).cwiseAbs().sum();
       scale(r0 + e) = sc;
     }
     if (direct_[i].n > 0) {  // gamma_q = 0: a coordinate's rate is q_ddot's own
@@ -565,15 +565,15 @@ void LoopClosures::evaluate(const TreeModel& model, const System& sys, const Tre
       if (b == 0) continue;
       // velocity-product part: absolute acceleration of b at q_ddot = 0 (bodyAccelerations)
       const Matrix3d& Ab = ws.A[b - 1];
-      const Vector6d& a0 = a0_[b - 1];
+      const Vector6d& a0 = scratch_.a0[b - 1];
       Vector6d acc;
       acc.head<3>() = Ab * (a0.tail<3>() + ws.v[b - 1].head<3>().cross(ws.v[b - 1].tail<3>()));
       acc.tail<3>() = a0.head<3>();
       gamma_q.segment(r0, n).noalias() -= Jc[i].middleCols<6>(6 * s).topRows(n) * acc;
     }
-    if (poses_same && rows_of_[i] == RowsOf::kMapped && unchangedSince(Jc[i], Jc_mapped_[i])) continue;
-    std::copy_n(Jc[i].data(), Jc[i].size(), Jc_mapped_[i].data());  // (the same size: a plain copy)
-    rows_of_[i] = RowsOf::kMapped;
+    if (poses_same && reuse_.rows_of[i] == RowsOf::kMapped && unchangedSince(Jc[i], reuse_.Jc_mapped[i])) continue;
+    std::copy_n(Jc[i].data(), Jc[i].size(), reuse_.Jc_mapped[i].data());  // (the same size: a plain copy)
+    reuse_.rows_of[i] = RowsOf::kMapped;
     clear(i);
     for (size_t s = 0; s < bodies.size(); ++s) {
       const int b = bodies[s];
@@ -594,7 +594,7 @@ void LoopClosures::evaluate(const TreeModel& model, const System& sys, const Tre
       mapBody(model, ws, b, Jb, Jabs, r0, n);
     }
   }
-  if (changed) ++g_gen_;
+  if (changed) ++reuse_.g_gen;
 }
 
 // G, Gabs and Gbound of rows r0 .. r0 + n - 1 on the columns of body b's path to the root,
@@ -608,7 +608,7 @@ void LoopClosures::mapBody(const TreeModel& model, const TreeWorkspace& ws, int 
   const Vector3d& rb = ws.r[b - 1];
   // the rows' parts' norms for Gbound, once per body (they do not depend on the column)
   for (int e = 0; e < n; ++e)
-    jnorm_(e, 0) = Jb.row(e).template head<3>().norm(), jnorm_(e, 1) = Jb.row(e).template tail<3>().norm();
+    scratch_.jnorm(e, 0) = Jb.row(e).template head<3>().norm(), scratch_.jnorm(e, 1) = Jb.row(e).template tail<3>().norm();
   for (int a = b; a != 0; a = model.links[a - 1].parent) {
     const TreeLink& L = model.links[a - 1];
     const Matrix3d& Aa = ws.A[a - 1];
@@ -634,7 +634,7 @@ void LoopClosures::mapBody(const TreeModel& model, const TreeWorkspace& ws, int 
       // the entry vanish, for the branch passages' normalization)
       const double sv = vg.norm() + wg.norm() * lever.norm(), sw = wg.norm();
       for (int e = 0; e < n; ++e)
-        Gbound(r0 + e, L.iv + col) += jnorm_(e, 0) * sv + jnorm_(e, 1) * sw;
+        Gbound(r0 + e, L.iv + col) += scratch_.jnorm(e, 0) * sv + scratch_.jnorm(e, 1) * sw;
     }
   }
 }
@@ -660,7 +660,7 @@ void LoopClosures::velocityRows(const Eigen::VectorXd& qdot, const Eigen::Vector
       // formulation floors each body's: a loop that locks coordinates leaves their rates
       // at round-off, and round-off over round-off judged nothing; a free limit's row of G
       // and Gabs is zero)
-      if (rows_of_[i] != RowsOf::kZero) {
+      if (reuse_.rows_of[i] != RowsOf::kZero) {
         for (int k : ccols_[i]) {
           s += G(e, k) * qdot(k);
           sc += Gabs(e, k) * (std::fabs(qdot(k)) + (reference ? std::fabs((*reference)(k)) : 0.0) + kFloor * V / unit_(k));
@@ -675,9 +675,9 @@ void LoopClosures::velocityRows(const Eigen::VectorXd& qdot, const Eigen::Vector
 }
 
 double LoopClosures::velocityResidual(const Eigen::VectorXd& qdot, const Eigen::VectorXd* reference) const {
-  velocityRows(qdot, reference, vr_, vt_);
+  velocityRows(qdot, reference, scratch_.vr, scratch_.vt);
   double worst = 0;
-  for (int e = 0; e < m; ++e) worst = std::max(worst, relative(vr_(e), vt_(e)));
+  for (int e = 0; e < m; ++e) worst = std::max(worst, relative(scratch_.vr(e), scratch_.vt(e)));
   return worst;
 }
 
@@ -687,7 +687,7 @@ void LoopClosures::track(const TreeWorkspace& ws, const std::vector<int>& which,
   const BodyKin* ptrs[kMaxConstraintBodies];
   for (int c : which) {
     const Constraint& C = *sys_->constraints[c];
-    for (size_t s = 0; s < C.bodies().size(); ++s) ptrs[s] = &kin_[C.bodies()[s]];
+    for (size_t s = 0; s < C.bodies().size(); ++s) ptrs[s] = &scratch_.kin[C.bodies()[s]];
     Tracked tr = tracked[c];
     C.trackAngles(ptrs, ctx, tr);  // (their rates are not kept)
     tracked[c] = tr;

@@ -224,8 +224,8 @@ class LoopClosures {
   // The same by the joint-space inertia factored at ws (closure_solver.h): factorMass(model,
   // ws) once (O(n d^2)), then each inverseMass(x) (x = M^-1 x in place) costs O(n d), less
   // for a unit vector. The closures' own solves factor it themselves.
-  void factorMass(const TreeModel& model, const TreeWorkspace& ws) { mass_.compute(model, ws); }
-  void inverseMass(double* x) const { mass_.solve(x); }
+  void factorMass(const TreeModel& model, const TreeWorkspace& ws) { factors_.mass.compute(model, ws); }
+  void inverseMass(double* x) const { factors_.mass.solve(x); }
   // out = G v, and out = M^-1 G^T x at factorMass()'s factors, over each closure row's
   // coordinates (G is zero elsewhere)
   void timesG(const Eigen::VectorXd& v, Eigen::VectorXd& out) const { rowsTimes(G, v, out); }
@@ -344,8 +344,6 @@ class LoopClosures {
   std::vector<int> idle_sys_rows_;
   int idle_ = 0;
   int allRows() const { return m + idle_; }  // the closures' equations, idle ones too (info)
-  std::vector<Eigen::MatrixXd> Jc_full_;
-  Eigen::VectorXd Phi_full_, gamma_full_;
   std::vector<char> angle_;        // per velocity coordinate: an angle
   void layout(const TreeModel& model, const System& sys, const std::vector<std::vector<char>>& idle);
   std::vector<std::vector<char>> idleRows(const TreeModel& model, const System& sys);
@@ -354,20 +352,9 @@ class LoopClosures {
   using SmallRows = Eigen::Matrix<double, Eigen::Dynamic, 6, Eigen::RowMajor, kSmallRows, 6>;
   template <class JB, class JA>
   void mapBody(const TreeModel& model, const TreeWorkspace& ws, int b, const JB& Jb, const JA& Jabs, int r0, int n);
-  // evaluate()'s scratch: per body of a closure its lever (scale), per row the norms of the
-  // row's parts on a body's [v; omega'] (Gbound)
-  double lever_[kMaxConstraintBodies] = {};
-  Eigen::Matrix<double, Eigen::Dynamic, 2> jnorm_;
   Eigen::VectorXd unit_;           // per velocity coordinate: length scale (an angle) or 1
-  std::vector<BodyKin> kin_;      // ground first
-  AlignedVector<Vector6d> pa_, a_;  // inverse-mass passes
-  AlignedVector<Vector6d> a0_;      // spatial accelerations at q_ddot = 0
-  Eigen::VectorXd keep_;            // per row: 1, or 0 for a dropped (zero) row
-  bool all_zero_ = false;           // every row dropped at the last factor()
   bool only_limits_ = false;        // every closure is a limit
   bool cleared_ = false;            // clearRows() ran since the last evaluate()
-  Eigen::VectorXd tau_, qdd_cut_;
-  Eigen::VectorXd zero_v_, qdd_v_, dv_v_, ref_v_, r_m_, x_m_;  // the projections' scratch
   bool closureRows(size_t c);
   // max_k |dv_k| unit_k: a correction's size as a length (positions) or speed (rates)
   double correctionSize(const Eigen::VectorXd& dv) const;
@@ -377,19 +364,12 @@ class LoopClosures {
   // per closure row: r = G q_dot - nu and the size of its terms t (velocityResidual's)
   void velocityRows(const Eigen::VectorXd& qdot, const Eigen::VectorXd* reference, Eigen::VectorXd& r,
                     Eigen::VectorXd& t) const;
-  mutable Eigen::VectorXd vr_, vt_;
   // g = P b, 0 on the held rows; with accel, R_j passage_ref on the held rows
   void passageRhs(const Eigen::VectorXd& b, Eigen::VectorXd& g, bool accel = false) const;
   // lambda = P^T mu (G^T lambda = R^T mu)
   void passageMultipliers(const Eigen::VectorXd& mu);
   // max_e |b'_e| / scale_e, b' = b without its components on the held directions
   double passageResidual(const Eigen::VectorXd& b, const Eigen::VectorXd& scale_e);
-  Eigen::MatrixXd A_;               // G M^-1 G^T (the dense solve's; scaled in place)
-  ScaledLeastNorm least_norm_;      // its dense factorization (closure_solver.h: the fallback)
-  // the joint-space inertia factored (factorMass); the sparse solves of G and of the
-  // passages' rows R (slot e of R: the closure of row e of G)
-  TreeMassFactor mass_;
-  ClosureSolver solver_;
   std::vector<std::vector<int>> ccols_;  // per closure: the coordinates its rows can touch
   std::vector<int> cl_of_;               // per row: its closure
   // out = G v over each row's coordinates (G is zero elsewhere)
@@ -419,17 +399,50 @@ class LoopClosures {
   // factor() and passageFactor() theirs while their rows and ws's articulated factors are.
   // The generations count changes; an "at" member is the generation a result was made at.
   enum class RowsOf : signed char { kUnknown, kZero, kDirect, kMapped };
-  std::vector<RowsOf> rows_of_;             // per closure: what its rows of G hold
-  std::vector<Eigen::MatrixXd> Jc_mapped_;  // per closure: the Jc they were mapped from
-  AlignedVector<Matrix3d> pose_A_;          // the links' poses and subspaces at the last evaluate()
-  AlignedVector<Vector3d> pose_r_;
-  AlignedVector<MotionSubspace> pose_S_;
-  Eigen::VectorXd pose_q_;                  // or the tree's q there (evaluate(..., q))
-  bool pose_by_q_ = false, pose_by_x_ = false;  // which of the two the last mapping kept
-  long g_gen_ = 0;   // G, Gabs, Gbound
-  long fac_at_g_ = -1, fac_at_ws_ = -1;
-  bool fac_Y_ = false;
-  ClosureSolveInfo fac_info_;
+  // What evaluate() and factor() reuse while their inputs hold the same bits.
+  struct Reuse {
+    std::vector<RowsOf> rows_of;             // per closure: what its rows of G hold
+    std::vector<Eigen::MatrixXd> Jc_mapped;  // per closure: the Jc they were mapped from
+    AlignedVector<Matrix3d> pose_A;          // the links' poses and subspaces at the last evaluate()
+    AlignedVector<Vector3d> pose_r;
+    AlignedVector<MotionSubspace> pose_S;
+    Eigen::VectorXd pose_q;                  // or the tree's q there (evaluate(..., q))
+    bool pose_by_q = false, pose_by_x = false;  // which of the two the last mapping kept
+    long g_gen = 0;   // G, Gabs, Gbound
+    long fac_at_g = -1, fac_at_ws = -1;
+    bool fac_Y = false;
+    ClosureSolveInfo fac_info;
+  };
+  Reuse reuse_;
+  // The closures' factorizations: the dense fallback, the joint-space inertia factored
+  // (factorMass), the sparse solves of G and of the passages' rows R (slot e of R: the
+  // closure of row e of G), the rows kept
+  struct Factors {
+    Eigen::MatrixXd A;            // G M^-1 G^T (the dense solve's; scaled in place)
+    ScaledLeastNorm least_norm;   // its dense factorization (closure_solver.h: the fallback)
+    TreeMassFactor mass;
+    ClosureSolver solver;
+    Eigen::VectorXd keep;         // per row: 1, or 0 for a dropped (zero) row
+    bool all_zero = false;        // every row dropped at the last factor()
+  };
+  Factors factors_;
+  // The scratch of one call (evaluate(), the solves, the projections): nothing in it is
+  // read across calls.
+  struct Scratch {
+    std::vector<BodyKin> kin;      // ground first
+    AlignedVector<Vector6d> pa, a;  // inverse-mass passes
+    AlignedVector<Vector6d> a0;     // spatial accelerations at q_ddot = 0
+    Eigen::VectorXd tau, qdd_cut;
+    Eigen::VectorXd zero_v, qdd_v, dv_v, ref_v, r_m, x_m;  // the projections'
+    Eigen::VectorXd vr, vt;         // velocityRows' (a const query)
+    // evaluate()'s: per body of a closure its lever (scale), per row the norms of the row's
+    // parts on a body's [v; omega'] (Gbound)
+    double lever[kMaxConstraintBodies] = {};
+    Eigen::Matrix<double, Eigen::Dynamic, 2> jnorm;
+    std::vector<Eigen::MatrixXd> Jc_full;  // the closures' rows, idle ones too
+    Eigen::VectorXd Phi_full, gamma_full;
+  };
+  mutable Scratch scratch_;
   // ws's articulated factors' generation (TreeWorkspace::generation)
   long massFactorsGeneration(const TreeWorkspace& ws);
   void factorNow(const TreeModel& model, const TreeWorkspace& ws);
