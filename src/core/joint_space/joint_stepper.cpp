@@ -586,26 +586,9 @@ void JointStepper::frictionFor(const System& sys, State& s, double h) {
     for (int k = 0; k < L.nv; ++k) {
       if (!(f[k] > 0.0)) continue;
       rate[k] = s.qdot(L.iv + k) / h + s.qddot(L.iv + k);
-      // (with ties the articulated passes: the factored joint-space inertia is the tree's
-      // without them)
-      const bool ties = !model_.ties.empty();
-      if (!mass && !ties) closures_.factorMass(model_, ws_), mass = true;
       fric_y_.setZero();
       fric_y_(L.iv + k) = 1.0;
-      if (ties) closures_.applyInverseMass(model_, ws_, fric_y_.data(), fric_y_.data());
-      else closures_.inverseMass(fric_y_.data());
-      if (closures_.m > 0) {
-        closures_.timesG(fric_y_, fric_r_);
-        closures_.solve(fric_r_, fric_mu_);
-        if (ties) {
-          const int m = closures_.m;
-          fric_e_.noalias() = closures_.G.topRows(m).transpose() * fric_mu_.head(m);
-          closures_.applyInverseMass(model_, ws_, fric_e_.data(), fric_e_.data());
-        } else {
-          closures_.inverseMassGT(fric_mu_, fric_e_);
-        }
-        fric_y_ -= fric_e_;
-      }
+      constrainedInverseMass(fric_y_, mass);
       for (int l = 0; l < L.nv; ++l)
         if (f[l] > 0.0) gPg[l][k] = fric_y_(L.iv + l);
     }
@@ -617,34 +600,40 @@ void JointStepper::frictionFor(const System& sys, State& s, double h) {
     const SumFriction& F = sys.sum_friction[r];
     if (!(F.f > 0.0)) continue;
     double rate[3] = {0, 0, 0}, gPg[3][3] = {{0}};
-    const bool ties = !model_.ties.empty();
-    if (!mass && !ties) closures_.factorMass(model_, ws_), mass = true;
     fric_y_.setZero();
     for (const LimitTerm& t : F.terms) {
       const int iv = model_.links[model_.joint_link[t.joint]].iv + t.k;
       rate[0] += t.c * (s.qdot(iv) / h + s.qddot(iv));
       fric_y_(iv) += t.c;
     }
-    if (ties) closures_.applyInverseMass(model_, ws_, fric_y_.data(), fric_y_.data());
-    else closures_.inverseMass(fric_y_.data());
-    if (closures_.m > 0) {
-      closures_.timesG(fric_y_, fric_r_);
-      closures_.solve(fric_r_, fric_mu_);
-      if (ties) {
-        const int m = closures_.m;
-        fric_e_.noalias() = closures_.G.topRows(m).transpose() * fric_mu_.head(m);
-        closures_.applyInverseMass(model_, ws_, fric_e_.data(), fric_e_.data());
-      } else {
-        closures_.inverseMassGT(fric_mu_, fric_e_);
-      }
-      fric_y_ -= fric_e_;
-    }
+    constrainedInverseMass(fric_y_, mass);
     for (const LimitTerm& t : F.terms) gPg[0][0] += t.c * fric_y_(model_.links[model_.joint_link[t.joint]].iv + t.k);
     std::array<double, 3> out;
     coulombFriction({F.f, 0.0, 0.0}, false, rate, gPg, out);
     s.sum_friction[r] = out[0];
   }
 }
+
+void JointStepper::constrainedInverseMass(Eigen::VectorXd& y, bool& mass) {
+  // (with ties the articulated passes: the factored joint-space inertia is the tree's
+  // without them)
+  const bool ties = !model_.ties.empty();
+  if (!mass && !ties) closures_.factorMass(model_, ws_), mass = true;
+  if (ties) closures_.applyInverseMass(model_, ws_, y.data(), y.data());
+  else closures_.inverseMass(y.data());
+  if (closures_.m == 0) return;
+  closures_.timesG(y, fric_r_);
+  closures_.solve(fric_r_, fric_mu_);
+  if (ties) {
+    const int m = closures_.m;
+    fric_e_.noalias() = closures_.G.topRows(m).transpose() * fric_mu_.head(m);
+    closures_.applyInverseMass(model_, ws_, fric_e_.data(), fric_e_.data());
+  } else {
+    closures_.inverseMassGT(fric_mu_, fric_e_);
+  }
+  y -= fric_e_;
+}
+
 int JointStepper::stateCoordinate(const State& s, int joint, bool rate) const {
   if (s.q.size() == 0) return -1;
   const int link = model_.joint_link[joint];

@@ -114,6 +114,9 @@ class JointStepper final : public FormulationStepper {
   // s.friction for the step h (Stepper::frictionFor's rule, coulombFriction) from s.qdot and
   // the accelerations without friction s.qddot, with ws_ and the closures at s.q's factors.
   void frictionFor(const System& sys, State& s, double h);
+  // y = P y, P the constrained inverse mass M^-1 - M^-1 G^T (G M^-1 G^T)^+ G M^-1 at ws_ and
+  // the closures' factors (frictionFor's g P g^T); mass: M is factored already (set here).
+  void constrainedInverseMass(Eigen::VectorXd& y, bool& mass);
   // s.x, s.u, s.acc and the tracked angles from s.q, s.qdot, s.qddot.
   void writeAbsolute(const System& sys, State& s);
 

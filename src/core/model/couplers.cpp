@@ -12,14 +12,6 @@ std::vector<int> unionOfBodies(const Joint& a, const Joint& b) {
   return bodies;
 }
 
-std::vector<int> unionOfBodies(const std::vector<CouplingTerm>& terms) {
-  std::vector<int> bodies;
-  for (const CouplingTerm& t : terms)
-    for (int x : {t.joint->bodyI(), t.joint->bodyJ()})
-      if (std::find(bodies.begin(), bodies.end(), x) == bodies.end()) bodies.push_back(x);
-  return bodies;
-}
-
 int slotOf(const std::vector<int>& bodies, int b) {
   return static_cast<int>(std::find(bodies.begin(), bodies.end(), b) - bodies.begin());
 }
@@ -54,10 +46,12 @@ void CoordinateCoupler::evaluate(const BodyKin* const* kin, const EvalContext& c
 
 LimitConstraint::LimitConstraint(const std::string& name, std::vector<CouplingTerm> terms, int limit, double lower,
                                  double upper)
-    : Constraint(name, unionOfBodies(terms)), terms_(std::move(terms)), limit_(limit), lower_(lower), upper_(upper) {
-  for (const CouplingTerm& t : terms_)
-    slots_.push_back({slotOf(bodies(), t.joint->bodyI()), slotOf(bodies(), t.joint->bodyJ())});
-}
+    : Constraint(name, bodiesOfTerms(terms)),
+      terms_(std::move(terms)),
+      slots_(termSlots(terms_, bodies())),
+      limit_(limit),
+      lower_(lower),
+      upper_(upper) {}
 
 void LimitConstraint::evaluate(const BodyKin* const* kin, const EvalContext& ctx,
                                Eigen::Ref<Eigen::VectorXd> Phi, Eigen::Ref<Eigen::MatrixXd> J,
@@ -69,19 +63,8 @@ void LimitConstraint::evaluate(const BodyKin* const* kin, const EvalContext& ctx
     gamma(0) = 0.0;
     return;
   }
-  // Phi = sum c_i q_i - bound, Phi_q = sum c_i q_x,i, gamma = sum c_i gamma_i
-  double phi = -(side < 0 ? lower_ : upper_), g = 0.0;
-  std::array<Row, kMaxJointDofs> rows;
-  for (size_t i = 0; i < terms_.size(); ++i) {
-    const CouplingTerm& t = terms_[i];
-    t.joint->coordinates(*kin[slots_[i][0]], *kin[slots_[i][1]], ctx.tracked[t.joint->id()], rows.data());
-    const Row& q = rows[t.k];
-    phi += t.c * q.Phi;
-    g += t.c * q.gamma;
-    for (int s = 0; s < 2; ++s) J.block<1, 6>(0, 6 * slots_[i][s]) += t.c * q.J.segment<6>(6 * s);
-  }
-  Phi(0) = phi;
-  gamma(0) = g;
+  // Phi = sum c_i q_i - the bound on the active side
+  coordinateSum(terms_, slots_, kin, ctx, side < 0 ? lower_ : upper_, Phi(0), J, gamma(0));
 }
 
 }  // namespace mechanism_sim

@@ -2,6 +2,7 @@
 // belts, differentials, planetary trains): sum_i c_i q_i = c_0, one holonomic equation whose
 // multiplier is the effort the mesh carries (doc/model_format.md, <mechanism_sim:coupling>).
 #pragma once
+#include <array>
 #include <vector>
 
 #include "mechanism_sim/core/model/joint.h"
@@ -14,6 +15,18 @@ struct CouplingTerm {
   int k = 0;
   double c = 0.0;
 };
+
+// A sum of joint coordinates, sum_i c_i q_i, as a constraint over the terms' bodies reads it
+// (LinearCoupling's equation, LimitConstraint's on a sum):
+// the terms' joints' bodies, each once, in the terms' order;
+std::vector<int> bodiesOfTerms(const std::vector<CouplingTerm>& terms);
+// per term, its joint's bodies i and j as places in `bodies`;
+std::vector<std::array<int, 2>> termSlots(const std::vector<CouplingTerm>& terms, const std::vector<int>& bodies);
+// Phi = sum_i c_i q_i - offset with each q_i a joint's coordinate row (Joint::coordinates at
+// kin[slots]), its Jacobian row added to J (sum_i c_i q_x,i) and gamma = sum_i c_i gamma_i.
+void coordinateSum(const std::vector<CouplingTerm>& terms, const std::vector<std::array<int, 2>>& slots,
+                   const BodyKin* const* kin, const EvalContext& ctx, double offset, double& Phi,
+                   Eigen::Ref<Eigen::MatrixXd> J, double& gamma);
 
 // Phi = sum_i c_i q_i - c_0, with each q_i a joint's coordinate row (Joint::coordinates):
 //   Phi_q = sum_i c_i q_x,i   (each on its joint's bodies i and j)
