@@ -41,6 +41,7 @@ void CsvWriter::header() {
     for (const char* c : {"motor_position", "motor_velocity", "motor_torque", "motor_power"}) out_ << ',' << a.name << '.' << c;
     if (electricalGiven(a.ratings))
       for (const char* c : {"motor_current", "motor_voltage", "electrical_power"}) out_ << ',' << a.name << '.' << c;
+    if (model_.actuatorLimits()) out_ << ',' << a.name << ".lag," << a.name << ".saturated";
   }
   if (reactions_)
     for (const JointReaction& r : model_.jointReactions())
@@ -62,6 +63,7 @@ void CsvWriter::row(const Sample& s) {
     const ActuatorState& a = s.actuators[k];
     b.comma(a.position).comma(a.velocity).comma(a.torque).comma(a.power);
     if (electricalGiven(model_.actuators()[k].ratings)) b.comma(a.current).comma(a.voltage).comma(a.electrical_power);
+    if (model_.actuatorLimits()) b.comma(a.lag).comma(a.saturated ? 1.0 : 0.0);
   }
   if (reactions_)
     for (const JointReaction& r : s.reactions)

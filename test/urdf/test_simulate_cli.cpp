@@ -192,6 +192,34 @@ TEST(SimulateCli, KinematicModeAndStrictInertia) {
       << strict.out;
 }
 
+// In the saturating mode each actuator's CSV has its drive's lag and whether it is at its
+// bound: the winch (urdf/winch.urdf) asked 15 rad/s settles at 10.19, so its lag grows at
+// the difference from the start and it stays at its bound; the last row's lag is the
+// summary's.
+TEST(SimulateCli, SaturatingModeWritesEachActuatorsLag) {
+  const std::string csv = ::testing::TempDir() + "/winch.csv";
+  const Result r = run(kSource + "/urdf/winch.urdf --duration 3 --dt 0.001 --output-every 500 --actuator-limits --csv " + csv);
+  ASSERT_EQ(r.code, 0) << r.out;
+  const auto rows = readCsv(csv);
+  const auto& head = rows[0];
+  ASSERT_GE(head.size(), 2u);
+  EXPECT_EQ(head[head.size() - 2], "winch_motor.lag");
+  EXPECT_EQ(head.back(), "winch_motor.saturated");
+  const double lag = std::stod(rows.back()[head.size() - 2]);
+  EXPECT_EQ(rows.back().back(), "1");
+  // 15 rad/s asked, 10.19 reached after a short run-up: the lag after 3 s is about 4.8 x 3
+  EXPECT_GT(lag, 13.0);
+  EXPECT_LT(lag, 14.5);
+  std::ostringstream summary;
+  summary.precision(4);
+  summary << "still behind at the end: " << lag << ")";
+  EXPECT_NE(r.out.find(summary.str()), std::string::npos) << r.out;
+  // without the mode, no such columns
+  const std::string sized = ::testing::TempDir() + "/winch_sized.csv";
+  ASSERT_EQ(run(kSource + "/urdf/winch.urdf --duration 0.01 --quiet --csv " + sized).code, 0);
+  EXPECT_EQ(readCsv(sized)[0].back(), "winch_motor.motor_power");
+}
+
 }  // namespace
 
 // Actuators in the CSV (doc/actuators.md): the motor's columns after constraint.velocity,
