@@ -35,6 +35,26 @@ std::string pendulum(const std::string& extra, double m = 2.0, double L = 0.5, d
          extra + "</robot>";
 }
 
+// Two discs about the vertical, a at the origin and b 0.3 m away, behind a differential
+// (E = [20 40; 30 -60]), with extra elements (actuators, initial values).
+std::string differentialDiscs(const std::string& extra) {
+  return std::string(
+           "<robot name=\"diff\" xmlns:mechanism_sim=\"https://mechanism-sim.github.io/urdf-extension\"><link name=\"base\"/>"
+           "<link name=\"a\"><inertial><mass value=\"1\"/><inertia ixx=\"0.01\" iyy=\"0.01\" izz=\"0.02\" "
+           "ixy=\"0\" ixz=\"0\" iyz=\"0\"/></inertial></link>"
+           "<link name=\"b\"><inertial><mass value=\"1.2\"/><inertia ixx=\"0.015\" iyy=\"0.015\" izz=\"0.03\" "
+           "ixy=\"0\" ixz=\"0\" iyz=\"0\"/></inertial></link>"
+           "<joint name=\"ja\" type=\"continuous\"><parent link=\"base\"/><child link=\"a\"/><axis xyz=\"0 0 1\"/></joint>"
+           "<joint name=\"jb\" type=\"continuous\"><parent link=\"base\"/><child link=\"b\"/><origin xyz=\"0.3 0 0\"/>"
+           "<axis xyz=\"0 0 1\"/></joint>"
+           "<transmission name=\"wrist\"><type>transmission_interface/DifferentialTransmission</type>"
+           "<actuator name=\"m1\"><role>actuator1</role><mechanicalReduction>20</mechanicalReduction></actuator>"
+           "<actuator name=\"m2\"><role>actuator2</role><mechanicalReduction>30</mechanicalReduction></actuator>"
+           "<joint name=\"ja\"><role>joint1</role><mechanicalReduction>1</mechanicalReduction></joint>"
+           "<joint name=\"jb\"><role>joint2</role><mechanicalReduction>2</mechanicalReduction></joint></transmission>") +
+         extra + "</robot>";
+}
+
 const char* kSimple =
     "<transmission name=\"gearbox\"><type>transmission_interface/SimpleTransmission</type>"
     "<joint name=\"hinge\"><hardwareInterface>hardware_interface/EffortJointInterface</hardwareInterface></joint>"
@@ -560,24 +580,10 @@ TEST(Actuators, MotorFrictionHoldsThePendulumWithinItsBound) {
 // power the motion loses is c_m theta_dot_1^2; over 1 s the kinetic energy falls by the
 // integral of c_m theta_dot_1^2.
 TEST(Actuators, DifferentialMotorDampingTakesItsMotorsPower) {
-  const std::string xml =
-      "<robot name=\"diff\" xmlns:mechanism_sim=\"https://mechanism-sim.github.io/urdf-extension\"><link name=\"base\"/>"
-      "<link name=\"a\"><inertial><mass value=\"1\"/><inertia ixx=\"0.01\" iyy=\"0.01\" izz=\"0.02\" "
-      "ixy=\"0\" ixz=\"0\" iyz=\"0\"/></inertial></link>"
-      "<link name=\"b\"><inertial><mass value=\"1.2\"/><inertia ixx=\"0.015\" iyy=\"0.015\" izz=\"0.03\" "
-      "ixy=\"0\" ixz=\"0\" iyz=\"0\"/></inertial></link>"
-      "<joint name=\"ja\" type=\"continuous\"><parent link=\"base\"/><child link=\"a\"/><axis xyz=\"0 0 1\"/></joint>"
-      "<joint name=\"jb\" type=\"continuous\"><parent link=\"base\"/><child link=\"b\"/><origin xyz=\"0.3 0 0\"/>"
-      "<axis xyz=\"0 0 1\"/></joint>"
-      "<transmission name=\"wrist\"><type>transmission_interface/DifferentialTransmission</type>"
-      "<actuator name=\"m1\"><role>actuator1</role><mechanicalReduction>20</mechanicalReduction></actuator>"
-      "<actuator name=\"m2\"><role>actuator2</role><mechanicalReduction>30</mechanicalReduction></actuator>"
-      "<joint name=\"ja\"><role>joint1</role><mechanicalReduction>1</mechanicalReduction></joint>"
-      "<joint name=\"jb\"><role>joint2</role><mechanicalReduction>2</mechanicalReduction></joint></transmission>"
+  const std::string xml = differentialDiscs(
       "<mechanism_sim:actuator name=\"m1\" rotor_inertia=\"1e-5\" damping=\"1e-5\"/>"
       "<mechanism_sim:actuator name=\"m2\" rotor_inertia=\"2e-5\"/>"
-      "<mechanism_sim:initial joint=\"ja\" velocity=\"1.5\"/><mechanism_sim:initial joint=\"jb\" velocity=\"-2\"/>"
-      "</robot>";
+      "<mechanism_sim:initial joint=\"ja\" velocity=\"1.5\"/><mechanism_sim:initial joint=\"jb\" velocity=\"-2\"/>");
   Eigen::Matrix2d E;
   E << 20, 40, 30, -60;
   const double c_m = 1e-5;
@@ -654,21 +660,7 @@ TEST(Actuators, MotorWorkIsTheEnergyChangePlusWhatDampingAndFrictionTook) {
 TEST(Actuators, DifferentialMotorFrictionActsOnItsShaft) {
   const double f_m = 0.02;
   const std::string actuators = "<mechanism_sim:actuator name=\"m1\" friction=\"0.02\"/>";
-  const std::string xml =
-      "<robot name=\"diff\" xmlns:mechanism_sim=\"https://mechanism-sim.github.io/urdf-extension\"><link name=\"base\"/>"
-      "<link name=\"a\"><inertial><mass value=\"1\"/><inertia ixx=\"0.01\" iyy=\"0.01\" izz=\"0.02\" "
-      "ixy=\"0\" ixz=\"0\" iyz=\"0\"/></inertial></link>"
-      "<link name=\"b\"><inertial><mass value=\"1.2\"/><inertia ixx=\"0.015\" iyy=\"0.015\" izz=\"0.03\" "
-      "ixy=\"0\" ixz=\"0\" iyz=\"0\"/></inertial></link>"
-      "<joint name=\"ja\" type=\"continuous\"><parent link=\"base\"/><child link=\"a\"/><axis xyz=\"0 0 1\"/></joint>"
-      "<joint name=\"jb\" type=\"continuous\"><parent link=\"base\"/><child link=\"b\"/><origin xyz=\"0.3 0 0\"/>"
-      "<axis xyz=\"0 0 1\"/></joint>"
-      "<transmission name=\"wrist\"><type>transmission_interface/DifferentialTransmission</type>"
-      "<actuator name=\"m1\"><role>actuator1</role><mechanicalReduction>20</mechanicalReduction></actuator>"
-      "<actuator name=\"m2\"><role>actuator2</role><mechanicalReduction>30</mechanicalReduction></actuator>"
-      "<joint name=\"ja\"><role>joint1</role><mechanicalReduction>1</mechanicalReduction></joint>"
-      "<joint name=\"jb\"><role>joint2</role><mechanicalReduction>2</mechanicalReduction></joint></transmission>" +
-      actuators + "</robot>";
+  const std::string xml = differentialDiscs(actuators);
   Eigen::Matrix2d E;
   E << 20, 40, 30, -60;
   const Eigen::Matrix2d Einv = E.inverse();
