@@ -12,6 +12,19 @@
 #include "ros_conversions.h"
 
 namespace mechanism_sim {
+namespace {
+
+// What is wrong with an effort command's arrays (~effort_command, ~actuator_effort_command):
+// one effort per name, and position and velocity, when given, one per name; "" if nothing.
+std::string effortArraysProblem(const sensor_msgs::JointState& msg) {
+  const size_t n = msg.name.size();
+  if ((!msg.position.empty() && msg.position.size() != n) || (!msg.velocity.empty() && msg.velocity.size() != n))
+    return "position or velocity array differs in length from name";
+  if (msg.effort.size() != n) return "name and effort arrays differ in length";
+  return "";
+}
+
+}  // namespace
 
 bool NodeParams::read(const ros::NodeHandle& pnh) {
   pnh.param("step", step, 1e-3);
@@ -277,10 +290,7 @@ void SimNode::run() {
 
 void SimNode::onEffort(const sensor_msgs::JointState::ConstPtr& msg) {
   const size_t n = msg->name.size();
-  std::string problem;
-  if (msg->effort.size() != n) problem = "name and effort arrays differ in length";
-  if ((!msg->position.empty() && msg->position.size() != n) || (!msg->velocity.empty() && msg->velocity.size() != n))
-    problem = "position or velocity array differs in length from name";
+  std::string problem = effortArraysProblem(*msg);
   std::vector<int> dofs;
   for (size_t i = 0; problem.empty() && i < n; ++i) {
     const int d = model_->dofIndex(msg->name[i]);  // dofs are fixed after init: no lock needed
@@ -305,10 +315,7 @@ void SimNode::onEffort(const sensor_msgs::JointState::ConstPtr& msg) {
 // actuator of a passive joint is rejected whole, as ~effort_command's.
 void SimNode::onActuatorEffort(const sensor_msgs::JointState::ConstPtr& msg) {
   const size_t n = msg->name.size();
-  std::string problem;
-  if (msg->effort.size() != n) problem = "name and effort arrays differ in length";
-  if ((!msg->position.empty() && msg->position.size() != n) || (!msg->velocity.empty() && msg->velocity.size() != n))
-    problem = "position or velocity array differs in length from name";
+  std::string problem = effortArraysProblem(*msg);
   const std::vector<Actuator>& actuators = model_->actuators();  // fixed after init: no lock needed
   std::vector<int> which;
   for (size_t i = 0; problem.empty() && i < n; ++i) {
