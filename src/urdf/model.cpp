@@ -40,10 +40,6 @@ double MechanismModel::stepVelocityViolation() const { return mechanism_->stepVe
 
 namespace {
 
-Eigen::Vector3d rotationVector(const Mechanism& m, int joint) {
-  return Eigen::Vector3d(m.jointPosition(joint, 0), m.jointPosition(joint, 1), m.jointPosition(joint, 2));
-}
-
 Eigen::Isometry3d turnAboutZ(double t) {
   return Eigen::Isometry3d(Eigen::AngleAxisd(t, Eigen::Vector3d::UnitZ()));
 }
@@ -52,7 +48,7 @@ Eigen::Isometry3d turnAboutZ(double t) {
 
 const Angles3& MechanismModel::gimbalAngles(int gimbal) const {
   auto& [angles, at] = gimbal_angles_.at(gimbal);
-  const Eigen::Vector3d now = rotationVector(*mechanism_, gimbals_[gimbal].joint);
+  const Eigen::Vector3d now = ballVector(gimbal, &Mechanism::jointPosition);
   if (now != at) {
     angles = gimbals_[gimbal].axes.angles(expRotation(now).toRotationMatrix(), angles);
     at = now;
@@ -94,9 +90,10 @@ std::pair<Eigen::Vector3d, Eigen::Vector3d> MechanismModel::linkVelocity(int lin
     if (link != G.link1 && link != G.link2) continue;
     // turning about the ball's centre c, fixed in the parent: v(p) = v_parent(p) + w_rel x (p - c)
     const Angles3& t = gimbalAngles(static_cast<int>(g));
-    const Angles3 t_dot = {velocity(dofOfGimbal(g, 0)), velocity(dofOfGimbal(g, 1)), 0.0};
+    const Angles3 t_dot = gimbalRates(static_cast<int>(g));
     const Eigen::Isometry3d F = linkPose(G.parent_link) * G.P_J[0];  // J0's frame on the parent
-    const Eigen::Vector3d w_rel = F.linear() * G.axes.rateMatrix(t) * Eigen::Vector3d(t_dot[0], link == G.link2 ? t_dot[1] : 0.0, 0.0);
+    const Eigen::Vector3d turned(t_dot[0], link == G.link2 ? t_dot[1] : 0.0, 0.0);  // L1: t0 alone; L2: t0, t1
+    const Eigen::Vector3d w_rel = F.linear() * G.axes.rateMatrix(t) * turned;
     const auto parent = linkVelocity(G.parent_link);
     const Eigen::Vector3d p = linkPose(link).translation(), from_parent = p - linkPose(G.parent_link).translation();
     return {parent.first + parent.second.cross(from_parent) + w_rel.cross(p - F.translation()), parent.second + w_rel};
@@ -168,29 +165,34 @@ double MechanismModel::position(int dof) const {
 }
 double MechanismModel::velocity(int dof) const {
   const Dof& d = dofs_.at(dof);
-  if (d.gimbal >= 0) return gimbals_[d.gimbal].axes.rates(gimbalAngles(d.gimbal), ballVector(d, &Mechanism::jointVelocity))[d.k];
+  if (d.gimbal >= 0) return gimbalRates(d.gimbal)[d.k];
   return mechanism_->jointVelocity(d.joint_index, d.k);
 }
 double MechanismModel::effort(int dof) const {
   const Dof& d = dofs_.at(dof);
-  if (d.gimbal >= 0)
-    return (gimbals_[d.gimbal].axes.rateMatrix(gimbalAngles(d.gimbal)).transpose() * ballVector(d, &Mechanism::jointEffort))(d.k);
+  if (d.gimbal >= 0) {
+    const Eigen::Matrix3d J = gimbals_[d.gimbal].axes.rateMatrix(gimbalAngles(d.gimbal));
+    return (J.transpose() * ballVector(d.gimbal, &Mechanism::jointEffort))(d.k);
+  }
   return mechanism_->jointEffort(d.joint_index, d.k);
 }
 double MechanismModel::acceleration(int dof) const {
   const Dof& d = dofs_.at(dof);
   if (d.gimbal >= 0) {
-    const Gimbal& G = gimbals_[d.gimbal];
-    const Angles3& t = gimbalAngles(d.gimbal);
-    return G.axes.accelerations(t, G.axes.rates(t, ballVector(d, &Mechanism::jointVelocity)),
-                                ballVector(d, &Mechanism::jointAcceleration))[d.k];
+    return gimbals_[d.gimbal].axes.accelerations(gimbalAngles(d.gimbal), gimbalRates(d.gimbal),
+                                                 ballVector(d.gimbal, &Mechanism::jointAcceleration))[d.k];
   }
   return mechanism_->jointAcceleration(d.joint_index, d.k);
 }
 
-Eigen::Vector3d MechanismModel::ballVector(const Dof& d, double (Mechanism::*of)(int, int) const) const {
+Eigen::Vector3d MechanismModel::ballVector(int gimbal, double (Mechanism::*of)(int, int) const) const {
   const Mechanism& m = *mechanism_;
-  return Eigen::Vector3d((m.*of)(d.joint_index, 0), (m.*of)(d.joint_index, 1), (m.*of)(d.joint_index, 2));
+  const int j = gimbals_[gimbal].joint;
+  return Eigen::Vector3d((m.*of)(j, 0), (m.*of)(j, 1), (m.*of)(j, 2));
+}
+
+Angles3 MechanismModel::gimbalRates(int gimbal) const {
+  return gimbals_[gimbal].axes.rates(gimbalAngles(gimbal), ballVector(gimbal, &Mechanism::jointVelocity));
 }
 
 void MechanismModel::commandDriveVelocity(int dof, double v, double acc) {

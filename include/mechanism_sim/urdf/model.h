@@ -288,8 +288,10 @@ class MechanismModel {
   std::vector<Actuator> actuators_;
   std::vector<Gimbal> gimbals_;
   int dofOfGimbal(size_t gimbal, int k) const;
-  // A gimbal dof's ball's three values of `of` (jointVelocity, jointEffort, ...).
-  Eigen::Vector3d ballVector(const Dof& d, double (Mechanism::*of)(int, int) const) const;
+  // A gimbal's ball's three values of `of` (jointPosition, jointVelocity, jointEffort, ...).
+  Eigen::Vector3d ballVector(int gimbal, double (Mechanism::*of)(int, int) const) const;
+  // The rates of a gimbal's angles from its ball's relative angular velocity (davenport.h).
+  Angles3 gimbalRates(int gimbal) const;
   // per gimbal: the angles last reported and the rotation vector they were reported at
   mutable std::vector<std::pair<Angles3, Eigen::Vector3d>> gimbal_angles_;
   std::vector<Eigen::Isometry3d> reaction_frames_;  // per core joint: its file frame in its child's body
