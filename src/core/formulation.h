@@ -47,6 +47,9 @@ class FormulationStepper {
     (void)s, (void)position, (void)velocity;
     return false;
   }
+  // Writes what a step left pending in s (State::acc_pending) from s's own state; a
+  // formulation that leaves nothing pending has nothing to do.
+  virtual void completeState(State& s) { (void)s; }
   // The System's damping changed (its layout did not).
   virtual void dampingChanged(const System& sys) { (void)sys; }
   // Where the State keeps joint `joint`'s coordinates as its own (its rates with `rate`):

@@ -359,7 +359,7 @@ AssemblyReport Mechanism::assemble(const std::vector<CoordinateTarget>& position
 void Mechanism::step(double h) {
   if (!built_) throw UsageError("Mechanism::step before build() and assemble()");
   const bool saturation_current = saturation_current_;
-  stateChanged();
+  forgetQueries();
   // (saturating mode: the step starts within the bounds and its lags' ways back chosen for h;
   // the state it reaches is brought within them)
   if (!actuator_limits_.empty() && !saturation_current) saturate(h);
@@ -408,6 +408,10 @@ void Mechanism::restore(const Snapshot& s) {
   state_ = s;  // (queries compute from it; stepping goes on from it bit for bit)
   running_->invalidate();  // (recomputed at the next step: the same bits)
   running_->adopt(*sys_, state_, inputs_);  // (a snapshot of the other formulation)
+}
+
+void Mechanism::completeState() const {
+  if (state_.acc_pending && running_) running_->completeState(const_cast<State&>(state_));
 }
 
 const Evaluation& Mechanism::evaluated() const {
@@ -471,6 +475,7 @@ double Mechanism::jointEffort(int joint, int k) const {
 Eigen::VectorXd Mechanism::multipliers(const Evaluation** with) const {
   const System& sys = *sys_;
   if (!reactions_) reactions_ = std::make_unique<ReactionSolve>();
+  completeState();  // (the tree's reactions read the bodies' accelerations)
   Eigen::VectorXd lambda;
   if (running_->reactionMultipliers(sys, state_, inputs_, reactions_->tree, lambda, with)) return lambda;
   bool dependent = false;

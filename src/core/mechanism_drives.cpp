@@ -50,6 +50,7 @@ void Mechanism::removeDrive(int drive) {
 
 std::vector<int> Mechanism::replaceDrives(std::vector<DriveSpec> drives, const std::vector<int>& from,
                                           std::vector<DriveRamp> references) {
+  completeState();  // (the copy below is solved again from its accelerations)
   const System& old = *sys_;
   auto sys = std::make_shared<System>(old);
   sys->drives = std::move(drives);
@@ -121,6 +122,7 @@ double Mechanism::jointAcceleration(int joint, int k) const {
   const int i = treeCoordinate(joint, true);  // (the joint formulation's own q_ddot)
   if (i >= 0) return state_.qddot[i + k];
   const Row& row = coordinateRows(joint)[k];
+  completeState();
   return rowDot(*sys_, joint, row, state_.acc.data()) - row.gamma;
 }
 

@@ -122,7 +122,10 @@ class Mechanism {
   int driveOf(int joint, int k) const;
   // What the drive prescribes now: position, velocity, acceleration.
   void driveTarget(int drive, double* q, double* q_dot, double* q_ddot) const;
-  Snapshot snapshot() const { return state_; }
+  Snapshot snapshot() const {
+    completeState();
+    return state_;
+  }
   void restore(const Snapshot& s);
 
   // ---- the saturating mode (doc/actuators.md; mechanism_saturation.cpp)
@@ -146,7 +149,10 @@ class Mechanism {
 
   // ---- the parts
   const System& system() const { return *sys_; }
-  const State& state() const { return state_; }
+  const State& state() const {
+    completeState();
+    return state_;
+  }
   // The stepper's, plus the reaction queries' least-norm solves (jointReactions, absolute
   // formulation with dependent equations).
   SolverStats solverStats() const;
@@ -238,12 +244,22 @@ class Mechanism {
   // stateChanged(), the one found (a stamp's comparison reads all of x and u, and a sample
   // of the run loop asks some 300 queries of one state).
   const Evaluation& evaluated() const;
-  // Every method that may change state_, the System or the steppers' evaluations calls it.
+  // Every method that may change state_, the System or the steppers' evaluations calls it
+  // (step() only forgets: what it leaves pending is written when something reads it).
   void stateChanged() {
+    completeState();
+    forgetQueries();
+  }
+  // What the queries found of state_, forgotten.
+  void forgetQueries() {
     described_ = nullptr;
     saturation_current_ = false;
     std::fill(rows_found_.begin(), rows_found_.end(), 0);
   }
+  // What the running formulation's last step left pending in state_ (State::acc_pending),
+  // written from state_'s own state: before anything reads state_ whole or changes it.
+  // (Logically const: state_ is the same state, only completed.)
+  void completeState() const;
   // The multipliers of state_ and the evaluation whose Jacobian they go with: the State's
   // own (absolute formulation, independent equations), the least-norm ones from its
   // accelerations (absolute formulation, dependent equations), or in the joint formulation,

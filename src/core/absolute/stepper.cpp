@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <sstream>
+#include <stdexcept>
 
 namespace mechanism_sim {
 namespace {
@@ -161,8 +162,13 @@ void Stepper::frictionFor(const System& sys, State& s, const Inputs& in, double 
 }
 
 
+void Stepper::requireComplete(const State& s) {
+  if (s.acc_pending) throw std::logic_error("absolute formulation: a State with its accelerations pending");
+}
+
 void Stepper::step(const System& sys, State& s, const Inputs& in, double h) {
   if (!(h > 0) || !std::isfinite(h)) throw UsageError("step must be positive and finite");
+  requireComplete(s);
   // A step that fails leaves the State where it was (the last accepted step), not part
   // way through its substeps.
   start_ = s;
@@ -316,6 +322,7 @@ void Stepper::stepOnce(const System& sys, State& s, const Inputs& in, double h) 
 }
 
 void Stepper::settle(const System& sys, State& s, const Inputs& in) {
+  requireComplete(s);
   for (int b = 0; b < sys.nb; ++b) s.x.segment<4>(BodyCoordinates::x(b) + 3).normalize();
   finishStep(sys, s, in, false);
 }

@@ -48,7 +48,10 @@ class Stepper final : public FormulationStepper {
   // friction efforts in s; after it evaluation() describes s.
   void settle(const System& sys, State& s, const Inputs& in) override;
   void resolve(const System& sys, State& s, const Inputs& in) override;
-  void adopt(const System&, State& s, const Inputs&) override { s.q.resize(0), s.qdot.resize(0), s.qddot.resize(0); }
+  void adopt(const System&, State& s, const Inputs&) override {
+    requireComplete(s);
+    s.q.resize(0), s.qdot.resize(0), s.qddot.resize(0);
+  }
 
   // The last evaluation (after step() or settle(): of the state reached; its stamp says
   // which) and the solver.
@@ -69,6 +72,9 @@ class Stepper final : public FormulationStepper {
   void trackAngles(const System& sys, State& s, std::vector<Tracked>* rates = nullptr) const;
 
  private:
+  // s's accelerations written (State::acc_pending: the joint formulation completes them,
+  // Mechanism before it hands a State over); else std::logic_error.
+  static void requireComplete(const State& s);
   bool frictionActs(const System& sys) const;
   void rates(const System& sys, const State& s, const Inputs& in,
              const std::vector<std::array<double, 3>>& friction, const double* x, const double* u,

@@ -82,7 +82,11 @@ std::string jointFormulationUnsupported(const System& sys) {
 }
 
 JointStepper::JointStepper(const System& sys, bool embed_couplers)
-    : model_(sys, embed_couplers), ws_(model_), closures_(model_, sys), damping_(model_, ws_, closures_) {
+    : model_(sys, embed_couplers),
+      ws_(model_),
+      closures_(model_, sys),
+      damping_(model_, ws_, closures_),
+      query_ws_(model_) {
   const std::string unsupported = jointFormulationUnsupported(sys);
   if (!unsupported.empty()) throw ModelError("the joint formulation cannot run this mechanism: " + unsupported);
   tableau_ = &tableau(parseMethod(sys.options.method));
@@ -111,7 +115,7 @@ void JointStepper::setDamping(const System& sys) {
 void JointStepper::accelerations(const System& sys, const State& s, const Inputs& in, double t,
                                  const Eigen::VectorXd& q, const Eigen::VectorXd& qdot, Eigen::VectorXd& qddot,
                                  bool evaluated) {
-  jointEfforts(model_, in, tau_);  // efforts along the joint coordinates
+  tau_ = tau_in_;  // the inputs' efforts along the joint coordinates (setInputs)
   // Damping, per coordinate of q_dot: a spherical joint's are the relative angular velocity
   // in frame i, Joint::coordinates' rates (settle() reads q_dot from them), so tau_k =
   // -c_k q_dot_k is the absolute formulation's q_x,k^T (-c_k q_x,k u) (appliedForces): one power,
@@ -120,13 +124,15 @@ void JointStepper::accelerations(const System& sys, const State& s, const Inputs
   for (size_t i = 0; i < damped.size(); ++i)  // damping that is not stiff: an effort
     if (!damping_.stiff()[i]) tau_(damped[i].iv) -= damped[i].c * qdot(damped[i].iv);
   // Coulomb friction: the step's efforts (frictionFor), held over its stages
-  for (const TreeLink& L : model_.links)
-    if (L.joint >= 0)
-      for (int k = 0; k < L.nv; ++k) tau_(L.iv + k) += s.friction[L.joint][k];
-  for (size_t r = 0; r < sys.sum_friction.size(); ++r)  // on sums of coordinates: c_i F along each
-    if (s.sum_friction[r] != 0.0)
-      for (const LimitTerm& t : sys.sum_friction[r].terms)
-        tau_(model_.links[model_.joint_link[t.joint]].iv + t.k) += t.c * s.sum_friction[r];
+  if (friction_acts_) {
+    for (const TreeLink& L : model_.links)
+      if (L.joint >= 0)
+        for (int k = 0; k < L.nv; ++k) tau_(L.iv + k) += s.friction[L.joint][k];
+    for (size_t r = 0; r < sys.sum_friction.size(); ++r)  // on sums of coordinates: c_i F along each
+      if (s.sum_friction[r] != 0.0)
+        for (const LimitTerm& t : sys.sum_friction[r].terms)
+          tau_(model_.links[model_.joint_link[t.joint]].iv + t.k) += t.c * s.sum_friction[r];
+  }
   const Inputs* loads = &in;
   if (!sys.springs.empty() || !damping_.cutDamped().empty()) {
     // springs act between points of bodies: body loads at the tree's poses (appliedForces)
@@ -184,7 +190,7 @@ void JointStepper::writeAbsolute(const System& sys, State& s) {
     for (size_t l = 0; l < sys.limits.size(); ++l)
       if (s.limit_side[l] == 0) s.lambda[sys.layout[sys.limits[l].constraint].row] = 0.0;
   }
-  bodyAccelerations(model_, ws_, s.qddot, s.acc);
+  s.acc_pending = true;  // (completeState)
   // Tracked angles: a tree joint's are its coordinates themselves (so an angle may advance
   // by any amount in a step: a wheel at 4000 rad/s turns 4 rad a millisecond). A cut
   // joint's follow its two bodies (Constraint::track at the new kinematics, as the absolute
@@ -204,7 +210,9 @@ void JointStepper::writeAbsolute(const System& sys, State& s) {
   // the closures' violations at this state (stepViolation()): |Phi| and |G q_dot - nu|
   // of their rows, evaluated at (s.q, s.qdot) by the accelerations above
   end_violation_ = {0.0, 0.0};
-  if (closures_.m > 0) {
+  bool free_limits = closures_.onlyLimits();  // (free limits only: zero rows, nothing violated)
+  for (size_t l = 0; l < s.limit_side.size() && free_limits; ++l) free_limits = s.limit_side[l] == 0;
+  if (closures_.m > 0 && !free_limits) {
     end_violation_[0] = closures_.Phi.head(closures_.m).cwiseAbs().maxCoeff();
     if (end_rate_.size() != closures_.G.rows()) end_rate_.setZero(closures_.G.rows());
     closures_.timesG(s.qdot, end_rate_);
@@ -212,7 +220,20 @@ void JointStepper::writeAbsolute(const System& sys, State& s) {
   }
   q_end_ = s.q;
   v_end_ = s.qdot;
+  end_generation_ = ws_.generation;
   fresh_ = true;
+}
+
+void JointStepper::completeState(State& s) {
+  if (!s.acc_pending) return;
+  // (ws_ holds the kinematics of (q_end_, v_end_) until the next step or projection moves it)
+  TreeWorkspace* ws = &ws_;
+  if (!(ws_.generation == end_generation_ && q_end_ == s.q && v_end_ == s.qdot)) {
+    forwardKinematics(model_, s.q, s.qdot, query_ws_);
+    ws = &query_ws_;
+  }
+  bodyAccelerations(model_, *ws, s.qddot, s.acc);
+  s.acc_pending = false;
 }
 
 bool JointStepper::stepViolation(const State& s, double& position, double& velocity) const {
@@ -249,11 +270,18 @@ void JointStepper::finish(const System& sys, State& s, const Inputs& in) {
   writeAbsolute(sys, s);
 }
 
+void JointStepper::setInputs(const Inputs& in, bool friction) {
+  jointEfforts(model_, in, tau_in_);
+  friction_acts_ = friction;
+}
+
 void JointStepper::resolve(const System& sys, State& s, const Inputs& in) {
   if (s.q.size() == 0) return settle(sys, s, in);
+  setInputs(in, true);
   accelerations(sys, s, in, s.t, s.q, s.qdot, s.qddot);
   if (!model_.cut_joints.empty()) s.qddot_ref = a_ref_;
   writeAbsolute(sys, s);
+  completeState(s);  // (only a step leaves it pending)
 }
 
 // Positions and velocities onto the closures (loop_closure.h), to the System's relative
@@ -285,6 +313,7 @@ bool JointStepper::project(const System& sys, State& s) {
 
 void JointStepper::settle(const System& sys, State& s, const Inputs& in) {
   closures_.rebind(sys);  // (a Mechanism's System is copied on write)
+  setInputs(in, true);
   // (a new state: no round-off of a step to carry)
   s.q_round.setZero(model_.nq), s.qdot_round.setZero(model_.nv);
   s.damping_hold.left = 0;
@@ -328,6 +357,7 @@ void JointStepper::settle(const System& sys, State& s, const Inputs& in) {
     closures_.passage_hold = true;
     throw;
   }
+  completeState(s);  // (only a step leaves it pending)
   closures_.passage_hold = true;
   // (a stage 1 computed again at this state holds what these accelerations have)
   if (!model_.cut_joints.empty()) s.qddot_ref = s.qddot;
@@ -399,6 +429,7 @@ void JointStepper::step(const System& sys, State& s, const Inputs& in, double h)
   adopt(sys, s, in);
   if (s.q.size() != model_.nq || s.qdot.size() != model_.nv)
     throw UsageError("JointStepper::step: the State's joint state is of another mechanism");
+  setInputs(in, true);
   // A step that fails leaves the State where it was (the last accepted step), not part
   // way through its substeps: stepOnce keeps what it changes (restoreStart), and the whole
   // State is copied only when the step is taken as halves.
@@ -457,9 +488,10 @@ void JointStepper::halve(const System& sys, State& s, const Inputs& in, double h
   advance(sys, s, in, 0.5 * h, depth + 1);
 }
 
-bool JointStepper::leapt(const System& sys, const State& s, double h, double scale0) {
+bool JointStepper::leapt(const System& sys, State& s, double h, double scale0) {
   if (!judged_ || s.limit_side != limit_side0_) return false;
   // (ws_ holds the end state's kinematics: finish() solved its accelerations there)
+  completeState(s);
   bodyAccelerations(model_, ws_, kv_[3], acc_k4_);
   const double L = sys.length_scale;
   double error = 0;
@@ -489,6 +521,7 @@ void JointStepper::stepOnce(const System& sys, State& s, const Inputs& in, doubl
   // stage 1: the accelerations the last step (or settle) left, when they are of this state
   // under these inputs; else computed here (with friction: without it, frictionFor's)
   const bool friction = clearFriction(sys, s);
+  friction_acts_ = friction;  // (s.friction is zero over the step where no joint has friction)
   if (friction || !(fresh_ && q_end_ == s.q && v_end_ == s.qdot)) accelerations(sys, s, in, s.t, q0_, v0_, s.qddot);
   // (ws_ holds q0's articulated factors now); stage 1 again if the stiff set changed
   if (!damping_.damped().empty() && damping_.classify(sys, s, h, *tableau_)) accelerations(sys, s, in, s.t, q0_, v0_, s.qddot);

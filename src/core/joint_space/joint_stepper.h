@@ -71,6 +71,10 @@ class JointStepper final : public FormulationStepper {
   bool stepViolation(const State& s, double& position, double& velocity) const override;
   // The inputs or the System changed: the accelerations a State holds are not reused.
   void invalidate() override { fresh_ = false; }
+  // s.acc from s.q, s.qdot, s.qddot: a step leaves it pending (State::acc_pending), the
+  // bodies' accelerations being read only by queries and by the step's error estimate;
+  // settle() and resolve() write it.
+  void completeState(State& s) override;
   // The System's joint damping changed (Mechanism::setJointDamping): which coordinates are
   // damped, and by how much, again (the constructor read them).
   void setDamping(const System& sys);
@@ -102,7 +106,7 @@ class JointStepper final : public FormulationStepper {
   // Whether the step of h that ended at s leapt over what it should follow (its error
   // estimate past numerics::kMaxStepError of the motion's velocity scale, scale0 the
   // start's).
-  bool leapt(const System& sys, const State& s, double h, double scale0);
+  bool leapt(const System& sys, State& s, double h, double scale0);
   // s back where stepOnce's last step started (what a step changes of the State; the rest
   // is computed again: fresh_ false).
   void restoreStart(State& s) const;
@@ -117,7 +121,11 @@ class JointStepper final : public FormulationStepper {
   // y = P y, P the constrained inverse mass M^-1 - M^-1 G^T (G M^-1 G^T)^+ G M^-1 at ws_ and
   // the closures' factors (frictionFor's g P g^T); mass: M is factored already (set here).
   void constrainedInverseMass(Eigen::VectorXd& y, bool& mass);
-  // s.x, s.u, s.acc and the tracked angles from s.q, s.qdot, s.qddot.
+  // The inputs' joint efforts for the accelerations from here on (tau_in_), and whether
+  // they add s.friction (false only where no joint has Coulomb friction: it is zero).
+  void setInputs(const Inputs& in, bool friction);
+  // s.x, s.u and the tracked angles from s.q, s.qdot (s.acc left pending), the closures'
+  // multipliers and violations.
   void writeAbsolute(const System& sys, State& s);
 
   TreeModel model_;
@@ -135,6 +143,8 @@ class JointStepper final : public FormulationStepper {
   Eigen::VectorXd fric_e_, fric_y_;               // e_k and P e_k (frictionFor)
   const Tableau* tableau_ = &kRk4;
   SolverStats stats_;
+  Eigen::VectorXd tau_in_;     // the inputs' joint efforts (setInputs)
+  bool friction_acts_ = true;  // accelerations() adds s.friction (setInputs)
   Eigen::VectorXd tau_, q0_, v0_, qs_, vs_, kq_[Tableau::kMaxStages], kv_[Tableau::kMaxStages], sum_q_, sum_v_;
   Inputs loads_;  // the inputs plus the springs' body loads
   JointDamping damping_;  // (after model_, ws_ and closures_, which it reads)
@@ -143,6 +153,8 @@ class JointStepper final : public FormulationStepper {
   // s.qddot is q_ddot at (q_end_, v_end_) under the current inputs: stage 1 of the next step
   bool fresh_ = false;
   Eigen::VectorXd q_end_, v_end_;
+  long end_generation_ = -1;  // ws_.generation when it held the kinematics of (q_end_, v_end_)
+  TreeWorkspace query_ws_;    // completeState's kinematics where ws_ no longer holds s's
   std::array<double, 2> end_violation_{{0.0, 0.0}};  // stepViolation() at (q_end_, v_end_)
   Eigen::VectorXd end_rate_;                         // G q_dot there
   // State::q_round and qdot_round at the step's start (restored when the step fails)

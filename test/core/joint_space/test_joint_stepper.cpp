@@ -14,6 +14,8 @@
 
 #include "bodies.h"
 #include "compare.h"
+#include "core/absolute/stepper.h"
+#include "core/joint_space/joint_stepper.h"
 #include "mechanism_sim/core/models.h"
 #include "pendulum.h"
 
@@ -145,6 +147,58 @@ TEST(JointFormulation, QueriesAtAStateAreTheAbsoluteOnes) {
   std::printf("[queries] joint against absolute: accelerations %.2e, reactions %.2e (relative)\n", acc / scale,
               react / rscale);
   EXPECT_LT(react, 1e-6 * rscale);
+}
+
+// A step leaves the bodies' accelerations State::acc to be written when something reads
+// them (State::acc_pending). What a reader gets is the same bits whether the stepper still
+// holds the step's kinematics or another stepper writes them, and it is the absolute
+// formulation's solve at that state; Mechanism hands out only complete States.
+TEST(JointFormulation, TheBodiesAccelerationsAreWrittenWhenRead) {
+  Mechanism m;
+  randomTree(m, 5, 6);
+  // (damping: no step is judged by its error estimate, which reads the accelerations)
+  for (int k = 0; k < m.numJoints(); ++k)
+    if (m.joint(k).dof() > 0) m.setJointDamping(k, 0, 0.01);
+  m.setIntegrator(formulation("absolute"));
+  m.build();
+  m.assemble();
+  const System& sys = m.system();
+  Inputs in = zeroInputs(sys);
+  in.effort[0][0] = 0.3;
+  State s = m.snapshot();
+  JointStepper js(sys);
+  js.settle(sys, s, in);
+  EXPECT_FALSE(s.acc_pending);
+  for (int k = 0; k < 20; ++k) js.step(sys, s, in, 1e-3);
+  ASSERT_TRUE(s.acc_pending);
+  State elsewhere = s;
+  js.completeState(s);  // (from the kinematics the step left)
+  EXPECT_FALSE(s.acc_pending);
+  JointStepper other(sys);
+  other.completeState(elsewhere);  // (from the State alone)
+  EXPECT_FALSE(elsewhere.acc_pending);
+  ASSERT_EQ(s.acc.size(), elsewhere.acc.size());
+  for (Eigen::Index i = 0; i < s.acc.size(); ++i) EXPECT_EQ(s.acc[i], elsewhere.acc[i]) << i;
+  // the absolute formulation's accelerations at the same positions and velocities
+  State d = s;
+  Stepper absolute(sys);
+  absolute.adopt(sys, d, in);
+  absolute.settle(sys, d, in);
+  const double scale = d.acc.cwiseAbs().maxCoeff();
+  EXPECT_LT((d.acc - s.acc).cwiseAbs().maxCoeff(), 1e-9 * scale);
+  // (an absolute stepper refuses a State whose accelerations are pending)
+  State pending = elsewhere;
+  pending.acc_pending = true;
+  EXPECT_THROW(absolute.adopt(sys, pending, in), std::logic_error);
+
+  Mechanism j;
+  randomTree(j, 5, 6);
+  j.setIntegrator(formulation("joint"));
+  j.build();
+  j.assemble();
+  for (int k = 0; k < 20; ++k) j.step(1e-3);
+  EXPECT_FALSE(j.snapshot().acc_pending);
+  EXPECT_FALSE(j.state().acc_pending);
 }
 
 // A wheel spinning at 4000 rad/s, and a nut on a screw of 1 mm lead spun as fast, stepped
