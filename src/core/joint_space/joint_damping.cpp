@@ -471,9 +471,7 @@ void JointDamping::implicit(const System& sys, State& s, double h) {
     ctx.t = s.timeAfterStep(h);
     closures_.setContext(ctx);
     closures_.evaluate(model_, sys, ws_, s.q);  // G and nu at s.q (ws_: s.q at rest)
-    closures_.form_Y = true;
-    closures_.factor(model_, ws_);         // closures_.Y = M^-1 G^T
-    closures_.form_Y = false;
+    closures_.factor(model_, ws_, true);  // closures_.Y = M^-1 G^T
     const int m = closures_.m;
     damp_Z_ = closures_.Y;
     for (int e = 0; e < m; ++e) {

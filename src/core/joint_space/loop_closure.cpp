@@ -57,7 +57,7 @@ inline bool inactiveLimit(const Constraint& C, const EvalContext& ctx) {
 
 }  // namespace
 
-LoopClosures::LoopClosures(const TreeModel& model, const System& sys) : model_(&model), sys_(&sys) {
+ClosureRows::ClosureRows(const TreeModel& model, const System& sys) {
   nv = model.nv;
   // Every constraint the tree does not hold, in System order: cut joints, couplers, drives,
   // limits (the layout's order, so sys_row ascends).
@@ -149,6 +149,10 @@ LoopClosures::LoopClosures(const TreeModel& model, const System& sys) : model_(&
     const int l = sys.constraints[constraints[i]]->limit();
     if (l >= 0 && direct_[i].n > 0) limit_direct_[l] = static_cast<int>(i);
   }
+}
+
+LoopClosures::LoopClosures(const TreeModel& model, const System& sys)
+    : ClosureRows(model, sys), model_(&model), sys_(&sys) {
   {
     const State s0 = initialState(sys);
     tracked = s0.tracked;
@@ -162,9 +166,7 @@ LoopClosures::LoopClosures(const TreeModel& model, const System& sys) : model_(&
   layout(model, sys, idleRows(model, sys));
 }
 
-// The closures' rows (every row of each closure's constraint but those idle[i] marks) and
-// everything sized by them; the evaluations' kept results are forgotten.
-void LoopClosures::layout(const TreeModel& model, const System& sys, const std::vector<std::vector<char>>& idle) {
+void ClosureRows::layOut(const System& sys, const std::vector<std::vector<char>>& idle) {
   row.clear(), sys_row.clear(), nrows_.clear(), sel_.assign(constraints.size(), {}), idle_sys_rows_.clear();
   sel_mask_.assign(constraints.size(), 0u), sel_joint_.assign(constraints.size(), nullptr);
   m = 0;
@@ -195,6 +197,10 @@ void LoopClosures::layout(const TreeModel& model, const System& sys, const std::
     m += kept;
   }
   idle_ = static_cast<int>(idle_sys_rows_.size());
+}
+
+void LoopClosures::layout(const TreeModel& model, const System& sys, const std::vector<std::vector<char>>& idle) {
+  layOut(sys, idle);
   Jc.clear();
   Phi.setZero(m), gamma.setZero(m), scale.setZero(m), gamma_q.setZero(m), nu.setZero(m), lambda.setZero(m);
   G.setZero(m, nv), Gabs.setZero(m, nv), Gbound.setZero(m, nv), Y.setZero(nv, m);
