@@ -88,11 +88,12 @@ void LoopClosures::factor(const TreeModel& model, const TreeWorkspace& ws, bool 
     info = reuse_.fac_info;
     return;
   }
-  factorNow(model, ws, form_Y);
+  factorNow(model, ws);
+  if (form_Y && !factors_.all_zero) formY(model, ws);
   reuse_.fac_at_g = reuse_.g_gen, reuse_.fac_at_ws = ws_gen, reuse_.fac_Y = form_Y, reuse_.fac_info = info;
 }
 
-void LoopClosures::factorNow(const TreeModel& model, const TreeWorkspace& ws, bool form_Y) {
+void LoopClosures::factorNow(const TreeModel& model, const TreeWorkspace& ws) {
   // Rows whose entries are all round-off against their terms are structurally zero (a
   // planar loop's out-of-plane rows): dropped, with lambda 0 there.
   int zero_rows = 0;
@@ -109,19 +110,21 @@ void LoopClosures::factorNow(const TreeModel& model, const TreeWorkspace& ws, bo
     return;
   }
   factors_.all_zero = false;
-  // Y = M^-1 G^T and G M^-1 G^T from the factored joint-space inertia, sparse where the
-  // closures are (closure_solver.h)
+  // G M^-1 G^T from the factored joint-space inertia, sparse where the closures are
+  // (closure_solver.h)
   info.rank = factors_.solver.factor(model, ws, G, factors_.keep, factors_.least_norm, factors_.A) - zero_rows;
-  if (form_Y)
-    for (int e = 0; e < m; ++e) {
-      if (!factors_.solver.kept(e)) {
-        Y.col(e).setZero();
-        continue;
-      }
-      for (int k = 0; k < nv; ++k) scratch_.tau(k) = G(e, k);
-      applyInverseMass(model, ws, scratch_.tau.data(), Y.col(e).data());
-    }
   info.dependent = allRows() - info.rank;  // (idle rows count as dependent ones: no motion moves them)
+}
+
+void LoopClosures::formY(const TreeModel& model, const TreeWorkspace& ws) {
+  for (int e = 0; e < m; ++e) {
+    if (!factors_.solver.kept(e)) {
+      Y.col(e).setZero();
+      continue;
+    }
+    for (int k = 0; k < nv; ++k) scratch_.tau(k) = G(e, k);
+    applyInverseMass(model, ws, scratch_.tau.data(), Y.col(e).data());
+  }
 }
 
 void LoopClosures::solve(const Eigen::VectorXd& b, Eigen::VectorXd& x) const {

@@ -475,7 +475,9 @@ class LoopClosures : public ClosureRows {
   mutable Scratch scratch_;
   // ws's articulated factors' generation (TreeWorkspace::generation)
   long massFactorsGeneration(const TreeWorkspace& ws);
-  void factorNow(const TreeModel& model, const TreeWorkspace& ws, bool form_Y);
+  void factorNow(const TreeModel& model, const TreeWorkspace& ws);
+  // Y = M^-1 G^T at factorNow()'s factors (its kept rows; a dropped row's column 0)
+  void formY(const TreeModel& model, const TreeWorkspace& ws);
   bool findPassageNow();
   const TreeModel* model_ = nullptr;
   const System* sys_ = nullptr;
