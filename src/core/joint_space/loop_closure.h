@@ -129,7 +129,7 @@ struct BranchPassageWork {
   Eigen::LLT<Small6> llt;  // test away from passages)
   std::vector<int> rows, cols;
   Eigen::VectorXd m, h;  // a closure's rates and held direction over its columns
-  Eigen::VectorXd rate;     // passage_rate at the last findPassage() (rate_set)
+  Eigen::VectorXd rate;     // findPassage()'s rate at its last call (rate_set)
   bool rate_set = false;
   Eigen::JacobiSVD<Eigen::MatrixXd> svd;
   Eigen::JacobiSVD<Small6> svd6;  // (the same up to 6 x 6)
