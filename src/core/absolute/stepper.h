@@ -122,7 +122,6 @@ class Stepper final : public FormulationStepper {
   long stage_shortfalls_ = 0;  // the solver's shortfall count when this step's stages began
   double split_h_ = 0.0;
   std::vector<std::array<double, 3>> stage_damping_;  // per joint coordinate
-  std::vector<std::array<double, 3>> damping_bound_;  // s_k of the step (0: undamped)
   std::vector<std::vector<int>> joints_at_;           // per moving body: the joints on it
   struct StiffRow {
     int joint, k;

@@ -8,7 +8,8 @@
 // h rate = 2.785 (rk3: 2.513, Heun: 2): a 1 g frame link of 1e-7 kg m^2 damped at
 // 0.1 N m s/rad has h rate = 1000 at h = 1 ms, and the step explodes.
 //
-//  1. A bound (classifyDamping). P <= M^-1 as quadratic forms (constraints only add
+//  1. A bound (classifyDamping; the rule is core/damping/stiff_damping_rule.h, which the
+//     joint formulation calls too). P <= M^-1 as quadratic forms (constraints only add
 //     effective mass), so lambda_max(h S) <= lambda_max(h C^1/2 q_x M^-1 q_x^T C^1/2), and by
 //     Gershgorin that is at most max_k s_k with
 //        s_k = h sum_l sqrt(c_k c_l) sum_b |q_x,k,b M_b^-1 q_x,l,b^T|,
@@ -49,6 +50,7 @@
 #include <string>
 
 #include "core/absolute/stepper.h"
+#include "core/damping/stiff_damping_rule.h"
 #include "mechanism_sim/core/model/inertia.h"
 
 namespace mechanism_sim {
@@ -58,13 +60,7 @@ namespace {
 constexpr int kMaxPasses = numerics::absolute::kStiffPasses;
 constexpr double kRoundOff = numerics::absolute::kStiffRoundOff;
 
-using Row6 = Eigen::Matrix<double, 1, 6>;
-
-// a M_b^-1 b^T for two rows' six columns of one body (M_b^-1 block diagonal: 1/m, J'^-1).
-inline double inverseMassProduct(const Row6& a, const Row6& b, const Eigen::Matrix<double, 6, 6>& Mi) {
-  return Mi(0, 0) * a.head<3>().dot(b.head<3>()) +
-         a.tail<3>().dot(b.tail<3>() * Mi.bottomRightCorner<3, 3>().transpose());
-}
+using stiff_damping::Row6;
 
 // The slot (0: body i, 1: body j) of body b in joint jt.
 inline int slotOf(const Joint& jt, int b) { return jt.bodyI() == b ? 0 : 1; }
@@ -74,7 +70,6 @@ inline int slotOf(const Joint& jt, int b) { return jt.bodyI() == b ? 0 : 1; }
 void Stepper::initDamping(const System& sys) {
   const int nj = sys.numJoints();
   stage_damping_.assign(nj, {0.0, 0.0, 0.0});
-  damping_bound_.assign(nj, {0.0, 0.0, 0.0});
   damp_rows_.assign(nj, std::array<Row, kMaxJointDofs>());
   joints_at_.assign(sys.nb, {});
   for (int j = 0; j < nj; ++j)
@@ -105,26 +100,25 @@ bool Stepper::classifyDamping(const System& sys, const State& s, double h) {
     const Joint& jt = *sys.joints[j];
     for (int k = 0; k < jt.dof(); ++k) {
       const double c = sys.damping[j][k];
-      damping_bound_[j][k] = 0.0;
       if (!(c > 0)) continue;
-      double sum = 0;  // sum_l sqrt(c_k c_l) sum_b |q_x,k,b M_b^-1 q_x,l,b^T|  (1.)
-      for (int slot = 0; slot < 2; ++slot) {
-        const int b = slot == 0 ? jt.bodyI() : jt.bodyJ();
-        if (b == System::kGround) continue;
-        const Row6 g = damp_rows_[j][k].J.segment<6>(6 * slot);
-        for (int l : joints_at_[b - 1]) {
-          const Joint& jl = *sys.joints[l];
-          const int sl = slotOf(jl, b);
-          for (int kl = 0; kl < jl.dof(); ++kl) {
-            const double cl = sys.damping[l][kl];
-            if (!(cl > 0)) continue;
-            sum += std::sqrt(c * cl) *
-                   std::fabs(inverseMassProduct(g, damp_rows_[l][kl].J.segment<6>(6 * sl), sys.Minv[b - 1]));
+      // h sum_l sqrt(c_k c_l) sum_b |q_x,k,b M_b^-1 q_x,l,b^T|  (1.)
+      const double rate = stiff_damping::decayRate(h, c, [&](auto add) {
+        for (int slot = 0; slot < 2; ++slot) {
+          const int b = slot == 0 ? jt.bodyI() : jt.bodyJ();
+          if (b == System::kGround) continue;
+          const Row6 g = damp_rows_[j][k].J.segment<6>(6 * slot);
+          for (int l : joints_at_[b - 1]) {
+            const Joint& jl = *sys.joints[l];
+            const int sl = slotOf(jl, b);
+            for (int kl = 0; kl < jl.dof(); ++kl) {
+              const double cl = sys.damping[l][kl];
+              if (!(cl > 0)) continue;
+              add(cl, stiff_damping::bodyInverseMass(g, damp_rows_[l][kl].J.segment<6>(6 * sl), sys.Minv[b - 1]));
+            }
           }
         }
-      }
-      damping_bound_[j][k] = h * sum;
-      if (!(h * sum <= stiff)) stiff_.push_back({j, k, c});
+      });
+      if (stiff_damping::isStiff(rate, stiff)) stiff_.push_back({j, k, c});
     }
   }
   if (stiff_.empty()) return false;
@@ -141,17 +135,16 @@ bool Stepper::classifyDamping(const System& sys, const State& s, double h) {
     Pg.setZero();
     scatterRow(sys, r.joint, damp_rows_[r.joint][r.k], 1.0, Pg.data());
     solver_->applyInverseMass(sys, ev_);
-    double sum = 0;
-    for (int l = 0; l < nj; ++l) {
-      const Joint& jl = *sys.joints[l];
-      for (int kl = 0; kl < jl.dof(); ++kl) {
-        const double cl = sys.damping[l][kl];
-        if (!(cl > 0)) continue;
-        sum += std::sqrt(r.c * cl) * std::fabs(rowDot(sys, l, damp_rows_[l][kl], Pg.data()));
+    const double rate = stiff_damping::decayRate(h, r.c, [&](auto add) {
+      for (int l = 0; l < nj; ++l) {
+        const Joint& jl = *sys.joints[l];
+        for (int kl = 0; kl < jl.dof(); ++kl) {
+          const double cl = sys.damping[l][kl];
+          if (cl > 0) add(cl, rowDot(sys, l, damp_rows_[l][kl], Pg.data()));
+        }
       }
-    }
-    damping_bound_[r.joint][r.k] = h * sum;
-    if (!(h * sum <= stiff)) stiff_[kept++] = r;
+    });
+    if (stiff_damping::isStiff(rate, stiff)) stiff_[kept++] = r;
   }
   stiff_.resize(kept);
   split_ = !stiff_.empty();

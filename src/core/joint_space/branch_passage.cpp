@@ -44,7 +44,7 @@
 // near the crossing (x -> 0): each passage would give the motion an energy error of that
 // size, at random with where the stages fall. An ideal constraint does no work on the
 // motion it allows (d'Alembert: the motion along the branch is then the branch's own
-// dynamics), so in an acceleration solve (passage_rate: its q_dot) a held direction is taken
+// dynamics), so in an acceleration solve (findPassage's rate: its q_dot) a held direction is taken
 // across the motion: v_i less its component along m = C q_dot over the closure's columns,
 // normalized, the unit vector nearest v_i with (v_i o unit)^T q_dot = 0. The regular
 // directions' equations give v_k^T m = 0, so m, and with it the held direction, stays in
@@ -149,17 +149,17 @@ bool passageGateTwoRows(const Eigen::Ref<const Eigen::MatrixXd>& W, double shift
   return !(g11 - l10 * l10 <= 0.0);
 }
 
-bool LoopClosures::findPassage() {
-  // (G, Gabs, Gbound and passage_hold as at the last call: its results stand)
+bool LoopClosures::findPassage(bool hold, const Eigen::VectorXd* rate) {
+  // (G, Gabs, Gbound and hold as at the last call: its results stand)
   // (the rates matter to the held directions only: where none was held, any rates' results)
-  const bool same_rate = passage_.band == 0 || (passage_rate ? passage_.rate_set && passage_.rate == *passage_rate : !passage_.rate_set);
-  if (passage_.at_g == reuse_.g_gen && passage_.at_hold == passage_hold && same_rate) {
+  const bool same_rate = passage_.band == 0 || (rate ? passage_.rate_set && passage_.rate == *rate : !passage_.rate_set);
+  if (passage_.at_g == reuse_.g_gen && passage_.at_hold == hold && same_rate) {
     if (passage_.band > 0) ++passage_.met;
     return passage_.reduce;
   }
-  passage_.at_g = reuse_.g_gen, passage_.at_hold = passage_hold;
-  passage_.rate_set = passage_rate != nullptr;
-  if (passage_.rate_set) passage_.rate = *passage_rate;
+  passage_.at_g = reuse_.g_gen, passage_.at_hold = hold;
+  passage_.rate_set = rate != nullptr;
+  if (passage_.rate_set) passage_.rate = *rate;
   ++passage_.gen;
   return findPassageNow();
 }
@@ -275,7 +275,7 @@ bool LoopClosures::findPassageNow() {
         const int j = row[c] + passage_.used[c]++;
         ++passage_.r;
         passage_.keep(j) = 1.0;
-        const bool held = passage_hold && s < kPassageBand && !passage_.release[c];
+        const bool held = passage_.at_hold && s < kPassageBand && !passage_.release[c];
         in_band = in_band || s < kPassageBand;
         passage_.near = passage_.near || s < kPassageNear;
         passage_.held[j] = held;
@@ -332,7 +332,7 @@ void LoopClosures::passageFactor(const TreeModel& model, const TreeWorkspace& ws
   passage_.fac_at_p = passage_.gen, passage_.fac_at_ws = ws_gen;
 }
 
-void LoopClosures::passageRhs(const Eigen::VectorXd& b, Eigen::VectorXd& g, bool accel) const {
+void LoopClosures::passageRhs(const Eigen::VectorXd& b, Eigen::VectorXd& g, const Eigen::VectorXd* accel) const {
   g.setZero();
   for (int j = 0; j < m; ++j) {
     if (passage_.keep(j) == 0.0) continue;
@@ -340,8 +340,8 @@ void LoopClosures::passageRhs(const Eigen::VectorXd& b, Eigen::VectorXd& g, bool
     double s = 0.0;
     if (!passage_.held[j]) {
       for (int e = row[c]; e < row[c] + nrows_[c]; ++e) s += passage_.P(j, e) * b(e);
-    } else if (accel && passage_ref) {
-      for (int k : ccols_[c]) s += passage_.R(j, k) * (*passage_ref)(k);
+    } else if (accel) {
+      for (int k : ccols_[c]) s += passage_.R(j, k) * (*accel)(k);
     }
     g(j) = s;
   }

@@ -75,7 +75,7 @@ void LoopClosures::outwardInverseMass(const TreeModel& model, const TreeWorkspac
 
 long LoopClosures::massFactorsGeneration(const TreeWorkspace& ws) { return ws.generation; }
 
-void LoopClosures::factor(const TreeModel& model, const TreeWorkspace& ws) {
+void LoopClosures::factor(const TreeModel& model, const TreeWorkspace& ws, bool form_Y) {
   info.rows = allRows();
   if (m == 0) {
     info.rank = 0;
@@ -89,6 +89,7 @@ void LoopClosures::factor(const TreeModel& model, const TreeWorkspace& ws) {
     return;
   }
   factorNow(model, ws);
+  if (form_Y && !factors_.all_zero) formY(model, ws);
   reuse_.fac_at_g = reuse_.g_gen, reuse_.fac_at_ws = ws_gen, reuse_.fac_Y = form_Y, reuse_.fac_info = info;
 }
 
@@ -109,19 +110,21 @@ void LoopClosures::factorNow(const TreeModel& model, const TreeWorkspace& ws) {
     return;
   }
   factors_.all_zero = false;
-  // Y = M^-1 G^T and G M^-1 G^T from the factored joint-space inertia, sparse where the
-  // closures are (closure_solver.h)
+  // G M^-1 G^T from the factored joint-space inertia, sparse where the closures are
+  // (closure_solver.h)
   info.rank = factors_.solver.factor(model, ws, G, factors_.keep, factors_.least_norm, factors_.A) - zero_rows;
-  if (form_Y)
-    for (int e = 0; e < m; ++e) {
-      if (!factors_.solver.kept(e)) {
-        Y.col(e).setZero();
-        continue;
-      }
-      for (int k = 0; k < nv; ++k) scratch_.tau(k) = G(e, k);
-      applyInverseMass(model, ws, scratch_.tau.data(), Y.col(e).data());
-    }
   info.dependent = allRows() - info.rank;  // (idle rows count as dependent ones: no motion moves them)
+}
+
+void LoopClosures::formY(const TreeModel& model, const TreeWorkspace& ws) {
+  for (int e = 0; e < m; ++e) {
+    if (!factors_.solver.kept(e)) {
+      Y.col(e).setZero();
+      continue;
+    }
+    for (int k = 0; k < nv; ++k) scratch_.tau(k) = G(e, k);
+    applyInverseMass(model, ws, scratch_.tau.data(), Y.col(e).data());
+  }
 }
 
 void LoopClosures::solve(const Eigen::VectorXd& b, Eigen::VectorXd& x) const {
@@ -138,7 +141,7 @@ void LoopClosures::solve(const Eigen::VectorXd& b, Eigen::VectorXd& x) const {
 ClosureSolveInfo constrainedForwardDynamics(const TreeModel& model, const System& sys, LoopClosures& cl,
                                             const Eigen::VectorXd& q, const Eigen::VectorXd& qdot,
                                             const Eigen::VectorXd& tau, TreeWorkspace& ws, Eigen::VectorXd& qddot,
-                                            const Inputs* loads, bool evaluated) {
+                                            const Inputs* loads, bool evaluated, const ClosureSolveMode& mode) {
   // (evaluated: ws's kinematics and the closures' evaluation are at (q, q_dot) already, as
   // the stepper's projections leave them when they move nothing)
   if (evaluated) forwardDynamicsAtKinematics(model, sys, tau, ws, qddot, loads);
@@ -158,16 +161,14 @@ ClosureSolveInfo constrainedForwardDynamics(const TreeModel& model, const System
   }
   if (!evaluated) cl.evaluate(model, sys, ws, q);
   // (held directions across this motion: branch_passage.cpp)
-  cl.passage_rate = &qdot;
-  const bool passage = cl.passage_ref && cl.findPassage();
-  cl.passage_rate = nullptr;
-  if (!passage || cl.regular_factor) cl.factor(model, ws);
+  const bool passage = mode.passage_ref && cl.findPassage(mode.passage_hold, &qdot);
+  if (!passage || mode.regular_factor) cl.factor(model, ws, mode.form_Y);
   if (passage) {
     // a branch passage (branch_passage.cpp): the regular directions by their equations,
     // the held ones at passage_ref's acceleration across the branch
-    if (!cl.regular_factor) cl.info = ClosureSolveInfo{cl.allRows(), cl.passage_.r, cl.allRows() - cl.passage_.r};
+    if (!mode.regular_factor) cl.info = ClosureSolveInfo{cl.allRows(), cl.passage_.r, cl.allRows() - cl.passage_.r};
     cl.passageFactor(model, ws);
-    cl.passageRhs(cl.gamma_q, cl.passage_.g, true);
+    cl.passageRhs(cl.gamma_q, cl.passage_.g, mode.passage_ref);
     cl.rowsTimes(cl.passage_.R, qddot, cl.passage_.mu);
     cl.passage_.mu -= cl.passage_.g;
     cl.passageSolve(cl.passage_.mu, cl.passage_.mu);

@@ -9,7 +9,7 @@
 
 namespace mechanism_sim {
 
-double LoopClosures::correctionSize(const Eigen::VectorXd& dv) const {
+double ClosureRows::correctionSize(const Eigen::VectorXd& dv) const {
   double size = 0.0;
   for (int k = 0; k < nv; ++k) size = std::max(size, std::fabs(dv(k)) * unit_(k));
   return size;
@@ -37,7 +37,7 @@ void retract(const TreeModel& model, Eigen::VectorXd& q, const Eigen::VectorXd& 
 
 ClosureProjectionReport projectClosurePositions(const TreeModel& model, const System& sys, LoopClosures& cl,
                                                 Eigen::VectorXd& q, TreeWorkspace& ws, double tol, int max_iterations,
-                                                const Eigen::VectorXd* rates) {
+                                                const Eigen::VectorXd* rates, const ClosureSolveMode& mode) {
   ClosureProjectionReport rep;
   const Eigen::VectorXd& zero = cl.scratch_.zero_v;
   const Eigen::VectorXd& qdot = rates ? *rates : zero;
@@ -57,11 +57,11 @@ ClosureProjectionReport projectClosurePositions(const TreeModel& model, const Sy
     // in a branch passage the held directions are the integration's: not judged, not moved;
     // where they have left the round-off a crossing leaves, their closures are released
     // (branch_passage.cpp, "spells without a crossing")
-    bool passage = cl.passage_ref && cl.findPassage();
+    bool passage = mode.passage_ref && cl.findPassage(mode.passage_hold);
     if (passage && cl.passageDirections() > 0 && cl.heldResidual(cl.Phi, cl.scale) > tol && cl.releaseHeld())
-      passage = cl.findPassage();
+      passage = cl.findPassage(mode.passage_hold);
     rep.residual = passage ? cl.passageResidual(cl.Phi, cl.scale) : cl.positionResidual();
-    const bool near = cl.passage_ref && cl.passageNear();
+    const bool near = mode.passage_ref && cl.passageNear();
     rep.converged = rep.residual <= tol;
     if (rep.converged && (!near || extra >= kPassageRoundoffSteps)) break;
     if (rep.iterations >= max_iterations) break;
@@ -75,7 +75,7 @@ ClosureProjectionReport projectClosurePositions(const TreeModel& model, const Sy
       dv = -dv;
       rep.dependent = cl.allRows() - cl.passage_.r;
     } else {
-      cl.factor(model, ws);
+      cl.factor(model, ws, mode.form_Y);
       rep.dependent = cl.info.dependent;
       cl.solve(cl.Phi, x);
       cl.inverseMassRowsT(model, ws, cl.G, x, dv);
@@ -93,13 +93,14 @@ ClosureProjectionReport projectClosurePositions(const TreeModel& model, const Sy
     ++rep.iterations;
   }
   // (the last evaluation is q's: a closure out of the band there ends its spell)
-  if (cl.passage_ref) cl.endPassageSpells();
+  if (mode.passage_ref) cl.endPassageSpells();
   return rep;
 }
 
 ClosureProjectionReport projectClosureVelocities(const TreeModel& model, const System& sys, LoopClosures& cl,
                                                  const Eigen::VectorXd& q, Eigen::VectorXd& qdot, TreeWorkspace& ws,
-                                                 double tol, int max_iterations, bool evaluated_at_q, bool at_rates) {
+                                                 double tol, int max_iterations, bool evaluated_at_q, bool at_rates,
+                                                 const ClosureSolveMode& mode) {
   ClosureProjectionReport rep;
   const Eigen::VectorXd& zero = cl.scratch_.zero_v;
   Eigen::VectorXd &qdd = cl.scratch_.qdd_v, &r = cl.scratch_.r_m, &x = cl.scratch_.x_m;
@@ -114,7 +115,7 @@ ClosureProjectionReport projectClosureVelocities(const TreeModel& model, const S
   // the held rates as the integration carried them, and near it on to round-off (as the
   // positions)
   // (evaluated_at_q: the position projection's last findPassage() was at this evaluation)
-  const bool passage = cl.passage_ref && (evaluated_at_q ? cl.passageFound() : cl.findPassage());
+  const bool passage = mode.passage_ref && (evaluated_at_q ? cl.passageFound() : cl.findPassage(mode.passage_hold));
   // (factored at the first correction: a q_dot already on the closures, as the stepper's
   // usually is after its stages, needs no solve)
   bool factored = false;
@@ -136,7 +137,7 @@ ClosureProjectionReport projectClosureVelocities(const TreeModel& model, const S
         cl.passageFactor(model, ws);
         rep.dependent = cl.allRows() - cl.passage_.r;
       } else {
-        cl.factor(model, ws);
+        cl.factor(model, ws, mode.form_Y);
         rep.dependent = cl.info.dependent;
       }
       factored = true;

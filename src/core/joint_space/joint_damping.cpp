@@ -8,6 +8,7 @@
 
 #include "core/joint_space/joint_damping.h"
 #include "core/absolute/evaluation.h"
+#include "core/damping/stiff_damping_rule.h"
 #include "core/numerics.h"
 
 namespace mechanism_sim {
@@ -25,40 +26,40 @@ void JointDamping::set(const System& sys) {
     for (int k = 0; k < sys.joints[j]->dof(); ++k)
       if (sys.damping[j][k] > 0.0 && (cut_damped_.empty() || cut_damped_.back() != j)) cut_damped_.push_back(j);
   const int nd = static_cast<int>(damped_.size());
-  link_of_v_.assign(model_.nv, 0);
+  paths_.link_of_v.assign(model_.nv, 0);
   for (int k = 0; k < model_.nb; ++k)
-    for (int i = 0; i < model_.links[k].nv; ++i) link_of_v_[model_.links[k].iv + i] = k;
-  damp_index_of_v_.assign(model_.nv, -1);
-  damp_path_.assign(nd, {});
-  damp_path_v_.assign(nd, {});
+    for (int i = 0; i < model_.links[k].nv; ++i) paths_.link_of_v[model_.links[k].iv + i] = k;
+  paths_.damped_of_v.assign(model_.nv, -1);
+  paths_.links.assign(nd, {});
+  paths_.coords.assign(nd, {});
   for (int i = 0; i < nd; ++i) {
-    damp_index_of_v_[damped_[i].iv] = i;
+    paths_.damped_of_v[damped_[i].iv] = i;
     // (a master's coordinate eliminated at a common ancestor, TreeLink::pivot, is listed
     // there, not at the master's own link: every path through that ancestor has it in the
     // same place, so the shared coordinates below stay each path's tail)
-    for (int k = link_of_v_[damped_[i].iv];; k = model_.links[k].parent - 1) {
+    for (int k = paths_.link_of_v[damped_[i].iv];; k = model_.links[k].parent - 1) {
       const TreeLink& L = model_.links[k];
-      damp_path_[i].push_back(k);
-      if (L.pivot >= 0) damp_path_v_[i].push_back(L.pivot);
+      paths_.links[i].push_back(k);
+      if (L.pivot >= 0) paths_.coords[i].push_back(L.pivot);
       if (!(L.tie >= 0 && L.iv == model_.links[L.tie].iv))
-        for (int v = 0; v < L.nv; ++v) damp_path_v_[i].push_back(L.iv + v);
+        for (int v = 0; v < L.nv; ++v) paths_.coords[i].push_back(L.iv + v);
       if (L.parent == 0) break;
     }
   }
   // the coordinates two paths share are their common ancestors', the tail of each path
-  damp_shared_.clear();
-  damp_shared_first_.assign(nd + 1, 0);
+  paths_.shared.clear();
+  paths_.shared_first.assign(nd + 1, 0);
   for (int k = 0; k < nd; ++k) {
-    damp_shared_first_[k] = static_cast<int>(damp_shared_.size());
+    paths_.shared_first[k] = static_cast<int>(paths_.shared.size());
     for (int l = 0; l < nd; ++l) {
-      const std::vector<int>& pl = damp_path_v_[l];
-      const std::vector<int>& pk = damp_path_v_[k];
+      const std::vector<int>& pl = paths_.coords[l];
+      const std::vector<int>& pk = paths_.coords[k];
       int from = static_cast<int>(pl.size());
       while (from > 0 && std::find(pk.begin(), pk.end(), pl[from - 1]) != pk.end()) --from;
-      if (from < static_cast<int>(pl.size())) damp_shared_.push_back({l, from});
+      if (from < static_cast<int>(pl.size())) paths_.shared.push_back({l, from});
     }
   }
-  damp_shared_first_[nd] = static_cast<int>(damp_shared_.size());
+  paths_.shared_first[nd] = static_cast<int>(paths_.shared.size());
   damp_Zd_.setZero(model_.nv, nd), damp_Xd_.setZero(model_.nv, nd);  // (zero off each path, always)
   damp_Minv_.setZero(nd, nd);
   damp_Yd_.setZero(nd, closures_.m), damp_W_.setZero(nd, closures_.m);
@@ -66,8 +67,6 @@ void JointDamping::set(const System& sys) {
   damp_used_.reserve(closures_.m);
   damp_x_.setZero(model_.nv);
   damp_col_.setZero(nd);
-  damp_rc_.resize(nd);
-  for (int i = 0; i < nd; ++i) damp_rc_(i) = std::sqrt(damped_[i].c);
   damp_filter_.assign(nd, 0.0);
   damp_rcb_.assign(nd, 0.0);
   body_inverse_.clear();  // (classify's bound: the bodies' inverses once)
@@ -83,17 +82,18 @@ void JointDamping::set(const System& sys) {
   damp_candidates_.reserve(nd);
   damp_need_.reserve(nd);
   stiff_.assign(nd, 0);
+  quiet_h_ = quiet_bound_ = std::nan("");
   stiff_list_.reserve(nd);
-  damp_Y_.setZero(model_.nv, nd);
-  damp_K_.setZero(nd, nd);
-  damp_e_.setZero(model_.nv), damp_z_.setZero(nd), damp_du_.setZero(model_.nv);
-  damp_zero_.setZero(model_.nv), damp_qdd_.setZero(model_.nv), damp_tau_.setZero(model_.nv);
-  damp_v_.assign(model_.nb, Vector6d::Zero());
-  damp_w_.setZero(nd), damp_c_.setZero(model_.nv);
-  damp_Z_.setZero(model_.nv, closures_.m), damp_AW_.setZero(closures_.m, closures_.m);
+  implicit_.Y.setZero(model_.nv, nd);
+  implicit_.K.setZero(nd, nd);
+  damp_e_.setZero(model_.nv), implicit_.z.setZero(nd), implicit_.du.setZero(model_.nv);
+  implicit_.zero.setZero(model_.nv), implicit_.qdd.setZero(model_.nv), implicit_.tau.setZero(model_.nv);
+  implicit_.v.assign(model_.nb, Vector6d::Zero());
+  implicit_.w.setZero(nd), implicit_.c.setZero(model_.nv);
+  implicit_.Z.setZero(model_.nv, closures_.m), implicit_.AW.setZero(closures_.m, closures_.m);
   damp_r_.setZero(closures_.m), damp_mu_.setZero(closures_.m);
-  damp_least_norm_ = ScaledLeastNorm(closures_.m);
-  damp_f_.assign(model_.nb, Vector6d::Zero());
+  implicit_.least_norm = ScaledLeastNorm(closures_.m);
+  implicit_.f.assign(model_.nb, Vector6d::Zero());
   damp_rows_.assign(kMaxJointDofs, Row());
 }
 
@@ -196,6 +196,9 @@ double motionSince(const System& sys, const Eigen::VectorXd& x0, const Eigen::Ve
 bool JointDamping::classify(const System& sys, State& s, double h, const Tableau& tableau) {
   const double bound = tableau.stiff_bound;
   const int nd = static_cast<int>(damped_.size());
+  // (no coordinate can be stiff under this step and bound, wherever the tree is: the last
+  // classification cleared every one by bounds that do not change with the configuration)
+  if (h == quiet_h_ && bound == quiet_bound_) return false;
   State::DampingHold& hold = s.damping_hold;
   // (whether the hold was found under this step, bound and limit sides, and how far the
   // bodies have moved since: both for holding it and for the pace below)
@@ -225,19 +228,17 @@ bool JointDamping::classify(const System& sys, State& s, double h, const Tableau
     if (sum < 0.0) {
       if (!kinematics) loadKinematics(sys, s.x.data(), s.u.data(), kin_), kinematics = true;
       J.coordinates(kin_[J.bodyI()], kin_[J.bodyJ()], s.tracked[J.id()], damp_rows_.data());
-      sum = 0.0;
-      for (const Damped& o : damped_) {
-        if (o.j != d.j) continue;
-        for (int slot = 0; slot < 2; ++slot) {
-          const int b = slot == 0 ? J.bodyI() : J.bodyJ();
-          if (b == System::kGround) continue;
-          const auto& Mi = sys.Minv[b - 1];
-          const Vector6d gk = damp_rows_[d.k].J.segment<6>(6 * slot).transpose();
-          const Vector6d gl = damp_rows_[o.k].J.segment<6>(6 * slot).transpose();
-          sum += std::sqrt(d.c * o.c) * std::fabs(Mi(0, 0) * gk.head<3>().dot(gl.head<3>()) +
-                                                  gk.tail<3>().dot(Mi.bottomRightCorner<3, 3>() * gl.tail<3>()));
+      sum = stiff_damping::decayRate(1.0, d.c, [&](auto add) {
+        for (const Damped& o : damped_) {
+          if (o.j != d.j) continue;
+          for (int slot = 0; slot < 2; ++slot) {
+            const int b = slot == 0 ? J.bodyI() : J.bodyJ();
+            if (b == System::kGround) continue;
+            add(o.c, stiff_damping::bodyInverseMass(damp_rows_[d.k].J.segment<6>(6 * slot),
+                                                    damp_rows_[o.k].J.segment<6>(6 * slot), sys.Minv[b - 1]));
+          }
         }
-      }
+      });
       beta = coordinateInverseMassBound(J, damp_rows_[d.k], body_inverse_[J.bodyI()], body_inverse_[J.bodyJ()]);
       if (d.revolute) d.bound = sum, d.beta = beta;
     }
@@ -279,9 +280,10 @@ bool JointDamping::classify(const System& sys, State& s, double h, const Tableau
             const int lo = damp_W_lo_[e], n = damp_W_hi_[e] - lo;
             damp_col_.segment(lo, n) -= damp_W_.col(e).segment(lo, n) * damp_Yd_(i, e);
           }
-      const double exact = damp_rc_(i) * damp_rc_.dot(damp_col_.cwiseAbs());  // sum_l sqrt(c_k c_l) |P_lk|
-      const double rate = h * exact;
-      stiff = !(rate <= bound);
+      const double rate = stiff_damping::decayRate(h, damped_[i].c, [&](auto add) {
+        for (int l = 0; l < nd; ++l) add(damped_[l].c, damp_col_(l));
+      });
+      stiff = stiff_damping::isStiff(rate, bound);
       // the pace since the classification before, per unit of motion, of ln(rate) (below
       // 1e-3 of the bound as at it: a rate that far below is not near it, and a coordinate
       // a limit holds has a rate of round-off): kHoldMotion at that pace may use at most
@@ -297,6 +299,11 @@ bool JointDamping::classify(const System& sys, State& s, double h, const Tableau
     stiff_[i] = stiff;
     if (stiff) stiff_list_.push_back(i);
   }
+  // (every coordinate a revolute joint's, whose screen and filter are kept, and none a
+  // candidate: none is stiff under this h and bound in any configuration)
+  bool quiet = damp_candidates_.empty();
+  for (const Damped& d : damped_) quiet = quiet && d.bound >= 0.0;
+  quiet_h_ = quiet ? h : std::nan(""), quiet_bound_ = quiet ? bound : std::nan("");
   hold.left = margin ? kHoldSteps : 0;
   hold.stiff = stiff_, hold.x = s.x, hold.limit_side = s.limit_side, hold.h = h, hold.bound = bound;
   return changed;
@@ -327,11 +334,11 @@ void JointDamping::dampedInverseMass() {
   const int nd = static_cast<int>(damped_.size());
   for (int i = 0; i < nd; ++i) {
     double* z = damp_Zd_.col(i).data();
-    for (int v : damp_path_v_[i]) z[v] = 0.0;
+    for (int v : paths_.coords[i]) z[v] = 0.0;
     z[damped_[i].iv] = 1.0;
-    for (int k : damp_path_[i]) damp_p_[k].setZero();
-    for (int k : damp_path_[i]) inverseMassInward(model_, ws_, k, z, z, damp_p_);
-    for (int k : damp_path_[i]) scaleByDinv(k, z, damp_Xd_.col(i).data());
+    for (int k : paths_.links[i]) damp_p_[k].setZero();
+    for (int k : paths_.links[i]) inverseMassInward(model_, ws_, k, z, z, damp_p_);
+    for (int k : paths_.links[i]) scaleByDinv(k, z, damp_Xd_.col(i).data());
   }
   // (M^-1)_Dk: the candidates' columns, then those of the damped coordinates that closure
   // rows on damped coordinates only touch
@@ -347,12 +354,12 @@ void JointDamping::dampedInverseMass() {
     for (int v : closures_.rowColumns(e))  // (G is zero off them)
       if (closures_.G(e, v) != 0.0) {
         damp_nz_.push_back(v);
-        if (damp_index_of_v_[v] < 0) damp_direct_[e] = 0;
+        if (paths_.damped_of_v[v] < 0) damp_direct_[e] = 0;
       }
     damp_nz_first_[e + 1] = static_cast<int>(damp_nz_.size());
     if (!damp_direct_[e]) continue;
     for (int p = damp_nz_first_[e]; p < damp_nz_first_[e + 1]; ++p) {
-      const int c = damp_index_of_v_[damp_nz_[p]];
+      const int c = paths_.damped_of_v[damp_nz_[p]];
       if (damp_column_of_[c] < 0) damp_column_of_[c] = static_cast<int>(damp_need_.size()), damp_need_.push_back(c);
     }
   }
@@ -362,11 +369,11 @@ void JointDamping::dampedInverseMass() {
     // terms left out are zeros, and the sum of the others, in the same order, has every
     // bit it had over the whole path
     damp_Minv_.col(a).setZero();
-    for (int p = damp_shared_first_[k]; p < damp_shared_first_[k + 1]; ++p) {
-      const int l = damp_shared_[p].l;
-      const std::vector<int>& path = damp_path_v_[l];
+    for (int p = paths_.shared_first[k]; p < paths_.shared_first[k + 1]; ++p) {
+      const int l = paths_.shared[p].l;
+      const std::vector<int>& path = paths_.coords[l];
       double y = 0.0;
-      for (size_t r = damp_shared_[p].from; r < path.size(); ++r) y += damp_Zd_(path[r], l) * damp_Xd_(path[r], k);
+      for (size_t r = paths_.shared[p].from; r < path.size(); ++r) y += damp_Zd_(path[r], l) * damp_Xd_(path[r], k);
       damp_Minv_(l, a) = y;
     }
   }
@@ -381,12 +388,12 @@ void JointDamping::dampedInverseMass() {
       damp_Yd_.col(e).setZero();
       for (int p = damp_nz_first_[e]; p < damp_nz_first_[e + 1]; ++p) {
         const int v = damp_nz_[p];
-        damp_Yd_.col(e) += closures_.G(e, v) * damp_Minv_.col(damp_column_of_[damp_index_of_v_[v]]);
+        damp_Yd_.col(e) += closures_.G(e, v) * damp_Minv_.col(damp_column_of_[paths_.damped_of_v[v]]);
       }
       continue;
     }
     for (int p = damp_nz_first_[e]; p < damp_nz_first_[e + 1]; ++p)
-      for (int k = link_of_v_[damp_nz_[p]]; k >= 0 && !damp_mark_[k]; k = model_.links[k].parent - 1) damp_mark_[k] = 1;
+      for (int k = paths_.link_of_v[damp_nz_[p]]; k >= 0 && !damp_mark_[k]; k = model_.links[k].parent - 1) damp_mark_[k] = 1;
     damp_links_.clear();
     for (auto it = model_.order.rbegin(); it != model_.order.rend(); ++it)
       if (damp_mark_[*it - 1]) damp_links_.push_back(*it - 1), damp_mark_[*it - 1] = 0;
@@ -398,7 +405,7 @@ void JointDamping::dampedInverseMass() {
     for (int k : damp_links_) scaleByDinv(k, z, damp_x_.data());
     for (int l = 0; l < nd; ++l) {
       double y = 0.0;
-      for (int v : damp_path_v_[l]) y += damp_Zd_(v, l) * damp_x_(v);
+      for (int v : paths_.coords[l]) y += damp_Zd_(v, l) * damp_x_(v);
       damp_Yd_(l, e) = y;
     }
   }
@@ -441,27 +448,27 @@ void JointDamping::implicit(const System& sys, State& s, double h) {
   const int ns = static_cast<int>(stiff_list_.size());
   // Y at the positions the stages reached (the metric the kinetic energy is measured in
   // there): articulated factors at s.q, one inverse-mass pass per stiff coordinate
-  forwardDynamics(model_, sys, s.q, damp_zero_, damp_zero_, ws_, damp_qdd_);
+  forwardDynamics(model_, sys, s.q, implicit_.zero, implicit_.zero, ws_, implicit_.qdd);
   for (int a = 0; a < ns; ++a) {
     damp_e_.setZero();
     damp_e_(damped_[stiff_list_[a]].iv) = 1.0;
-    closures_.applyInverseMass(model_, ws_, damp_e_.data(), damp_Y_.col(stiff_list_[a]).data());
+    closures_.applyInverseMass(model_, ws_, damp_e_.data(), implicit_.Y.col(stiff_list_[a]).data());
   }
   for (int a = 0; a < ns; ++a) {
     const int ia = stiff_list_[a];
-    for (int b = 0; b < ns; ++b) damp_K_(a, b) = damp_Y_(damped_[ia].iv, stiff_list_[b]);
-    damp_K_(a, a) += 1.0 / (h * damped_[ia].c);
-    damp_z_(a) = s.qdot(damped_[ia].iv);
+    for (int b = 0; b < ns; ++b) implicit_.K(a, b) = implicit_.Y(damped_[ia].iv, stiff_list_[b]);
+    implicit_.K(a, a) += 1.0 / (h * damped_[ia].c);
+    implicit_.z(a) = s.qdot(damped_[ia].iv);
   }
   // K = C^-1 / h + E^T M^-1 E is SPD (a positive diagonal plus an inverse mass): its
   // Cholesky factor in place on the leading ns x ns block (no allocation)
-  Eigen::Ref<Eigen::MatrixXd> K = damp_K_.topLeftCorner(ns, ns);
+  Eigen::Ref<Eigen::MatrixXd> K = implicit_.K.topLeftCorner(ns, ns);
   const Eigen::LLT<Eigen::Ref<Eigen::MatrixXd>> llt(K);
   auto solveK = [&](Eigen::VectorXd& z) { llt.solveInPlace(z.head(ns)); };  // z = K^-1 z
-  solveK(damp_z_);
-  damp_du_.setZero();
-  for (int a = 0; a < ns; ++a) damp_du_ -= damp_Y_.col(stiff_list_[a]) * damp_z_(a);
-  s.qdot += damp_du_;
+  solveK(implicit_.z);
+  implicit_.du.setZero();
+  for (int a = 0; a < ns; ++a) implicit_.du -= implicit_.Y.col(stiff_list_[a]) * implicit_.z(a);
+  s.qdot += implicit_.du;
   if (closures_.m > 0) {
     // With closures (couplers, drives, active limits) the same minimum subject to
     // G u' = nu at the end of the step: u' = u_free - Z mu with Z = W^-1 G^T, W = M + h E C E^T
@@ -471,28 +478,26 @@ void JointDamping::implicit(const System& sys, State& s, double h) {
     ctx.t = s.timeAfterStep(h);
     closures_.setContext(ctx);
     closures_.evaluate(model_, sys, ws_, s.q);  // G and nu at s.q (ws_: s.q at rest)
-    closures_.form_Y = true;
-    closures_.factor(model_, ws_);         // closures_.Y = M^-1 G^T
-    closures_.form_Y = false;
+    closures_.factor(model_, ws_, true);  // closures_.Y = M^-1 G^T
     const int m = closures_.m;
-    damp_Z_ = closures_.Y;
+    implicit_.Z = closures_.Y;
     for (int e = 0; e < m; ++e) {
-      for (int a = 0; a < ns; ++a) damp_w_(a) = closures_.G.row(e).dot(damp_Y_.col(stiff_list_[a]));
-      solveK(damp_w_);
-      for (int a = 0; a < ns; ++a) damp_Z_.col(e) -= damp_Y_.col(stiff_list_[a]) * damp_w_(a);
+      for (int a = 0; a < ns; ++a) implicit_.w(a) = closures_.G.row(e).dot(implicit_.Y.col(stiff_list_[a]));
+      solveK(implicit_.w);
+      for (int a = 0; a < ns; ++a) implicit_.Z.col(e) -= implicit_.Y.col(stiff_list_[a]) * implicit_.w(a);
     }
-    damp_AW_.noalias() = closures_.G * damp_Z_;
+    implicit_.AW.noalias() = closures_.G * implicit_.Z;
     damp_r_.noalias() = closures_.G * s.qdot;
     damp_r_ -= closures_.nu;
     // as the closures' own solve: zero rows (free limits) held at mu = 0, least norm for
     // dependent rows
-    damp_least_norm_.factor(damp_AW_);
-    damp_least_norm_.solve(damp_r_, damp_mu_);
-    damp_c_.noalias() = damp_Z_ * damp_mu_;
-    s.qdot -= damp_c_;
-    damp_du_ -= damp_c_;
+    implicit_.least_norm.factor(implicit_.AW);
+    implicit_.least_norm.solve(damp_r_, damp_mu_);
+    implicit_.c.noalias() = implicit_.Z * damp_mu_;
+    s.qdot -= implicit_.c;
+    implicit_.du -= implicit_.c;
   }
-  damp_du_ *= 0.5 * h;
+  implicit_.du *= 0.5 * h;
   // The positions move by h (u' - u) / 2 with each body keeping its absolute velocity (v
   // global, omega' body: the absolute formulation's u, which the move leaves as they are):
   // in joint coordinates the rates are then the M-nearest to those body velocities at the
@@ -501,24 +506,24 @@ void JointDamping::implicit(const System& sys, State& s, double h) {
   // u' itself raised it by 6e-11 a step on a light chain of a tumbling base).
   forwardKinematics(model_, s.q, s.qdot, ws_);
   for (int k = 0; k < model_.nb; ++k) {
-    damp_v_[k].head<3>() = ws_.v[k].head<3>();              // omega' (body)
-    damp_v_[k].tail<3>() = ws_.A[k] * ws_.v[k].tail<3>();   // v (global)
+    implicit_.v[k].head<3>() = ws_.v[k].head<3>();              // omega' (body)
+    implicit_.v[k].tail<3>() = ws_.A[k] * ws_.v[k].tail<3>();   // v (global)
   }
-  retract(model_, s.q, damp_du_);
-  forwardDynamics(model_, sys, s.q, damp_zero_, damp_zero_, ws_, damp_qdd_);  // factors at q'
+  retract(model_, s.q, implicit_.du);
+  forwardDynamics(model_, sys, s.q, implicit_.zero, implicit_.zero, ws_, implicit_.qdd);  // factors at q'
   for (int k = 0; k < model_.nb; ++k) {  // momenta at the centres, body components
     const Body& B = sys.bodies[k + 1];
-    damp_f_[k].head<3>() = B.Jp * damp_v_[k].head<3>();
-    damp_f_[k].tail<3>() = B.m * (ws_.A[k].transpose() * damp_v_[k].tail<3>());
+    implicit_.f[k].head<3>() = B.Jp * implicit_.v[k].head<3>();
+    implicit_.f[k].tail<3>() = B.m * (ws_.A[k].transpose() * implicit_.v[k].tail<3>());
   }
-  damp_tau_.setZero();
+  implicit_.tau.setZero();
   for (auto it = model_.order.rbegin(); it != model_.order.rend(); ++it) {  // J^T f, leaves first
     const int k = *it - 1;
     const TreeLink& L = model_.links[k];
-    damp_tau_.segment(L.iv, L.nv) = ws_.S[k].transpose() * damp_f_[k];
-    if (L.parent != 0) damp_f_[L.parent - 1] += transformForceBack(ws_.E[k], ws_.rho[k], damp_f_[k]);
+    implicit_.tau.segment(L.iv, L.nv) = ws_.S[k].transpose() * implicit_.f[k];
+    if (L.parent != 0) implicit_.f[L.parent - 1] += transformForceBack(ws_.E[k], ws_.rho[k], implicit_.f[k]);
   }
-  closures_.applyInverseMass(model_, ws_, damp_tau_.data(), s.qdot.data());
+  closures_.applyInverseMass(model_, ws_, implicit_.tau.data(), s.qdot.data());
 }
 
 }  // namespace mechanism_sim

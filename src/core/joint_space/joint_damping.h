@@ -79,18 +79,21 @@ class JointDamping {
   LoopClosures& closures_;
   std::vector<BodyKin> kin_;  // the bodies' kinematics at s (the bounds' rows)
   std::vector<Damped> damped_;  // every damped tree coordinate
-  // per damped_ entry: the links of its path to the root (its own first) and their velocity
-  // coordinates; per velocity coordinate its link and its damped_ entry (-1: none)
-  std::vector<std::vector<int>> damp_path_, damp_path_v_;
-  std::vector<int> link_of_v_, damp_index_of_v_;
-  // per damped_ entry k, the entries l whose paths share coordinates with k's (their common
-  // ancestors': the tail of l's path), from damp_shared_first_[k] on: l and where in
-  // damp_path_v_[l] the shared ones begin
-  struct Shared {
-    int l = 0, from = 0;
+  // The damped coordinates' paths (set()): per damped_ entry the links of its path to the
+  // root (its own first) and their velocity coordinates; per velocity coordinate its link
+  // and its damped_ entry (-1: none); per damped_ entry k, the entries l whose paths share
+  // coordinates with k's (their common ancestors': the tail of l's path), from
+  // shared_first[k] on: l and where in coords[l] the shared ones begin.
+  struct Paths {
+    std::vector<std::vector<int>> links, coords;
+    std::vector<int> link_of_v, damped_of_v;
+    struct Shared {
+      int l = 0, from = 0;
+    };
+    std::vector<Shared> shared;
+    std::vector<int> shared_first;
   };
-  std::vector<Shared> damp_shared_;
-  std::vector<int> damp_shared_first_;
+  Paths paths_;
   Eigen::MatrixXd damp_Zd_, damp_Xd_;  // L^-T e_l and D^-1 L^-T e_l per damped_ entry l
   Eigen::MatrixXd damp_Minv_;          // (M^-1)_Dk, column a for damped_ entry damp_need_[a]
   Eigen::MatrixXd damp_Yd_, damp_W_;   // (M^-1 G^T)_D and W (damped x closure rows)
@@ -102,7 +105,7 @@ class JointDamping {
   std::vector<char> damp_direct_;      // per closure row: on damped coordinates only
   std::vector<int> damp_nz_, damp_nz_first_;  // per closure row: its nonzero entries' coordinates
   std::vector<char> damp_touched_;     // per damped_ entry: its row of damp_Yd_ is not zero
-  Eigen::VectorXd damp_col_, damp_rc_, damp_x_;  // P e_k; sqrt(c) per damped_ entry; scratch
+  Eigen::VectorXd damp_col_, damp_x_;  // P e_k at the damped coordinates; scratch
   std::vector<double> damp_filter_, damp_rcb_;   // per damped_ entry, this step: the filter, sqrt(c beta)
   std::vector<BodyInverse> body_inverse_;        // per System body (the bound's)
   AlignedVector<Vector6d> damp_p_;     // the inward passes' forces
@@ -111,13 +114,22 @@ class JointDamping {
   std::vector<int> cut_damped_;  // cut joints with damping (efforts: accelerations())
   std::vector<char> stiff_;     // per damped_: integrated implicitly (classifyDamping)
   std::vector<int> stiff_list_;  // indices into damped_ of the stiff ones
-  Eigen::MatrixXd damp_Y_;       // M^-1 e_iv per damped_ entry: of the stiff ones at the stages' end
-  Eigen::MatrixXd damp_K_;       // C^-1 / h + E^T M^-1 E over the stiff ones, and its Cholesky factor
-  Eigen::VectorXd damp_e_, damp_z_, damp_du_, damp_zero_, damp_qdd_, damp_tau_;
-  AlignedVector<Vector6d> damp_v_, damp_f_;  // bodies' velocities and momenta (implicitDamping)
-  Eigen::VectorXd damp_w_, damp_c_, damp_r_, damp_mu_;  // with closures (implicitDamping)
-  Eigen::MatrixXd damp_Z_, damp_AW_;
-  ScaledLeastNorm damp_least_norm_;  // of G W^-1 G^T
+  // implicit()'s scratch (nothing in it is read across calls)
+  struct ImplicitWork {
+    Eigen::MatrixXd Y;  // M^-1 e_iv per damped_ entry: of the stiff ones at the stages' end
+    Eigen::MatrixXd K;  // C^-1 / h + E^T M^-1 E over the stiff ones, and its Cholesky factor
+    Eigen::VectorXd z, du, zero, qdd, tau;
+    AlignedVector<Vector6d> v, f;  // bodies' velocities and momenta
+    Eigen::VectorXd w, c;          // with closures
+    Eigen::MatrixXd Z, AW;
+    ScaledLeastNorm least_norm;    // of G W^-1 G^T
+  };
+  ImplicitWork implicit_;
+  Eigen::VectorXd damp_e_, damp_r_, damp_mu_;  // a unit or closure row; closure-row scratch
+  // (h, stiff_bound) under which no coordinate can be stiff in any configuration (classify:
+  // every damped coordinate a revolute joint's, cleared by its kept screen or filter), NaN:
+  // none
+  double quiet_h_ = NAN, quiet_bound_ = NAN;
   std::vector<Row> damp_rows_;   // Joint::coordinates of a damped joint (the bound)
 };
 

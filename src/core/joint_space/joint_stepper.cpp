@@ -103,7 +103,7 @@ JointStepper::JointStepper(const System& sys, bool embed_couplers)
   fric_e_.setZero(model_.nv), fric_y_.setZero(model_.nv);
   fric_r_.setZero(closures_.m), fric_mu_.setZero(closures_.m);
   for (int j : model_.cut_joints) cut_constraints_.push_back(sys.joint_constraint[j]);
-  closures_.form_Y = false;  // (only JointDamping::implicit reads M^-1 G^T whole)
+  closure_mode_.form_Y = false;  // (only JointDamping::implicit reads M^-1 G^T whole)
 }
 
 void JointStepper::setDamping(const System& sys) {
@@ -173,7 +173,7 @@ void JointStepper::accelerations(const System& sys, const State& s, const Inputs
   EvalContext ctx = s.context();
   ctx.t = t;
   closures_.setContext(ctx);
-  constrainedForwardDynamics(model_, sys, closures_, q, qdot, tau_, ws_, qddot, loads, evaluated);
+  constrainedForwardDynamics(model_, sys, closures_, q, qdot, tau_, ws_, qddot, loads, evaluated, closure_mode_);
 }
 
 void JointStepper::writeAbsolute(const System& sys, State& s) {
@@ -290,7 +290,7 @@ bool JointStepper::project(const System& sys, State& s) {
   closures_.setContext(s.context());
   // (kinematics at s.qdot: the equations do not read the rates, the accelerations after do)
   const ClosureProjectionReport p =
-      projectClosurePositions(model_, sys, closures_, s.q, ws_, sys.options.position_tol, 20, &s.qdot);
+      projectClosurePositions(model_, sys, closures_, s.q, ws_, sys.options.position_tol, 20, &s.qdot, closure_mode_);
   stats_.countPositionProjection(p.converged, p.residual);
   if (!p.converged && p.residual > failureResidual(sys)) {
     std::ostringstream os;
@@ -300,7 +300,7 @@ bool JointStepper::project(const System& sys, State& s) {
   }
   const ClosureProjectionReport v =
       projectClosureVelocities(model_, sys, closures_, s.q, s.qdot, ws_, sys.options.velocity_tol, kMaxVelocityPasses,
-                               true, p.at_rates);  // (ws_ and closures_ at s.q: the position projection's last evaluation)
+                               true, p.at_rates, closure_mode_);  // (ws_ and closures_ at s.q: the position projection's last evaluation)
   stats_.countVelocityProjection(v.converged, v.residual);
   if (!v.converged && v.residual > failureResidual(sys)) {
     std::ostringstream os;
@@ -321,8 +321,8 @@ void JointStepper::settle(const System& sys, State& s, const Inputs& in) {
   // (branch_passage.cpp: dependent rows dropped by geometry) but nothing is held by the motion.
   if (!model_.cut_joints.empty()) {
     a_ref_ = Eigen::VectorXd::Zero(model_.nv);
-    closures_.passage_ref = &a_ref_;
-    closures_.passage_hold = false;
+    closure_mode_.passage_ref = &a_ref_;
+    closure_mode_.passage_hold = false;
   }
   // The joint coordinates of the absolute state: each link's joint reads them from its two
   // bodies (Joint::coordinates, branch references in s.tracked); a spherical joint's
@@ -354,11 +354,11 @@ void JointStepper::settle(const System& sys, State& s, const Inputs& in) {
   try {
     finish(sys, s, in);
   } catch (...) {
-    closures_.passage_hold = true;
+    closure_mode_.passage_hold = true;
     throw;
   }
   completeState(s);  // (only a step leaves it pending)
-  closures_.passage_hold = true;
+  closure_mode_.passage_hold = true;
   // (a stage 1 computed again at this state holds what these accelerations have)
   if (!model_.cut_joints.empty()) s.qddot_ref = s.qddot;
   // the copies a step keeps (advance) sized now: a step allocates nothing
@@ -513,7 +513,7 @@ void JointStepper::stepOnce(const System& sys, State& s, const Inputs& in, doubl
   // State's own accelerations held (so a restored State steps as the run it came from)
   if (!model_.cut_joints.empty()) {
     a_ref_ = s.qddot_ref.size() == model_.nv ? s.qddot_ref : s.qddot;
-    closures_.passage_ref = &a_ref_;
+    closure_mode_.passage_ref = &a_ref_;
   }
   friction0_ = s.friction;
   sum_friction0_ = s.sum_friction;
@@ -538,14 +538,14 @@ void JointStepper::stepOnce(const System& sys, State& s, const Inputs& in, doubl
   kv_[0] = s.qddot;
   // (the later stages need no ordinary closure factorization where a passage's is taken:
   // only friction and damping at the step's start read it)
-  closures_.regular_factor = false;
+  closure_mode_.regular_factor = false;
   for (int k = 1; k < T.stages; ++k) {
     combine(h, T.a[k], k, T.a_den[k], q0_, kq_, sum_q_, qs_);
     combine(h, T.a[k], k, T.a_den[k], v0_, kv_, sum_v_, vs_);
     accelerations(sys, s, in, s.t + T.c[k] * h, qs_, vs_, kv_[k]);
     positionRates(model_, qs_, vs_, kq_[k]);
   }
-  closures_.regular_factor = true;
+  closure_mode_.regular_factor = true;
   // The new state, its increments' round-off carried to the next step (compensated
   // summation: Higham, "Accuracy and Stability of Numerical Algorithms", 4.3; Hairer, Lubich
   // & Wanner, "Geometric Numerical Integration", VIII.5). q + h sum b_j k_j rounds to the

@@ -137,6 +137,7 @@ class JointStepper final : public FormulationStepper {
   std::vector<State> backup_;   // a substep's start, by depth (advance)
   Eigen::VectorXd acc_k4_;      // the bodies' accelerations of RK4's k4 at the step's end (leapt)
   LoopClosures closures_;  // drives, limits and couplers: equations on the tree
+  ClosureSolveMode closure_mode_;  // how the closures' solves take branch passages (loop_closure.h)
   std::vector<signed char> limit_side0_;
   std::vector<std::array<double, 3>> friction0_;  // s.friction at the step's start
   std::vector<double> sum_friction0_;             // s.sum_friction at the step's start

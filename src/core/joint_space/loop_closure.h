@@ -80,6 +80,38 @@ struct ClosureProjectionReport {
   bool at_rates = false;
 };
 
+// How a solve treats branch passages and what it forms: the caller's choice per call
+// (constrainedForwardDynamics, projectClosurePositions, projectClosureVelocities), not
+// state of the closures.
+//   passage_ref: where two branches of a loop cross (a parallelogram four-bar passing flat),
+//     G loses a rank that the loop's geometry, not round-off, takes away: locally Phi ~ x y
+//     with x along the motion and y across it. Near the crossing the equations determine y
+//     only to eps / x, its rate to eps / x^2 and its acceleration to eps / x^3, so any solve
+//     there (a stage, a projection) turns round-off into motion. passage_ref, when set (the
+//     joint stepper sets it to the accelerations at the start of its step), makes every
+//     solve take the passage instead (branch_passage.cpp): each closure's rows are
+//     normalized by the size of their terms (rates as speeds: W = D_r G diag(1/unit)),
+//     decomposed W = U S V^T, and a direction whose singular value is below kPassageBand
+//     (and above kPassageDependent: a structural dependency) is held by the motion instead
+//     of by the equations: its acceleration (v o unit)^T a is passage_ref's (the transverse
+//     acceleration is continuous along the branch), the projections leave its position and
+//     rate as the integration carried them. The other directions keep the equations
+//     exactly (v_i^T a = u_i^T D_r gamma_q / s_i). Outside a passage nothing changes.
+//     nullptr: no passage is looked for.
+//   passage_hold: false: the decomposition applies, nothing is held (a settle).
+//   regular_factor: whether constrainedForwardDynamics also factors the ordinary closure
+//     solve (factor()) where it takes a passage's: solve() and Y read that factorization
+//     (the joint stepper's friction and damping at a step's start); false skips it (the
+//     later stages).
+//   form_Y: whether the factorization also forms Y = M^-1 G^T (the solves themselves do
+//     not need it: a caller that reads Y).
+struct ClosureSolveMode {
+  const Eigen::VectorXd* passage_ref = nullptr;
+  bool passage_hold = true;
+  bool regular_factor = true;
+  bool form_Y = true;
+};
+
 // The branch passages' state and scratch (branch_passage.cpp, LoopClosures::findPassage):
 // the closures' decompositions at the last evaluation, the directions held by the motion,
 // and the factorization of the reduced rows R M^-1 R^T.
@@ -97,7 +129,7 @@ struct BranchPassageWork {
   Eigen::LLT<Small6> llt;  // test away from passages)
   std::vector<int> rows, cols;
   Eigen::VectorXd m, h;  // a closure's rates and held direction over its columns
-  Eigen::VectorXd rate;     // passage_rate at the last findPassage() (rate_set)
+  Eigen::VectorXd rate;     // findPassage()'s rate at its last call (rate_set)
   bool rate_set = false;
   Eigen::JacobiSVD<Eigen::MatrixXd> svd;
   Eigen::JacobiSVD<Small6> svd6;  // (the same up to 6 x 6)
@@ -121,8 +153,74 @@ struct BranchPassageWork {
   bool at_hold = true;
 };
 
-// The closures of a tree and the scratch of their solves: sized once by the constructor.
-class LoopClosures {
+// What the closures of a tree are, built once from the tree and the System: which System
+// constraints the tree does not hold (cut joints, couplers, couplings, drives, limits), their
+// rows' layout in System order (less the idle rows no motion moves), the rows taken directly
+// on q, and the coordinates each row may touch. Nothing in it changes with an evaluation or
+// a solve; LoopClosures, the workspace that evaluates and solves the closures, is built on it.
+class ClosureRows {
+ public:
+  // sys constraint index per closure, ascending: every constraint that is not a tree
+  // joint's (cut joints, couplers, drives, limits)
+  std::vector<int> constraints;
+  std::vector<int> row;          // first closure row per closure
+  std::vector<int> sys_row;      // per closure row: its System row (sys.layout[c].row + e)
+  int m = 0;                     // closure rows (less the idle ones: idleRowCount())
+  int nv = 0;
+  // Rows of the closures' equations no motion of the tree moves, left out (LoopClosures::idleRows)
+  int idleRowCount() const { return idle_; }
+  // The coordinates closure row e may touch: those on its bodies' paths to the root (G, Gabs
+  // and Gbound are zero in every other column)
+  const std::vector<int>& rowColumns(int e) const { return ccols_[cl_of_[e]]; }
+  // Whether every closure is a limit (none: true).
+  bool onlyLimits() const { return only_limits_; }
+
+ protected:
+  // The closures and their direct rows; the rows' layout is layOut()'s.
+  ClosureRows(const TreeModel& model, const System& sys);
+  // The rows of each closure's constraint but those idle[i] marks (empty: every one).
+  void layOut(const System& sys, const std::vector<std::vector<char>>& idle);
+  // A limit or a coupler on coordinates of tree joints whose coordinates are q's own
+  // (every link but a spherical one): its row of G is sum_i c_i e_i (limit, coupling) or
+  // e_a - r e_b (coupler) and gamma_q is 0, without the mapping through J(q).
+  struct DirectRow {
+    int n = 0;           // entries (0: not direct)
+    int col[kMaxCoordinateEfforts] = {};   // velocity coordinates
+    int qcol[kMaxCoordinateEfforts] = {};  // their position coordinates
+    double coef[kMaxCoordinateEfforts] = {};
+    double offset = 0.0;  // a coupler's or coupling's: Phi = sum coef q - offset
+    int limit = -1;       // a limit's (System limit index): Phi = sum coef q - its bound on the active side
+    bool angle[kMaxCoordinateEfforts] = {};
+  };
+  std::vector<DirectRow> direct_;  // per closure
+  // per sys limit: its closure where that is a direct row (its sum over coordinates of q), or -1
+  std::vector<int> limit_direct_;
+  std::vector<char> implied_;      // per sys limit: a held slave's, implied by its master's (never active)
+  std::vector<int> nrows_;         // per closure: its rows (the constraint's, less its idle ones)
+  // Idle rows (LoopClosures::idleRows): rows of a closure's equations whose G row is zero
+  // wherever the tree is (a planar loop's out-of-plane rows), so that no motion of the tree
+  // changes them. They are left out of the closures' rows: per closure the constraint's rows
+  // that are kept (empty: every one), and the idle ones' System rows (their multipliers are 0).
+  std::vector<std::vector<int>> sel_;
+  std::vector<unsigned> sel_mask_;         // the kept rows as bits, for Joint::evaluateRows
+  std::vector<const Joint*> sel_joint_;    // the closure's joint (kept rows of a joint), or null
+  std::vector<int> idle_sys_rows_;
+  int idle_ = 0;
+  int allRows() const { return m + idle_; }  // the closures' equations, idle ones too (info)
+  std::vector<char> angle_;        // per velocity coordinate: an angle
+  Eigen::VectorXd unit_;           // per velocity coordinate: length scale (an angle) or 1
+  bool only_limits_ = false;       // every closure is a limit
+  // max_k |dv_k| unit_k: a correction's size as a length (positions) or speed (rates)
+  double correctionSize(const Eigen::VectorXd& dv) const;
+  // per closure: the coordinates its rows can touch (the sparse solve's blocks,
+  // ClosureSolver::blockCols); per row: its closure
+  std::vector<std::vector<int>> ccols_;
+  std::vector<int> cl_of_;
+};
+
+// The closures of a tree (ClosureRows) and the workspace their evaluations and solves
+// write: sized once by the constructor.
+class LoopClosures : public ClosureRows {
  public:
   LoopClosures(const TreeModel& model, const System& sys);
 
@@ -131,19 +229,6 @@ class LoopClosures {
   // on write (a new System, the constraints shared), so its stepper rebinds on every call.
   void rebind(const System& sys) { sys_ = &sys; }
 
-  // ---- description
-  // sys constraint index per closure, ascending: every constraint that is not a tree
-  // joint's (cut joints, couplers, drives, limits)
-  std::vector<int> constraints;
-  std::vector<int> row;          // first closure row per closure
-  std::vector<int> sys_row;      // per closure row: its System row (sys.layout[c].row + e)
-  int m = 0;                     // closure rows (less the idle ones: idleRowCount())
-  // Rows of the closures' equations no motion of the tree moves, left out (idleRows())
-  int idleRowCount() const { return idle_; }
-  // The coordinates closure row e may touch: those on its bodies' paths to the root (G, Gabs
-  // and Gbound are zero in every other column)
-  const std::vector<int>& rowColumns(int e) const { return ccols_[cl_of_[e]]; }
-  int nv = 0;
   // The context the closures' equations read. By default the closure's own copies (from
   // initialState(sys): tracked angles per sys constraint, limit sides all 0 (free), drive
   // ramps, t; track() keeps the tracked angles; set them freely). setContext(ctx) makes
@@ -175,8 +260,7 @@ class LoopClosures {
   // rows while their inputs hold the same bits, and findPassage() and factor() their results)
 
   // ---- solves
-  Eigen::MatrixXd Y;       // M^-1 G^T (nv x m), formed by factor() when form_Y
-  bool form_Y = true;      // (the solves themselves do not need it: a caller that reads Y)
+  Eigen::MatrixXd Y;       // M^-1 G^T (nv x m), formed by factor(..., form_Y = true)
   Eigen::VectorXd lambda;  // multipliers per closure row (absolute sign convention)
   ClosureSolveInfo info;   // of the last solve
 
@@ -230,14 +314,13 @@ class LoopClosures {
   // coordinates (G is zero elsewhere)
   void timesG(const Eigen::VectorXd& v, Eigen::VectorXd& out) const { rowsTimes(G, v, out); }
   void inverseMassGT(const Eigen::VectorXd& x, Eigen::VectorXd& out) const;
-  // Y = M^-1 G^T and the factorization of G M^-1 G^T (after evaluate() and forwardDynamics).
-  void factor(const TreeModel& model, const TreeWorkspace& ws);
+  // The factorization of G M^-1 G^T, and with form_Y Y = M^-1 G^T (after evaluate() and
+  // forwardDynamics).
+  void factor(const TreeModel& model, const TreeWorkspace& ws, bool form_Y = true);
   // Whether every closure is a limit and every limit is free in context(): then every
   // row is zero wherever the tree is, and clearRows() gives what evaluate() and factor()
   // would (zero rows, lambda = 0), without the kinematics (a tree arm between its stops).
   bool allFreeLimits() const;
-  // Whether every closure is a limit (none: true).
-  bool onlyLimits() const { return only_limits_; }
   void clearRows();
   // x = (G M^-1 G^T)^+ b as above (after factor()); x and b of size m (x may be b).
   // No allocation.
@@ -255,31 +338,7 @@ class LoopClosures {
   int activateReachedLimits(const System& sys, const TreeModel& model, const Eigen::VectorXd& q,
                             const Eigen::VectorXd& qdot, TreeWorkspace& ws, signed char* limit_side);
   int releasePullingLimits(const System& sys, signed char* limit_side) const;
-  // ---- branch passages (branch_passage.cpp)
-  // Where two branches of a loop cross (a parallelogram four-bar passing flat), G loses a
-  // rank that the loop's geometry, not round-off, takes away: locally Phi ~ x y with x along
-  // the motion and y across it. Near the crossing the equations determine y only to
-  // eps / x, its rate to eps / x^2 and its acceleration to eps / x^3, so any solve there
-  // (a stage, a projection) turns round-off into motion. passage_ref, when set (the joint
-  // stepper sets it to the accelerations at the start of its step), makes every solve take
-  // the passage instead: each closure's rows are normalized by the size of their terms
-  // (rates as speeds: W = D_r G diag(1/unit)), decomposed W = U S V^T, and a direction whose singular
-  // value is below kPassageBand (and above kPassageDependent: a structural dependency) is
-  // held by the motion instead of by the equations: its acceleration (v o unit)^T a is passage_ref's
-  // (the transverse acceleration is continuous along the branch), the projections leave
-  // its position and rate as the integration carried them. The other directions keep the
-  // equations exactly (v_i^T a = u_i^T D_r gamma_q / s_i). Outside a passage nothing changes.
-  const Eigen::VectorXd* passage_ref = nullptr;
-  bool passage_hold = true;  // false: the decomposition applies, nothing is held (a settle)
-  // The rates of the motion at the coordinates of the next findPassage() (the acceleration
-  // solves set it to their q_dot; nullptr: none, as in the projections). A held direction is
-  // then taken across the motion (branch_passage.cpp, "across the motion"): its reaction
-  // does no work on it.
-  const Eigen::VectorXd* passage_rate = nullptr;
-  // Whether constrainedForwardDynamics also factors the ordinary closure solve (factor())
-  // where it takes a passage's: solve() and Y read that factorization (the joint stepper's
-  // friction and damping at a step's start); false skips it (the later stages).
-  bool regular_factor = true;
+  // ---- branch passages (branch_passage.cpp; ClosureSolveMode says when the solves take them)
   // After evaluate(): each closure's rows (those that are not round-off) decomposed on their
   // own. true where some closure is near a loss of rank (a singular value below
   // kPassageGate: a passage, or one coming) or has rows that are dependent without being
@@ -288,8 +347,11 @@ class LoopClosures {
   // dropped by this geometric threshold rather than by the rank threshold of the
   // Jacobi-scaled G M^-1 G^T, which near a crossing keeps their round-off and leaves no null
   // space: a four-bar whose cut joint has non-zero dependent rows stopped dead at its flat
-  // passage). false: the ordinary solves apply.
-  bool findPassage();
+  // passage). false: the ordinary solves apply. hold: ClosureSolveMode::passage_hold. rate:
+  // the rates of the motion at these coordinates (the acceleration solves pass their q_dot;
+  // nullptr: none, as in the projections): a held direction is then taken across the motion
+  // (branch_passage.cpp, "across the motion"), its reaction doing no work on it.
+  bool findPassage(bool hold = true, const Eigen::VectorXd* rate = nullptr);
   // Directions held by the motion at the last findPassage(), and how many passages were met
   // (findPassage() calls that found one) since construction.
   int passageDirections() const { return passage_.band; }
@@ -315,36 +377,9 @@ class LoopClosures {
 
  private:
   void loadKin(const TreeWorkspace& ws);
-  // A limit or a coupler on coordinates of tree joints whose coordinates are q's own
-  // (every link but a spherical one): its row of G is sum_i c_i e_i (limit, coupling) or
-  // e_a - r e_b (coupler) and gamma_q is 0, without the mapping through J(q).
-  struct DirectRow {
-    int n = 0;           // entries (0: not direct)
-    int col[kMaxCoordinateEfforts] = {};   // velocity coordinates
-    int qcol[kMaxCoordinateEfforts] = {};  // their position coordinates
-    double coef[kMaxCoordinateEfforts] = {};
-    double offset = 0.0;  // a coupler's or coupling's: Phi = sum coef q - offset
-    int limit = -1;       // a limit's (System limit index): Phi = sum coef q - its bound on the active side
-    bool angle[kMaxCoordinateEfforts] = {};
-  };
   const Eigen::VectorXd* q_ = nullptr;  // evaluate()'s q, for the direct rows' Phi
-  std::vector<DirectRow> direct_;  // per closure
-  // per sys limit: its closure where that is a direct row (its sum over coordinates of q), or -1
-  std::vector<int> limit_direct_;
-  std::vector<char> implied_;      // per sys limit: a held slave's, implied by its master's (never active)
-  std::vector<int> nrows_;         // per closure: its rows (the constraint's, less its idle ones)
-  // Idle rows (idleRows()): rows of a closure's equations whose G row is zero wherever the
-  // tree is (a planar loop's out-of-plane rows), so that no motion of the tree changes them.
-  // They are left out of the closures' rows: per closure the constraint's rows that are
-  // kept (empty: every one), the idle ones' System rows (their multipliers are 0) and the
-  // scratch the kept rows are copied from.
-  std::vector<std::vector<int>> sel_;
-  std::vector<unsigned> sel_mask_;         // the kept rows as bits, for Joint::evaluateRows
-  std::vector<const Joint*> sel_joint_;    // the closure's joint (kept rows of a joint), or null
-  std::vector<int> idle_sys_rows_;
-  int idle_ = 0;
-  int allRows() const { return m + idle_; }  // the closures' equations, idle ones too (info)
-  std::vector<char> angle_;        // per velocity coordinate: an angle
+  // The rows' layout (ClosureRows::layOut) and everything sized by it; the evaluations'
+  // kept results are forgotten.
   void layout(const TreeModel& model, const System& sys, const std::vector<std::vector<char>>& idle);
   std::vector<std::vector<char>> idleRows(const TreeModel& model, const System& sys);
   // evaluate()'s mapping of one body's rows onto G, Gabs and Gbound (loop_closure.cpp)
@@ -352,26 +387,21 @@ class LoopClosures {
   using SmallRows = Eigen::Matrix<double, Eigen::Dynamic, 6, Eigen::RowMajor, kSmallRows, 6>;
   template <class JB, class JA>
   void mapBody(const TreeModel& model, const TreeWorkspace& ws, int b, const JB& Jb, const JA& Jabs, int r0, int n);
-  Eigen::VectorXd unit_;           // per velocity coordinate: length scale (an angle) or 1
-  bool only_limits_ = false;        // every closure is a limit
   bool cleared_ = false;            // clearRows() ran since the last evaluate()
   bool closureRows(size_t c);
-  // max_k |dv_k| unit_k: a correction's size as a length (positions) or speed (rates)
-  double correctionSize(const Eigen::VectorXd& dv) const;
   BranchPassageWork passage_;  // branch_passage.cpp
   // R, M^-1 R^T and the factor of R M^-1 R^T at ws (after findPassage() > 0)
   void passageFactor(const TreeModel& model, const TreeWorkspace& ws);
   // per closure row: r = G q_dot - nu and the size of its terms t (velocityResidual's)
   void velocityRows(const Eigen::VectorXd& qdot, const Eigen::VectorXd* reference, Eigen::VectorXd& r,
                     Eigen::VectorXd& t) const;
-  // g = P b, 0 on the held rows; with accel, R_j passage_ref on the held rows
-  void passageRhs(const Eigen::VectorXd& b, Eigen::VectorXd& g, bool accel = false) const;
+  // g = P b, 0 on the held rows; with accel (ClosureSolveMode::passage_ref), R_j accel on
+  // the held rows
+  void passageRhs(const Eigen::VectorXd& b, Eigen::VectorXd& g, const Eigen::VectorXd* accel = nullptr) const;
   // lambda = P^T mu (G^T lambda = R^T mu)
   void passageMultipliers(const Eigen::VectorXd& mu);
   // max_e |b'_e| / scale_e, b' = b without its components on the held directions
   double passageResidual(const Eigen::VectorXd& b, const Eigen::VectorXd& scale_e);
-  std::vector<std::vector<int>> ccols_;  // per closure: the coordinates its rows can touch
-  std::vector<int> cl_of_;               // per row: its closure
   // out = G v over each row's coordinates (G is zero elsewhere)
   void rowsTimes(const Eigen::MatrixXd& R, const Eigen::VectorXd& v, Eigen::VectorXd& out) const;
   // out = R^T x over each row's coordinates (R laid out as G); false where x = 0
@@ -446,6 +476,8 @@ class LoopClosures {
   // ws's articulated factors' generation (TreeWorkspace::generation)
   long massFactorsGeneration(const TreeWorkspace& ws);
   void factorNow(const TreeModel& model, const TreeWorkspace& ws);
+  // Y = M^-1 G^T at factorNow()'s factors (its kept rows; a dropped row's column 0)
+  void formY(const TreeModel& model, const TreeWorkspace& ws);
   bool findPassageNow();
   const TreeModel* model_ = nullptr;
   const System* sys_ = nullptr;
@@ -454,23 +486,24 @@ class LoopClosures {
   friend ClosureSolveInfo constrainedForwardDynamics(const TreeModel&, const System&, LoopClosures&,
                                                      const Eigen::VectorXd&, const Eigen::VectorXd&,
                                                      const Eigen::VectorXd&, TreeWorkspace&, Eigen::VectorXd&,
-                                                     const Inputs*, bool);
+                                                     const Inputs*, bool, const ClosureSolveMode&);
   friend ClosureProjectionReport projectClosurePositions(const TreeModel&, const System&, LoopClosures&,
                                                          Eigen::VectorXd&, TreeWorkspace&, double, int,
-                                                         const Eigen::VectorXd*);
+                                                         const Eigen::VectorXd*, const ClosureSolveMode&);
   friend ClosureProjectionReport projectClosureVelocities(const TreeModel&, const System&, LoopClosures&,
                                                           const Eigen::VectorXd&, Eigen::VectorXd&, TreeWorkspace&,
-                                                          double, int, bool, bool);
+                                                          double, int, bool, bool, const ClosureSolveMode&);
 };
 
 // Constrained forward dynamics: q_ddot and closures.lambda at (q, q_dot) with efforts tau
 // and optional loads (as forwardDynamics; loads->effort of cut joints acts through
-// addCutJointEfforts, the tree joints' efforts are read from tau only), at closures.context().
-// Returns the solve's rank report.
+// addCutJointEfforts, the tree joints' efforts are read from tau only), at closures.context(),
+// branch passages as `mode` says. Returns the solve's rank report.
 ClosureSolveInfo constrainedForwardDynamics(const TreeModel& model, const System& sys, LoopClosures& closures,
                                             const Eigen::VectorXd& q, const Eigen::VectorXd& qdot,
                                             const Eigen::VectorXd& tau, TreeWorkspace& ws, Eigen::VectorXd& qddot,
-                                            const Inputs* loads = nullptr, bool evaluated = false);
+                                            const Inputs* loads = nullptr, bool evaluated = false,
+                                            const ClosureSolveMode& mode = {});
 
 // q (+) dv: q moved by dv (velocity coordinates): q_k + dv_k, a spherical joint's
 // quaternion exp(dv/2) (x) q, a free body's r + dv and p (x) exp(dv'/2) (positionRates'
@@ -481,10 +514,12 @@ void retract(const TreeModel& model, Eigen::VectorXd& q, const Eigen::VectorXd& 
 // until closures.positionResidual() <= tol (at most max_iterations steps). ws ends at q's
 // kinematics with zero velocity, or with `rates` when given (the equations' Phi and G do
 // not read them; gamma does: report.at_rates says ws and the evaluation are at (q, rates)).
-// Both projections allocate nothing (the closures' scratch).
+// Both projections allocate nothing (the closures' scratch), and take branch passages as
+// `mode` says.
 ClosureProjectionReport projectClosurePositions(const TreeModel& model, const System& sys, LoopClosures& closures,
                                                 Eigen::VectorXd& q, TreeWorkspace& ws, double tol = 1e-13,
-                                                int max_iterations = 20, const Eigen::VectorXd* rates = nullptr);
+                                                int max_iterations = 20, const Eigen::VectorXd* rates = nullptr,
+                                                const ClosureSolveMode& mode = {});
 // q_dot -= M^-1 G^T (G M^-1 G^T)^+ (G q_dot - nu) (the M-nearest q_dot with G q_dot = nu), repeated
 // while the relative residual exceeds tol (at most max_iterations). evaluated_at_q: ws and
 // closures already hold q's kinematics and evaluation, as projectClosurePositions leaves
@@ -496,6 +531,7 @@ ClosureProjectionReport projectClosurePositions(const TreeModel& model, const Sy
 ClosureProjectionReport projectClosureVelocities(const TreeModel& model, const System& sys, LoopClosures& closures,
                                                  const Eigen::VectorXd& q, Eigen::VectorXd& qdot, TreeWorkspace& ws,
                                                  double tol = 1e-13, int max_iterations = 3,
-                                                 bool evaluated_at_q = false, bool at_rates = false);
+                                                 bool evaluated_at_q = false, bool at_rates = false,
+                                                 const ClosureSolveMode& mode = {});
 
 }  // namespace mechanism_sim

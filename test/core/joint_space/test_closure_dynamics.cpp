@@ -333,10 +333,11 @@ TEST(JointSpaceLoops, AHeldDirectionsReactionDoesNoWorkOnTheMotion) {
   const Eigen::VectorXd q = flat + 1e-5 * t + 1e-9 * across;
   Eigen::VectorXd qdot = 2.0 * t;
   Eigen::VectorXd a_ref = Eigen::VectorXd::Zero(model.nv);
-  cl.passage_ref = &a_ref;
-  projectClosureVelocities(model, sys, cl, q, qdot, ws, 1e-14);
+  ClosureSolveMode mode;
+  mode.passage_ref = &a_ref;
+  projectClosureVelocities(model, sys, cl, q, qdot, ws, 1e-14, 3, false, false, mode);
   Eigen::VectorXd qdd, qdd_free;
-  constrainedForwardDynamics(model, sys, cl, q, qdot, zero, ws, qdd);
+  constrainedForwardDynamics(model, sys, cl, q, qdot, zero, ws, qdd, nullptr, false, mode);
   EXPECT_GT(cl.passageDirections(), 0) << "a passage";
   forwardDynamics(model, sys, q, qdot, zero, ws, qdd_free);
   AlignedVector<Matrix6d> Ic(model.nb);
