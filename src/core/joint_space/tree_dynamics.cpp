@@ -4,6 +4,7 @@
 //
 // Spatial algebra after Featherstone, "Rigid Body Dynamics Algorithms" (RBDA), Springer
 // 2008, chapter 2 (joint_space/spatial.h).
+#include <algorithm>
 #include <cmath>
 
 #include "core/joint_space/spatial.h"
@@ -130,8 +131,60 @@ void forwardDynamics(const TreeModel& model, const System& sys, const Eigen::Vec
                      Eigen::VectorXd& qddot, const Inputs* loads) {
   // Pass 1 (outward): velocities and the bias c_i (forwardKinematics), then the rest
   forwardKinematics(model, q, qdot, ws);
+  if (model.rotor_damping) {  // the motors' coupled damping: efforts -D_01 q_dot across (transmission.h)
+    ws.rotor_tau = tau;
+    for (const TreeModel::RotorCoupling& C : model.rotor_couplings) {
+      ws.rotor_tau(C.i) -= C.damping * qdot(C.j);
+      ws.rotor_tau(C.j) -= C.damping * qdot(C.i);
+    }
+    forwardDynamicsAtKinematics(model, sys, ws.rotor_tau, ws, qddot, loads);
+    return;
+  }
   forwardDynamicsAtKinematics(model, sys, tau, ws, qddot, loads);
 }
+
+namespace {
+
+// Rotors that couple coordinates (TreeModel::rotor_couplings): the joint-space inertia is
+// M = M_a + U C U^T, M_a the articulated-body pass's (the armature on its diagonal), U a
+// unit column e_i, e_j per coupling and C its block [0 B_01; B_01 0]. From q_ddot_a =
+// M_a^-1 r the Woodbury identity gives q_ddot = M^-1 r exactly:
+//   q_ddot = q_ddot_a - Y z,   (I + C U^T Y) z = C U^T q_ddot_a,   Y = M_a^-1 U,
+// Y by inverse-mass passes on the factors in ws (as LoopClosures::applyInverseMass); then
+// the bodies' accelerations a_i again from q_ddot (bodyAccelerations' pass).
+[[gnu::noinline]] void coupleRotors(const TreeModel& model, TreeWorkspace& ws, Eigen::VectorXd& qddot) {
+  const int m = static_cast<int>(ws.rotor_Y.cols());
+  for (int col = 0; col < m; ++col) {
+    const TreeModel::RotorCoupling& C = model.rotor_couplings[col / 2];
+    double* y = ws.rotor_Y.col(col).data();
+    std::fill(y, y + model.nv, 0.0);
+    y[col % 2 == 0 ? C.i : C.j] = 1.0;
+    for (int k = 0; k < model.nb; ++k) ws.rotor_p[k].setZero();
+    for (int n = model.nb - 1; n >= 0; --n) inverseMassInward(model, ws, model.order[n] - 1, y, y, ws.rotor_p);
+    articulatedOutward<false>(
+        model, ws, [&](int k) { return Eigen::Map<const SmallVector>(y + model.links[k].iv, model.links[k].nv); },
+        [&](int k) { return y[model.links[k].pivot]; }, y, ws.rotor_a);
+  }
+  // K = I + C U^T Y, r = C U^T q_ddot_a (row 2c of C U^T is B_01 e_j^T, row 2c + 1 B_01 e_i^T)
+  for (int row = 0; row < m; ++row) {
+    const TreeModel::RotorCoupling& C = model.rotor_couplings[row / 2];
+    const int other = row % 2 == 0 ? C.j : C.i;
+    for (int col = 0; col < m; ++col) ws.rotor_K(row, col) = (row == col ? 1.0 : 0.0) + C.inertia * ws.rotor_Y(other, col);
+    ws.rotor_r(row) = C.inertia * qddot(other);
+  }
+  ws.rotor_lu.compute(ws.rotor_K);
+  ws.rotor_z = ws.rotor_lu.solve(ws.rotor_r);
+  qddot.noalias() -= ws.rotor_Y * ws.rotor_z;
+  for (int b : model.order) {
+    const int k = b - 1;
+    const TreeLink& L = model.links[k];
+    Vector6d a = ws.c[k] + ws.S[k] * qddot.segment(L.iv, L.nv);
+    if (L.parent != 0) a += transformMotion(ws.E[k], ws.rho[k], ws.a[L.parent - 1]);
+    ws.a[k] = a;
+  }
+}
+
+}  // namespace
 
 void forwardDynamicsAtKinematics(const TreeModel& model, const System& sys, const Eigen::VectorXd& tau,
                                  TreeWorkspace& ws, Eigen::VectorXd& qddot, const Inputs* loads) {
@@ -222,6 +275,7 @@ void forwardDynamicsAtKinematics(const TreeModel& model, const System& sys, cons
   articulatedOutward<true>(
       model, ws, [&](int k) -> const SmallVector& { return ws.u[k]; }, [&](int k) { return ws.tie_u[k]; },
       qddot.data(), ws.a);
+  if (!model.rotor_couplings.empty()) coupleRotors(model, ws, qddot);
 }
 
 // Recursive Newton-Euler, RBDA 5.3, table 5.1 (gravity as a body force as above):
