@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <fstream>
 #include <string>
 
@@ -723,21 +724,21 @@ TEST(Actuators, DifferentialMotorFrictionActsOnItsShaft) {
   }
 }
 
-// Saturation behind a differential (E = [20 40; 30 -60], the discs' M = diag(0.02, 0.03)):
-// both joints velocity-driven, ja ramped to 10 rad/s at 1000 rad/s^2 with jb held still. The
-// ramp asks tau_theta = E^-T (0.02 1000, 0) = (0.5, 0.333) N m; m1's peak is 0.25. While m1
-// is at its bound +-P, m2's coordinate theta_2 = E_2 q follows its profile, so (by hand)
+// Saturation behind a two-joint transmission: both discs velocity-driven, ja ramped to
+// 10 rad/s at 1000 rad/s^2 with jb held still, m1's peak P = 0.25 N m below what the ramp
+// asks of it, (E^-T (0.02 1000, 0))_1. While m1 is at its bound +-P, m2's coordinate
+// theta_2 = E_2 q follows its profile, so (by hand)
 //   M q_ddot = E^T (+-P, tau_2),   E_2 q_ddot = E_2 q_ddot_profile,
-// three equations for q_ddot and tau_2: jb is dragged off its rest while ja falls behind.
-// m1's coordinate lags at A1 = E_1 (q_ddot_profile - q_ddot) over the ramp's T = 0.01 s and
-// catches up at A2 after it, its largest lag 1/2 A1 T^2 + (A1 T)^2 / (2 A2) (at 0.1 ms
-// steps). Then (at 1 ms steps, where the way back, critically damped at 0.5 / h, settles
-// within the bounds) both drives follow their profiles exactly again. Both formulations,
-// agreeing.
-TEST(Actuators, SaturationBehindADifferentialLagsByTheHandComputedAmount) {
+// three equations for q_ddot and tau_2 (behind the differential jb is dragged off its rest
+// while ja falls behind). m1's coordinate lags at A1 = E_1 (q_ddot_profile - q_ddot) over
+// the ramp's T = 0.01 s and catches up at A2 after it, its largest lag 1/2 A1 T^2 +
+// (A1 T)^2 / (2 A2), A1 T / A2 after the ramp's end (at 0.1 ms steps). Then (at 1 ms steps,
+// where the way back, critically damped at 0.5 / h, settles within the bounds) both drives
+// follow their profiles exactly again. Both formulations, agreeing.
+void saturationBehind(const std::string& type, const Eigen::Matrix2d& E) {
+  SCOPED_TRACE(type);
   const double P = 0.25, V = 10.0, alpha = 1000.0, T = V / alpha, h = 1e-4;
-  Eigen::Matrix2d E, M = Eigen::Vector2d(0.02, 0.03).asDiagonal();
-  E << 20, 40, 30, -60;
+  const Eigen::Matrix2d M = Eigen::Vector2d(0.02, 0.03).asDiagonal();
   // q_ddot at m1's torque tau_1 with theta_2 on its profile's acceleration
   auto atBound = [&](double tau_1, const Eigen::Vector2d& qdd_profile) {
     Eigen::Matrix3d K = Eigen::Matrix3d::Zero();
@@ -750,12 +751,15 @@ TEST(Actuators, SaturationBehindADifferentialLagsByTheHandComputedAmount) {
     return Eigen::Vector2d(K.partialPivLu().solve(r).head<2>());
   };
   const Eigen::Vector2d ramp(alpha, 0.0);
+  ASSERT_GT((E.transpose().partialPivLu().solve(M * ramp))[0], 1.5 * P);
   const double A1 = E.row(0).dot(ramp - atBound(P, ramp));
   const double A2 = E.row(0).dot(atBound(P, Eigen::Vector2d::Zero()));
   const double lag_expected = 0.5 * A1 * T * T + A1 * T * A1 * T / (2 * A2);
-  const std::string xml = differentialDiscs(
+  const double t_expected = 0.001 + T + A1 * T / A2;  // (the ramp starts at 0.001 s)
+  std::string xml = differentialDiscs(
       "<mechanism_sim:actuator name=\"m1\" peak_torque=\"0.25\"/><mechanism_sim:actuator name=\"m2\" peak_torque=\"5\"/>"
       "<mechanism_sim:drive joint=\"ja\" velocity=\"0\"/><mechanism_sim:drive joint=\"jb\" velocity=\"0\"/>");
+  xml.replace(xml.find("DifferentialTransmission"), std::strlen("DifferentialTransmission"), type);
   Eigen::Vector2d q_end[2];
   int f = 0;
   for (const char* formulation : {"absolute", "joint"}) {
@@ -790,16 +794,18 @@ TEST(Actuators, SaturationBehindADifferentialLagsByTheHandComputedAmount) {
       EXPECT_NEAR(model->acceleration(ja), qdd[0], 1e-8 * alpha) << s;
       EXPECT_NEAR(model->acceleration(jb), qdd[1], 1e-8 * alpha) << s;
     };
-    for (int s = 0; s < 300; ++s) model->step(h), check(s);  // the ramp and the catching up to 0.031 s
-    std::printf("[differential saturation, %s] m1's largest lag %.9f rad at t = %.4f s (by hand %.9f), "
+    // the ramp and the catching up, to 1 ms past the largest lag
+    const int n1 = static_cast<int>(std::lround((t_expected - 0.001) / h)) + 10;
+    for (int s = 0; s < n1; ++s) model->step(h), check(s);
+    std::printf("[saturation behind a %s, %s] m1's largest lag %.9f rad at t = %.4f s (by hand %.9f at %.4f s), "
                 "%d steps at its bound, m2's lag there at most %.2e\n",
-                formulation, lag_max, t_max, lag_expected, at_bound, worst_m2_lag);
-    EXPECT_EQ(at_bound, 300);                          // (the lag grows until 0.021 s, shrinks after)
+                type.c_str(), formulation, lag_max, t_max, lag_expected, t_expected, at_bound, worst_m2_lag);
+    EXPECT_EQ(at_bound, n1);
     EXPECT_NEAR(lag_max, lag_expected, 1e-6 * lag_expected);
-    EXPECT_NEAR(t_max, 0.001 + 2 * T + 1e-4, 1.5e-4);  // (T after the ramp's end, A1 = A2 here)
-    EXPECT_LT(worst_m2_lag, 1e-9 * lag_expected);      // m2's coordinate follows its profile
-    for (int s = 0; s < 300; ++s) model->step(1e-3), check(300 + s);
-    EXPECT_LT(worst, 1e-10);                           // never above its peak
+    EXPECT_NEAR(t_max, t_expected, 1.5 * h);
+    EXPECT_LT(worst_m2_lag, 1e-9 * lag_expected);  // m2's coordinate follows its profile
+    for (int s = 0; s < 300; ++s) model->step(1e-3), check(n1 + s);
+    EXPECT_LT(worst, 1e-10);  // never above its peak
     // back on both profiles exactly: ja at 10 rad/s, jb at rest where it started
     const ActuatorState m1 = model->actuatorState(0);
     EXPECT_EQ(m1.lag, 0.0);
@@ -811,6 +817,18 @@ TEST(Actuators, SaturationBehindADifferentialLagsByTheHandComputedAmount) {
   }
   EXPECT_NEAR(q_end[0][0], q_end[1][0], 1e-9);
   EXPECT_NEAR(q_end[0][1], q_end[1][1], 1e-9);
+}
+
+TEST(Actuators, SaturationBehindADifferentialLagsByTheHandComputedAmount) {
+  Eigen::Matrix2d E;
+  E << 20, 40, 30, -60;  // (differentialDiscs: n_a = (20, 30), n_j = (1, 2))
+  saturationBehind("DifferentialTransmission", E);
+}
+
+TEST(Actuators, SaturationBehindAFourBarLagsByTheHandComputedAmount) {
+  Eigen::Matrix2d E;
+  E << 20, 0, 30, 60;  // [n_a1 n_j1, 0; n_a2, n_a2 n_j2]
+  saturationBehind("FourBarLinkageTransmission", E);
 }
 
 // The coupled rotor inertia B = E^T diag(J) E in both formulations: the discs (two sibling
