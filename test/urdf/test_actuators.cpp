@@ -932,5 +932,26 @@ TEST(Actuators, CoupledRotorWithAClosureRunsInAbsoluteCoordinates) {
       << model->formulationReason();
 }
 
+// Damping that is stiff at the step with a coupled rotor: the joint formulation's implicit
+// damping works on the articulated factors without the coupling, so the run stops with one
+// line naming the joint.
+TEST(Actuators, StiffDampingWithACoupledRotorStopsTheJointFormulation) {
+  const std::string xml = differentialDiscs(
+      "<mechanism_sim:actuator name=\"m1\" rotor_inertia=\"1e-5\" damping=\"1\"/>"
+      "<mechanism_sim:initial joint=\"ja\" velocity=\"1\"/>");
+  LoadOptions o;
+  o.formulation = "joint";
+  auto model = loadModelString(xml, "diff.urdf", o);
+  std::string what = "(ran)";
+  try {
+    model->step(1e-3);  // (400 N m s on ja against 0.024 kg m^2: a rate 1.7e4 / s, h times it 17)
+  } catch (const std::exception& e) {
+    what = e.what();
+  }
+  EXPECT_NE(what.find("the damping of joint 'ja' is stiff at this step and a rotor inertia couples two joints"),
+            std::string::npos)
+      << what;
+}
+
 }  // namespace
 }  // namespace mechanism_sim

@@ -361,7 +361,7 @@ TreeModel::TreeModel(const System& sys, bool embed_couplers) {
     C.j = links[joint_link[R.coords[1].first]].iv + R.coords[1].second;
     C.inertia = R.B(0, 1), C.damping = R.damping_coupling;
     rotor_couplings.push_back(C);
-    rotor_damping = rotor_damping || C.damping != 0.0;
+    rotors_coupled = true;
   }
 }
 

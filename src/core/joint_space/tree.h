@@ -188,13 +188,14 @@ struct TreeModel {
   // their reflected inertia and D_01 of their motors' damping. forwardDynamics adds them
   // exactly to the articulated-body pass, whose M_a has only the armature (the Woodbury
   // identity, tree_dynamics.cpp); the other users of M_a's factors (closures, friction,
-  // implicit damping) do not take them: jointSpaceUnsupported and JointDamping refuse those.
+  // implicit damping, forwardDynamicsAtKinematics alone) do not take them:
+  // jointSpaceUnsupported and JointDamping refuse those.
   struct RotorCoupling {
     int i = 0, j = 0;
     double inertia = 0.0, damping = 0.0;
   };
   std::vector<RotorCoupling> rotor_couplings;
-  bool rotor_damping = false;  // any coupling's damping not zero
+  bool rotors_coupled = false;  // rotor_couplings not empty
   std::vector<int> ties;        // links tied to a master's coordinate (embed_couplers), parents first
   // q_s = r q_m + o and q_dot_s = r q_dot_m of every tie (their round-off in q_round and
   // qdot_round likewise, when given): what the integration holds up to round-off, exactly.

@@ -121,30 +121,6 @@ inline void articulatedTransform(const TreeModel& model, const TreeWorkspace& ws
   pa += WD * ws.tie_u[k];
 }
 
-}  // namespace
-
-// Articulated-body algorithm, RBDA 7.3, table 7.1, in body coordinates: gravity enters as
-// a force on each body (not as the base acceleration -a_g of the table), so the spatial
-// accelerations a_i left in ws are the bodies' true ones.
-void forwardDynamics(const TreeModel& model, const System& sys, const Eigen::VectorXd& q,
-                     const Eigen::VectorXd& qdot, const Eigen::VectorXd& tau, TreeWorkspace& ws,
-                     Eigen::VectorXd& qddot, const Inputs* loads) {
-  // Pass 1 (outward): velocities and the bias c_i (forwardKinematics), then the rest
-  forwardKinematics(model, q, qdot, ws);
-  if (model.rotor_damping) {  // the motors' coupled damping: efforts -D_01 q_dot across (transmission.h)
-    ws.rotor_tau = tau;
-    for (const TreeModel::RotorCoupling& C : model.rotor_couplings) {
-      ws.rotor_tau(C.i) -= C.damping * qdot(C.j);
-      ws.rotor_tau(C.j) -= C.damping * qdot(C.i);
-    }
-    forwardDynamicsAtKinematics(model, sys, ws.rotor_tau, ws, qddot, loads);
-    return;
-  }
-  forwardDynamicsAtKinematics(model, sys, tau, ws, qddot, loads);
-}
-
-namespace {
-
 // Rotors that couple coordinates (TreeModel::rotor_couplings): the joint-space inertia is
 // M = M_a + U C U^T, M_a the articulated-body pass's (the armature on its diagonal), U a
 // unit column e_i, e_j per coupling and C its block [0 B_01; B_01 0]. From q_ddot_a =
@@ -184,7 +160,38 @@ namespace {
   }
 }
 
+// forwardDynamics with rotors that couple coordinates: the motors' coupled damping as the
+// efforts -D_01 q_dot across (transmission.h), the articulated-body pass with the armature,
+// then the coupling's inertia (coupleRotors).
+[[gnu::noinline]] void coupledForwardDynamics(const TreeModel& model, const System& sys, const Eigen::VectorXd& q,
+                                              const Eigen::VectorXd& qdot, const Eigen::VectorXd& tau, TreeWorkspace& ws,
+                                              Eigen::VectorXd& qddot, const Inputs* loads) {
+  forwardKinematics(model, q, qdot, ws);
+  ws.rotor_tau = tau;
+  for (const TreeModel::RotorCoupling& C : model.rotor_couplings) {
+    ws.rotor_tau(C.i) -= C.damping * qdot(C.j);
+    ws.rotor_tau(C.j) -= C.damping * qdot(C.i);
+  }
+  forwardDynamicsAtKinematics(model, sys, ws.rotor_tau, ws, qddot, loads);
+  coupleRotors(model, ws, qddot);
+}
+
 }  // namespace
+
+// Articulated-body algorithm, RBDA 7.3, table 7.1, in body coordinates: gravity enters as
+// a force on each body (not as the base acceleration -a_g of the table), so the spatial
+// accelerations a_i left in ws are the bodies' true ones.
+void forwardDynamics(const TreeModel& model, const System& sys, const Eigen::VectorXd& q,
+                     const Eigen::VectorXd& qdot, const Eigen::VectorXd& tau, TreeWorkspace& ws,
+                     Eigen::VectorXd& qddot, const Inputs* loads) {
+  if (model.rotors_coupled) {  // (out of line: the common path stays as short)
+    coupledForwardDynamics(model, sys, q, qdot, tau, ws, qddot, loads);
+    return;
+  }
+  // Pass 1 (outward): velocities and the bias c_i (forwardKinematics), then the rest
+  forwardKinematics(model, q, qdot, ws);
+  forwardDynamicsAtKinematics(model, sys, tau, ws, qddot, loads);
+}
 
 void forwardDynamicsAtKinematics(const TreeModel& model, const System& sys, const Eigen::VectorXd& tau,
                                  TreeWorkspace& ws, Eigen::VectorXd& qddot, const Inputs* loads) {
@@ -275,7 +282,6 @@ void forwardDynamicsAtKinematics(const TreeModel& model, const System& sys, cons
   articulatedOutward<true>(
       model, ws, [&](int k) -> const SmallVector& { return ws.u[k]; }, [&](int k) { return ws.tie_u[k]; },
       qddot.data(), ws.a);
-  if (!model.rotor_couplings.empty()) coupleRotors(model, ws, qddot);
 }
 
 // Recursive Newton-Euler, RBDA 5.3, table 5.1 (gravity as a body force as above):
