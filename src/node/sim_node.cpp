@@ -273,6 +273,7 @@ void SimNode::run() {
     {
       std::lock_guard<std::mutex> lock(mutex_);
       try {
+        readActuatorLimits(true);
         advance(loop_->stepsPerSample());
       } catch (const std::exception& e) {
         ROS_FATAL("mechanism_sim: %s", e.what());
@@ -435,6 +436,16 @@ void SimNode::advance(long steps) {
   loop_->advance(steps);
 }
 
+void SimNode::readActuatorLimits(bool cached) {
+  bool on = model_->actuatorLimits();
+  // (absent, or not a bool: the mode stays as it is)
+  if (!(cached ? pnh_.getParamCached("actuator_limits", on) : pnh_.getParam("actuator_limits", on))) return;
+  if (on == model_->actuatorLimits()) return;
+  const std::string note = model_->setActuatorLimits(on);
+  ROS_INFO("mechanism_sim: actuator limits %s at t = %.6f s%s%s", on ? "on" : "off", model_->time(),
+           note.empty() ? "" : ": ", note.c_str());
+}
+
 bool SimNode::onReset(std_srvs::Empty::Request&, std_srvs::Empty::Response&) {
   std::lock_guard<std::mutex> lock(mutex_);
   pending_.reset();
@@ -465,6 +476,7 @@ bool SimNode::onStep(StepSimulation::Request& req, StepSimulation::Response& res
   }
   std::lock_guard<std::mutex> lock(mutex_);
   try {
+    readActuatorLimits(false);
     advance(req.steps);
   } catch (const std::exception& e) {
     ROS_ERROR("mechanism_sim: %s", e.what());

@@ -64,6 +64,11 @@ class SimNode {
   // Advances `steps` steps, switching to a pending trajectory at the step nearest after
   // its start (under mutex_).
   void advance(long steps);
+  // ~actuator_limits as it stands now: the saturating mode switched on or off where it
+  // changed (under mutex_). cached: through the parameter cache (every wall-clock cycle);
+  // otherwise from the parameter server itself (each ~advance, so that a value set before
+  // the call holds for its steps).
+  void readActuatorLimits(bool cached);
   bool onReset(std_srvs::Empty::Request&, std_srvs::Empty::Response&);
   bool onPause(std_srvs::Empty::Request&, std_srvs::Empty::Response&);
   bool onUnpause(std_srvs::Empty::Request&, std_srvs::Empty::Response&);

@@ -1,5 +1,8 @@
 // An actuator's operating point from its transmission's joints (model.h, doc/actuators.md).
+#include <algorithm>
 #include <cmath>
+
+#include <Eigen/LU>
 
 #include "mechanism_sim/core/model/actuator_limits.h"
 #include "mechanism_sim/core/model/actuator_sizing.h"
@@ -44,30 +47,51 @@ ActuatorState MechanismModel::actuatorState(int actuator) const {
     const Dof& d = dofs_[t.dofs[0]];
     const int drive = mechanism_->driveOf(d.joint_index, d.k);
     if (drive >= 0) s.lag = mechanism_->driveLag(drive), s.saturated = mechanism_->driveSaturated(drive);
+  } else if (actuator_limits_) {
+    // a two-joint transmission's actuator: the lag of its own coordinate, E_i d (motor
+    // units), and at its bound while its drives are held and its torque is there
+    bool held = true;
+    for (int i = 0; i < n; ++i) {
+      const Dof& d = dofs_[t.dofs[i]];
+      const int drive = mechanism_->driveOf(d.joint_index, d.k);
+      if (drive < 0) {  // (not bounded: no lag of its own)
+        s.lag = 0.0, held = false;
+        break;
+      }
+      s.lag += t.E(a.k, i) * mechanism_->driveLag(drive);
+      held = held && mechanism_->driveSaturated(drive);
+    }
+    if (held && boundsTorque(a.ratings)) {
+      const TorqueBounds b = torqueBounds(a.ratings, s.velocity);
+      const double tol = 1e-9 * std::max(std::fabs(b.lo), std::fabs(b.hi));
+      s.saturated = std::fabs(s.torque - b.hi) <= tol || std::fabs(s.torque - b.lo) <= tol;
+    }
   }
   return s;
 }
 
 std::string MechanismModel::setActuatorLimits(bool on) {
   std::vector<ActuatorLimit> limits;
-  std::string others;
   for (const Actuator& a : actuators_) {
     if (!on || !boundsTorque(a.ratings)) continue;
     const TransmissionInfo& t = transmissions_[a.transmission];
-    if (t.map.type != TransmissionType::kSimple) {
-      others += (others.empty() ? "'" : ", '") + a.name + "'";
-      continue;
-    }
-    const Dof& d = dofs_[t.dofs[0]];
     ActuatorLimit L;
-    L.name = a.name, L.joint = d.joint_index, L.k = d.k, L.reduction = t.E(0, 0), L.ratings = a.ratings;
+    L.name = a.name, L.ratings = a.ratings;
+    if (t.map.type == TransmissionType::kSimple) {
+      const Dof& d = dofs_[t.dofs[0]];
+      L.joint = d.joint_index, L.k = d.k, L.reduction = t.E(0, 0);
+    } else {  // (actuator_limits.h: E's row, E^-T's row and E^-1's column of the actuator)
+      const Eigen::Matrix2d E_inv = t.E.inverse();  // (two joints: the top-left is all of E)
+      for (int c = 0; c < 2; ++c) {
+        const Dof& d = dofs_[t.dofs[c]];
+        L.coords.push_back({d.joint_index, d.k, t.E(a.k, c), t.E_inv_T(a.k, c), E_inv(c, a.k)});
+      }
+    }
     limits.push_back(L);
   }
   mechanism_->setActuatorLimits(limits);
   actuator_limits_ = on;
   if (!on) return "";
-  if (!others.empty())
-    return "actuator limits: " + others + " (of differential or four-bar transmissions) are sized, not bounded";
   if (limits.empty()) return "actuator limits: no actuator has a peak_torque or a torque-speed line: nothing is bounded";
   return "";
 }

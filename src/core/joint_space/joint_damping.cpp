@@ -10,6 +10,7 @@
 #include "core/absolute/evaluation.h"
 #include "core/damping/stiff_damping_rule.h"
 #include "core/numerics.h"
+#include "mechanism_sim/core/model/errors.h"
 
 namespace mechanism_sim {
 
@@ -306,6 +307,11 @@ bool JointDamping::classify(const System& sys, State& s, double h, const Tableau
   quiet_h_ = quiet ? h : std::nan(""), quiet_bound_ = quiet ? bound : std::nan("");
   hold.left = margin ? kHoldSteps : 0;
   hold.stiff = stiff_, hold.x = s.x, hold.limit_side = s.limit_side, hold.h = h, hold.bound = bound;
+  // (the implicit step's metric is the articulated factors' M, without a rotor's coupling)
+  if (!stiff_list_.empty() && !model_.rotor_couplings.empty())
+    throw SimulationError("joint-space dynamics: the damping of joint '" + sys.joints[damped_[stiff_list_[0]].j]->name() +
+                          "' is stiff at this step and a rotor inertia couples two joints, which the implicit damping "
+                          "does not take: use a smaller step or --formulation absolute");
   return changed;
 }
 

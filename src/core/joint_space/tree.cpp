@@ -110,13 +110,29 @@ std::string jointSpaceUnsupported(const System& sys, bool loops_as_closures) {
       return "joint '" + J->name() + "': the joint-space tree has no model of joint type '" + J->type() + "'";
     if (J->bodyI() == J->bodyJ()) return "joint '" + J->name() + "': joins a body to itself";
   }
-  // Rotor inertias: a diagonal armature on a tree coordinate that no embedded coupler ties
+  // Rotor inertias: on tree coordinates that no embedded coupler ties; one that couples two
+  // coordinates (TreeModel::rotor_couplings) in a tree whose dynamics is forwardDynamics
+  // alone: no closures, no Coulomb friction (their solves take the factors of M without the
+  // coupling)
   if (!sys.rotors.empty()) {
     const TreeModel model(sys, true);
     for (const RotorInertia& R : sys.rotors) {
-      if (R.coupled())
-        return "rotor inertia '" + R.name + "' couples two joints (" + sys.joints[R.coords[0].first]->name() + ", " +
-               sys.joints[R.coords[1].first]->name() + "): the joint-space recursions take a diagonal rotor inertia and motor damping";
+      if (R.coupled()) {
+        const std::string what = "rotor inertia '" + R.name + "' couples two joints (" +
+                                 sys.joints[R.coords[0].first]->name() + ", " + sys.joints[R.coords[1].first]->name() + ")";
+        for (int c = 0; c < sys.numConstraints(); ++c)
+          if (!is_joint[c])
+            return what + " and constraint '" + sys.constraints[c]->name() + "' (" + sys.constraints[c]->type() +
+                   ") is a closure: the joint-space closures take a diagonal rotor inertia and motor damping";
+        if (!model.cut_joints.empty())
+          return what + " and joint '" + sys.joints[model.cut_joints[0]]->name() +
+                 "' closes a loop: the joint-space closures take a diagonal rotor inertia and motor damping";
+        bool friction = !sys.sum_friction.empty();
+        for (const auto& f : sys.friction) friction = friction || f[0] != 0.0 || f[1] != 0.0 || f[2] != 0.0;
+        if (friction)
+          return what + " and the mechanism has Coulomb friction: the joint-space friction takes a diagonal rotor "
+                        "inertia and motor damping";
+      }
       for (const auto& c : R.coords) {
         const int link = model.joint_link[c.first];
         if (link < 0 || model.links[link].tie >= 0 || model.links[link].tie_master)
@@ -335,10 +351,18 @@ TreeModel::TreeModel(const System& sys, bool embed_couplers) {
   }
   if (embed_couplers) embedCouplers(sys, *this);
   armature = Eigen::VectorXd::Zero(nv);
-  for (const RotorInertia& R : sys.rotors)
+  for (const RotorInertia& R : sys.rotors) {
     for (size_t c = 0; c < R.coords.size(); ++c)
       if (joint_link[R.coords[c].first] >= 0)
         armature[links[joint_link[R.coords[c].first]].iv + R.coords[c].second] += R.B(c, c);
+    if (!R.coupled() || joint_link[R.coords[0].first] < 0 || joint_link[R.coords[1].first] < 0) continue;
+    RotorCoupling C;
+    C.i = links[joint_link[R.coords[0].first]].iv + R.coords[0].second;
+    C.j = links[joint_link[R.coords[1].first]].iv + R.coords[1].second;
+    C.inertia = R.B(0, 1), C.damping = R.damping_coupling;
+    rotor_couplings.push_back(C);
+    rotors_coupled = true;
+  }
 }
 
 void TreeModel::holdTies(Eigen::VectorXd& q, Eigen::VectorXd& qdot, Eigen::VectorXd* q_round,
@@ -387,6 +411,13 @@ TreeWorkspace::TreeWorkspace(const TreeModel& model) {
     U[k].setZero(6, nv);
     Dinv[k].setZero(nv, nv);
     u[k].setZero(nv);
+  }
+  if (!model.rotor_couplings.empty()) {
+    const int m = 2 * static_cast<int>(model.rotor_couplings.size());
+    rotor_tau.setZero(model.nv), rotor_z.setZero(m), rotor_r.setZero(m);
+    rotor_Y.setZero(model.nv, m), rotor_K.setZero(m, m);
+    rotor_lu = Eigen::PartialPivLU<Eigen::MatrixXd>(m);
+    rotor_p.assign(n, Vector6d::Zero()), rotor_a.assign(n, Vector6d::Zero());
   }
 }
 

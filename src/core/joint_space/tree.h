@@ -51,6 +51,7 @@
 
 #include <Eigen/Cholesky>
 #include <Eigen/Core>
+#include <Eigen/LU>
 #include <Eigen/StdVector>
 
 #include "mechanism_sim/core/model/system.h"
@@ -179,10 +180,22 @@ struct TreeModel {
   std::vector<int> order;       // moving bodies, each after its parent (b, 1..nb)
   std::vector<int> joint_link;  // per sys joint: its link (body - 1); -1 for a cut joint
   std::vector<int> cut_joints;  // sys joints that close loops (not on the tree), ascending
-  // Per q_dot coordinate: the reflected rotor inertia on it (System::rotors, diagonal ones:
-  // jointSpaceUnsupported refuses a coupled one), added to D_i in the articulated-body pass
-  // as an armature (Featherstone, RBDA 7.3) and to H_ii in the composite one.
+  // Per q_dot coordinate: the diagonal of the reflected rotor inertias on it (System::rotors),
+  // added to D_i in the articulated-body pass as an armature (Featherstone, RBDA 7.3) and to
+  // H_ii in the composite one.
   Eigen::VectorXd armature;
+  // Rotors that couple two coordinates i, j (a differential's): the off-diagonal B_01 of
+  // their reflected inertia and D_01 of their motors' damping. forwardDynamics adds them
+  // exactly to the articulated-body pass, whose M_a has only the armature (the Woodbury
+  // identity, tree_dynamics.cpp); the other users of M_a's factors (closures, friction,
+  // implicit damping, forwardDynamicsAtKinematics alone) do not take them:
+  // jointSpaceUnsupported and JointDamping refuse those.
+  struct RotorCoupling {
+    int i = 0, j = 0;
+    double inertia = 0.0, damping = 0.0;
+  };
+  std::vector<RotorCoupling> rotor_couplings;
+  bool rotors_coupled = false;  // rotor_couplings not empty
   std::vector<int> ties;        // links tied to a master's coordinate (embed_couplers), parents first
   // q_s = r q_m + o and q_dot_s = r q_dot_m of every tie (their round-off in q_round and
   // qdot_round likewise, when given): what the integration holds up to round-off, exactly.
@@ -218,6 +231,13 @@ struct TreeWorkspace {
   AlignedVector<Vector6d> W;
   std::vector<double> dd, beta;
   std::vector<double> tie_Dinv, tie_u;  // at a link with a pivot: 1 / dd and -beta there
+  // Rotor couplings (TreeModel::rotor_couplings): the efforts with their damping, Y = M_a^-1 U
+  // (U: a unit column per coupled coordinate, two per coupling), the small system of the
+  // Woodbury identity and the passes' forces and accelerations
+  Eigen::VectorXd rotor_tau, rotor_z, rotor_r;
+  Eigen::MatrixXd rotor_Y, rotor_K;
+  Eigen::PartialPivLU<Eigen::MatrixXd> rotor_lu;
+  AlignedVector<Vector6d> rotor_p, rotor_a;
   // A number no other write has had (across workspaces), taken each time forwardKinematics
   // or the articulated passes rewrite the poses, subspaces or factors (E, rho, S, U, Dinv):
   // what a cache of results computed from them keys on (LoopClosures' factorization).

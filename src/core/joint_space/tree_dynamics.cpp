@@ -4,6 +4,7 @@
 //
 // Spatial algebra after Featherstone, "Rigid Body Dynamics Algorithms" (RBDA), Springer
 // 2008, chapter 2 (joint_space/spatial.h).
+#include <algorithm>
 #include <cmath>
 
 #include "core/joint_space/spatial.h"
@@ -120,6 +121,61 @@ inline void articulatedTransform(const TreeModel& model, const TreeWorkspace& ws
   pa += WD * ws.tie_u[k];
 }
 
+// Rotors that couple coordinates (TreeModel::rotor_couplings): the joint-space inertia is
+// M = M_a + U C U^T, M_a the articulated-body pass's (the armature on its diagonal), U a
+// unit column e_i, e_j per coupling and C its block [0 B_01; B_01 0]. From q_ddot_a =
+// M_a^-1 r the Woodbury identity gives q_ddot = M^-1 r exactly:
+//   q_ddot = q_ddot_a - Y z,   (I + C U^T Y) z = C U^T q_ddot_a,   Y = M_a^-1 U,
+// Y by inverse-mass passes on the factors in ws (as LoopClosures::applyInverseMass); then
+// the bodies' accelerations a_i again from q_ddot (bodyAccelerations' pass).
+[[gnu::noinline]] void coupleRotors(const TreeModel& model, TreeWorkspace& ws, Eigen::VectorXd& qddot) {
+  const int m = static_cast<int>(ws.rotor_Y.cols());
+  for (int col = 0; col < m; ++col) {
+    const TreeModel::RotorCoupling& C = model.rotor_couplings[col / 2];
+    double* y = ws.rotor_Y.col(col).data();
+    std::fill(y, y + model.nv, 0.0);
+    y[col % 2 == 0 ? C.i : C.j] = 1.0;
+    for (int k = 0; k < model.nb; ++k) ws.rotor_p[k].setZero();
+    for (int n = model.nb - 1; n >= 0; --n) inverseMassInward(model, ws, model.order[n] - 1, y, y, ws.rotor_p);
+    articulatedOutward<false>(
+        model, ws, [&](int k) { return Eigen::Map<const SmallVector>(y + model.links[k].iv, model.links[k].nv); },
+        [&](int k) { return y[model.links[k].pivot]; }, y, ws.rotor_a);
+  }
+  // K = I + C U^T Y, r = C U^T q_ddot_a (row 2c of C U^T is B_01 e_j^T, row 2c + 1 B_01 e_i^T)
+  for (int row = 0; row < m; ++row) {
+    const TreeModel::RotorCoupling& C = model.rotor_couplings[row / 2];
+    const int other = row % 2 == 0 ? C.j : C.i;
+    for (int col = 0; col < m; ++col) ws.rotor_K(row, col) = (row == col ? 1.0 : 0.0) + C.inertia * ws.rotor_Y(other, col);
+    ws.rotor_r(row) = C.inertia * qddot(other);
+  }
+  ws.rotor_lu.compute(ws.rotor_K);
+  ws.rotor_z = ws.rotor_lu.solve(ws.rotor_r);
+  qddot.noalias() -= ws.rotor_Y * ws.rotor_z;
+  for (int b : model.order) {
+    const int k = b - 1;
+    const TreeLink& L = model.links[k];
+    Vector6d a = ws.c[k] + ws.S[k] * qddot.segment(L.iv, L.nv);
+    if (L.parent != 0) a += transformMotion(ws.E[k], ws.rho[k], ws.a[L.parent - 1]);
+    ws.a[k] = a;
+  }
+}
+
+// forwardDynamics with rotors that couple coordinates: the motors' coupled damping as the
+// efforts -D_01 q_dot across (transmission.h), the articulated-body pass with the armature,
+// then the coupling's inertia (coupleRotors).
+[[gnu::noinline]] void coupledForwardDynamics(const TreeModel& model, const System& sys, const Eigen::VectorXd& q,
+                                              const Eigen::VectorXd& qdot, const Eigen::VectorXd& tau, TreeWorkspace& ws,
+                                              Eigen::VectorXd& qddot, const Inputs* loads) {
+  forwardKinematics(model, q, qdot, ws);
+  ws.rotor_tau = tau;
+  for (const TreeModel::RotorCoupling& C : model.rotor_couplings) {
+    ws.rotor_tau(C.i) -= C.damping * qdot(C.j);
+    ws.rotor_tau(C.j) -= C.damping * qdot(C.i);
+  }
+  forwardDynamicsAtKinematics(model, sys, ws.rotor_tau, ws, qddot, loads);
+  coupleRotors(model, ws, qddot);
+}
+
 }  // namespace
 
 // Articulated-body algorithm, RBDA 7.3, table 7.1, in body coordinates: gravity enters as
@@ -128,6 +184,10 @@ inline void articulatedTransform(const TreeModel& model, const TreeWorkspace& ws
 void forwardDynamics(const TreeModel& model, const System& sys, const Eigen::VectorXd& q,
                      const Eigen::VectorXd& qdot, const Eigen::VectorXd& tau, TreeWorkspace& ws,
                      Eigen::VectorXd& qddot, const Inputs* loads) {
+  if (model.rotors_coupled) {  // (out of line: the common path stays as short)
+    coupledForwardDynamics(model, sys, q, qdot, tau, ws, qddot, loads);
+    return;
+  }
   // Pass 1 (outward): velocities and the bias c_i (forwardKinematics), then the rest
   forwardKinematics(model, q, qdot, ws);
   forwardDynamicsAtKinematics(model, sys, tau, ws, qddot, loads);
