@@ -147,6 +147,19 @@ bool Stepper::classifyDamping(const System& sys, const State& s, double h) {
     if (stiff_damping::isStiff(rate, stiff)) stiff_[kept++] = r;
   }
   stiff_.resize(kept);
+  // A stiff coordinate whose motor damping couples it with another (RotorInertia::
+  // damping_coupling, explicit in forces()) would diverge under the explicit stages: the
+  // implicit step takes the diagonal only. The run stops saying so.
+  for (const StiffRow& r : stiff_)
+    for (const RotorInertia& R : sys.rotors) {
+      if (R.damping_coupling == 0.0 || R.coords.size() < 2) continue;
+      for (int c = 0; c < 2; ++c)
+        if (R.coords[c].first == r.joint && R.coords[c].second == r.k)
+          throw SimulationError("the damping of joint '" + sys.joints[r.joint]->name() +
+                                "' is stiff at this step and the motors' damping couples it with joint '" +
+                                sys.joints[R.coords[1 - c].first]->name() +
+                                "', which the implicit damping does not take: use a smaller step");
+    }
   split_ = !stiff_.empty();
   if (split_) {
     stage_damping_ = sys.damping;
