@@ -91,17 +91,17 @@ JointStepper::JointStepper(const System& sys, bool embed_couplers)
   if (!unsupported.empty()) throw ModelError("the joint formulation cannot run this mechanism: " + unsupported);
   tableau_ = &tableau(parseMethod(sys.options.method));
   auto zeros = [](Eigen::VectorXd& v, int n) { v = Eigen::VectorXd::Zero(n); };
-  zeros(tau_, model_.nv), zeros(q0_, model_.nq), zeros(v0_, model_.nv), zeros(qs_, model_.nq), zeros(vs_, model_.nv);
-  for (int k = 0; k < Tableau::kMaxStages; ++k) zeros(kq_[k], model_.nq), zeros(kv_[k], model_.nv);
-  zeros(sum_q_, model_.nq), zeros(sum_v_, model_.nv);
-  zeros(comp_q_, model_.nq), zeros(comp_v_, model_.nv);
-  zeros(acc_k4_, 6 * sys.nb);
-  backup_.assign(numerics::kMaxHalvings + 1, State());
+  zeros(stages_.tau, model_.nv), zeros(stages_.q0, model_.nq), zeros(stages_.v0, model_.nv), zeros(stages_.qs, model_.nq), zeros(stages_.vs, model_.nv);
+  for (int k = 0; k < Tableau::kMaxStages; ++k) zeros(stages_.kq[k], model_.nq), zeros(stages_.kv[k], model_.nv);
+  zeros(stages_.sum_q, model_.nq), zeros(stages_.sum_v, model_.nv);
+  zeros(start_.q_round, model_.nq), zeros(start_.qdot_round, model_.nv);
+  zeros(stages_.acc_k4, 6 * sys.nb);
+  start_.backup.assign(numerics::kMaxHalvings + 1, State());
   loads_ = zeroInputs(sys);
   kin_.assign(sys.bodies.size(), BodyKin());
   setDamping(sys);
-  fric_e_.setZero(model_.nv), fric_y_.setZero(model_.nv);
-  fric_r_.setZero(closures_.m), fric_mu_.setZero(closures_.m);
+  friction_.e.setZero(model_.nv), friction_.y.setZero(model_.nv);
+  friction_.r.setZero(closures_.m), friction_.mu.setZero(closures_.m);
   for (int j : model_.cut_joints) cut_constraints_.push_back(sys.joint_constraint[j]);
   closure_mode_.form_Y = false;  // (only JointDamping::implicit reads M^-1 G^T whole)
 }
@@ -109,29 +109,29 @@ JointStepper::JointStepper(const System& sys, bool embed_couplers)
 void JointStepper::setDamping(const System& sys) {
   closures_.rebind(sys);  // (a Mechanism's System is copied on write)
   damping_.set(sys);
-  fresh_ = false;
+  end_.fresh = false;
 }
 
 void JointStepper::accelerations(const System& sys, const State& s, const Inputs& in, double t,
                                  const Eigen::VectorXd& q, const Eigen::VectorXd& qdot, Eigen::VectorXd& qddot,
                                  bool evaluated) {
-  tau_ = tau_in_;  // the inputs' efforts along the joint coordinates (setInputs)
+  stages_.tau = tau_in_;  // the inputs' efforts along the joint coordinates (setInputs)
   // Damping, per coordinate of q_dot: a spherical joint's are the relative angular velocity
   // in frame i, Joint::coordinates' rates (settle() reads q_dot from them), so tau_k =
   // -c_k q_dot_k is the absolute formulation's q_x,k^T (-c_k q_x,k u) (appliedForces): one power,
   // tau . q_dot = (G^T tau) . u, on the tree's coordinates and the bodies' alike.
   const std::vector<JointDamping::Damped>& damped = damping_.damped();
   for (size_t i = 0; i < damped.size(); ++i)  // damping that is not stiff: an effort
-    if (!damping_.stiff()[i]) tau_(damped[i].iv) -= damped[i].c * qdot(damped[i].iv);
+    if (!damping_.stiff()[i]) stages_.tau(damped[i].iv) -= damped[i].c * qdot(damped[i].iv);
   // Coulomb friction: the step's efforts (frictionFor), held over its stages
   if (friction_acts_) {
     for (const TreeLink& L : model_.links)
       if (L.joint >= 0)
-        for (int k = 0; k < L.nv; ++k) tau_(L.iv + k) += s.friction[L.joint][k];
+        for (int k = 0; k < L.nv; ++k) stages_.tau(L.iv + k) += s.friction[L.joint][k];
     for (size_t r = 0; r < sys.sum_friction.size(); ++r)  // on sums of coordinates: c_i F along each
       if (s.sum_friction[r] != 0.0)
         for (const LimitTerm& t : sys.sum_friction[r].terms)
-          tau_(model_.links[model_.joint_link[t.joint]].iv + t.k) += t.c * s.sum_friction[r];
+          stages_.tau(model_.links[model_.joint_link[t.joint]].iv + t.k) += t.c * s.sum_friction[r];
   }
   const Inputs* loads = &in;
   if (!sys.springs.empty() || !damping_.cutDamped().empty()) {
@@ -166,14 +166,14 @@ void JointStepper::accelerations(const System& sys, const State& s, const Inputs
     loads = &loads_;
   }
   if (closures_.m == 0) {
-    forwardDynamics(model_, sys, q, qdot, tau_, ws_, qddot, loads);
+    forwardDynamics(model_, sys, q, qdot, stages_.tau, ws_, qddot, loads);
     return;
   }
   // the closures (drives, limits, couplers) read the State's context at the stage's time
   EvalContext ctx = s.context();
   ctx.t = t;
   closures_.setContext(ctx);
-  constrainedForwardDynamics(model_, sys, closures_, q, qdot, tau_, ws_, qddot, loads, evaluated, closure_mode_);
+  constrainedForwardDynamics(model_, sys, closures_, q, qdot, stages_.tau, ws_, qddot, loads, evaluated, closure_mode_);
 }
 
 void JointStepper::writeAbsolute(const System& sys, State& s) {
@@ -209,26 +209,26 @@ void JointStepper::writeAbsolute(const System& sys, State& s) {
   }
   // the closures' violations at this state (stepViolation()): |Phi| and |G q_dot - nu|
   // of their rows, evaluated at (s.q, s.qdot) by the accelerations above
-  end_violation_ = {0.0, 0.0};
+  end_.violation = {0.0, 0.0};
   bool free_limits = closures_.onlyLimits();  // (free limits only: zero rows, nothing violated)
   for (size_t l = 0; l < s.limit_side.size() && free_limits; ++l) free_limits = s.limit_side[l] == 0;
   if (closures_.m > 0 && !free_limits) {
-    end_violation_[0] = closures_.Phi.head(closures_.m).cwiseAbs().maxCoeff();
-    if (end_rate_.size() != closures_.G.rows()) end_rate_.setZero(closures_.G.rows());
-    closures_.timesG(s.qdot, end_rate_);
-    end_violation_[1] = (end_rate_.head(closures_.m) - closures_.nu.head(closures_.m)).cwiseAbs().maxCoeff();
+    end_.violation[0] = closures_.Phi.head(closures_.m).cwiseAbs().maxCoeff();
+    if (end_.rate.size() != closures_.G.rows()) end_.rate.setZero(closures_.G.rows());
+    closures_.timesG(s.qdot, end_.rate);
+    end_.violation[1] = (end_.rate.head(closures_.m) - closures_.nu.head(closures_.m)).cwiseAbs().maxCoeff();
   }
-  q_end_ = s.q;
-  v_end_ = s.qdot;
-  end_generation_ = ws_.generation;
-  fresh_ = true;
+  end_.q = s.q;
+  end_.v = s.qdot;
+  end_.generation = ws_.generation;
+  end_.fresh = true;
 }
 
 void JointStepper::completeState(State& s) {
   if (!s.acc_pending) return;
-  // (ws_ holds the kinematics of (q_end_, v_end_) until the next step or projection moves it)
+  // (ws_ holds the kinematics of (end_.q, end_.v) until the next step or projection moves it)
   TreeWorkspace* ws = &ws_;
-  if (!(ws_.generation == end_generation_ && q_end_ == s.q && v_end_ == s.qdot)) {
+  if (!(ws_.generation == end_.generation && end_.q == s.q && end_.v == s.qdot)) {
     forwardKinematics(model_, s.q, s.qdot, query_ws_);
     ws = &query_ws_;
   }
@@ -237,9 +237,9 @@ void JointStepper::completeState(State& s) {
 }
 
 bool JointStepper::stepViolation(const State& s, double& position, double& velocity) const {
-  if (!fresh_ || q_end_.size() != s.q.size() || v_end_.size() != s.qdot.size() || q_end_ != s.q || v_end_ != s.qdot)
+  if (!end_.fresh || end_.q.size() != s.q.size() || end_.v.size() != s.qdot.size() || end_.q != s.q || end_.v != s.qdot)
     return false;
-  position = end_violation_[0], velocity = end_violation_[1];
+  position = end_.violation[0], velocity = end_.violation[1];
   return true;
 }
 
@@ -362,8 +362,8 @@ void JointStepper::settle(const System& sys, State& s, const Inputs& in) {
   // (a stage 1 computed again at this state holds what these accelerations have)
   if (!model_.cut_joints.empty()) s.qddot_ref = s.qddot;
   // the copies a step keeps (advance) sized now: a step allocates nothing
-  start_ = s;
-  for (State& b : backup_) b = s;
+  start_.whole = s;
+  for (State& b : start_.backup) b = s;
 }
 
 namespace {
@@ -434,12 +434,12 @@ void JointStepper::step(const System& sys, State& s, const Inputs& in, double h)
   // way through its substeps: stepOnce keeps what it changes (restoreStart), and the whole
   // State is copied only when the step is taken as halves.
   judged_ = tableau_->stages == 4 && damping_.damped().empty() && damping_.cutDamped().empty();
-  start_valid_ = false;
+  start_.valid = false;
   try {
     advance(sys, s, in, h, 0);
   } catch (...) {
-    if (start_valid_) s = start_;
-    fresh_ = false;
+    if (start_.valid) s = start_.whole;
+    end_.fresh = false;
     throw;
   }
 }
@@ -458,7 +458,7 @@ void JointStepper::step(const System& sys, State& s, const Inputs& in, double h)
 // Jacobian there times the joint accelerations' difference). Not judged, as there: steps
 // that change the active limits, mechanisms with joint damping, tableaus other than RK4.
 void JointStepper::advance(const System& sys, State& s, const Inputs& in, double h, int depth) {
-  if (depth > 0) backup_[depth] = s;
+  if (depth > 0) start_.backup[depth] = s;
   const double scale0 = judged_ ? motionScale(sys, s.u) : 0.0;  // (the start's, for leapt)
   try {
     stepOnce(sys, s, in, h);
@@ -468,37 +468,37 @@ void JointStepper::advance(const System& sys, State& s, const Inputs& in, double
       os << e.what() << " (" << (1 << depth) << " substeps of " << fmt(h) << " s did not hold it either)";
       throw StepFailure(os.str());
     }
-    if (depth == 0) start_ = s, start_valid_ = true;
-    halve(sys, s, in, h, depth, depth > 0 ? backup_[depth] : start_);
+    if (depth == 0) start_.whole = s, start_.valid = true;
+    halve(sys, s, in, h, depth, depth > 0 ? start_.backup[depth] : start_.whole);
     return;
   }
   if (depth >= numerics::kMaxHalvings || !leapt(sys, s, h, scale0)) return;
   if (depth == 0) {
     restoreStart(s);
-    start_ = s, start_valid_ = true;
+    start_.whole = s, start_.valid = true;
   }
-  halve(sys, s, in, h, depth, depth > 0 ? backup_[depth] : start_);
+  halve(sys, s, in, h, depth, depth > 0 ? start_.backup[depth] : start_.whole);
 }
 
 void JointStepper::halve(const System& sys, State& s, const Inputs& in, double h, int depth, const State& before) {
   s = before;
-  fresh_ = false;
+  end_.fresh = false;
   ++stats_.halved_steps;
   advance(sys, s, in, 0.5 * h, depth + 1);
   advance(sys, s, in, 0.5 * h, depth + 1);
 }
 
 bool JointStepper::leapt(const System& sys, State& s, double h, double scale0) {
-  if (!judged_ || s.limit_side != limit_side0_) return false;
+  if (!judged_ || s.limit_side != start_.limit_side) return false;
   // (ws_ holds the end state's kinematics: finish() solved its accelerations there)
   completeState(s);
-  bodyAccelerations(model_, ws_, kv_[3], acc_k4_);
+  bodyAccelerations(model_, ws_, stages_.kv[3], stages_.acc_k4);
   const double L = sys.length_scale;
   double error = 0;
   for (int b = 0; b < sys.nb; ++b) {
     const int i = BodyCoordinates::u(b);
-    error = std::max({error, (acc_k4_.segment<3>(i) - s.acc.segment<3>(i)).norm(),
-                      (acc_k4_.segment<3>(i + 3) - s.acc.segment<3>(i + 3)).norm() * L});
+    error = std::max({error, (stages_.acc_k4.segment<3>(i) - s.acc.segment<3>(i)).norm(),
+                      (stages_.acc_k4.segment<3>(i + 3) - s.acc.segment<3>(i + 3)).norm() * L});
   }
   error *= h / 6.0;
   const double scale = std::max({scale0, motionScale(sys, s.u), sys.velocity_scale});
@@ -507,43 +507,43 @@ bool JointStepper::leapt(const System& sys, State& s, double h, double scale0) {
 
 void JointStepper::stepOnce(const System& sys, State& s, const Inputs& in, double h) {
   const Tableau& T = *tableau_;
-  q0_ = s.q;
-  v0_ = s.qdot;
+  stages_.q0 = s.q;
+  stages_.v0 = s.qdot;
   // branch passages (branch_passage.cpp): a stage 1 computed again below holds what the
   // State's own accelerations held (so a restored State steps as the run it came from)
   if (!model_.cut_joints.empty()) {
     a_ref_ = s.qddot_ref.size() == model_.nv ? s.qddot_ref : s.qddot;
     closure_mode_.passage_ref = &a_ref_;
   }
-  friction0_ = s.friction;
-  sum_friction0_ = s.sum_friction;
-  if (!model_.cut_joints.empty()) qddot_ref0_ = s.qddot_ref;
+  start_.friction = s.friction;
+  start_.sum_friction = s.sum_friction;
+  if (!model_.cut_joints.empty()) start_.qddot_ref = s.qddot_ref;
   // stage 1: the accelerations the last step (or settle) left, when they are of this state
   // under these inputs; else computed here (with friction: without it, frictionFor's)
   const bool friction = clearFriction(sys, s);
   friction_acts_ = friction;  // (s.friction is zero over the step where no joint has friction)
-  if (friction || !(fresh_ && q_end_ == s.q && v_end_ == s.qdot)) accelerations(sys, s, in, s.t, q0_, v0_, s.qddot);
+  if (friction || !(end_.fresh && end_.q == s.q && end_.v == s.qdot)) accelerations(sys, s, in, s.t, stages_.q0, stages_.v0, s.qddot);
   // (ws_ holds q0's articulated factors now); stage 1 again if the stiff set changed
-  if (!damping_.damped().empty() && damping_.classify(sys, s, h, *tableau_)) accelerations(sys, s, in, s.t, q0_, v0_, s.qddot);
+  if (!damping_.damped().empty() && damping_.classify(sys, s, h, *tableau_)) accelerations(sys, s, in, s.t, stages_.q0, stages_.v0, s.qddot);
   // Coulomb friction sized for this step from those (as the absolute formulation: after the
   // stiff set, so the stages' damping is in q_ddot), then stage 1 with it
   if (friction) {
     frictionFor(sys, s, h);
-    accelerations(sys, s, in, s.t, q0_, v0_, s.qddot);
+    accelerations(sys, s, in, s.t, stages_.q0, stages_.v0, s.qddot);
   }
   // branch passages of loops (branch_passage.cpp): what the stages hold across a branch is
   // the acceleration at the step's start
   if (!model_.cut_joints.empty()) a_ref_ = s.qddot;
-  positionRates(model_, q0_, v0_, kq_[0]);
-  kv_[0] = s.qddot;
+  positionRates(model_, stages_.q0, stages_.v0, stages_.kq[0]);
+  stages_.kv[0] = s.qddot;
   // (the later stages need no ordinary closure factorization where a passage's is taken:
   // only friction and damping at the step's start read it)
   closure_mode_.regular_factor = false;
   for (int k = 1; k < T.stages; ++k) {
-    combine(h, T.a[k], k, T.a_den[k], q0_, kq_, sum_q_, qs_);
-    combine(h, T.a[k], k, T.a_den[k], v0_, kv_, sum_v_, vs_);
-    accelerations(sys, s, in, s.t + T.c[k] * h, qs_, vs_, kv_[k]);
-    positionRates(model_, qs_, vs_, kq_[k]);
+    combine(h, T.a[k], k, T.a_den[k], stages_.q0, stages_.kq, stages_.sum_q, stages_.qs);
+    combine(h, T.a[k], k, T.a_den[k], stages_.v0, stages_.kv, stages_.sum_v, stages_.vs);
+    accelerations(sys, s, in, s.t + T.c[k] * h, stages_.qs, stages_.vs, stages_.kv[k]);
+    positionRates(model_, stages_.qs, stages_.vs, stages_.kq[k]);
   }
   closure_mode_.regular_factor = true;
   // The new state, its increments' round-off carried to the next step (compensated
@@ -555,37 +555,37 @@ void JointStepper::stepOnce(const System& sys, State& s, const Inputs& in, doubl
   // 1e5 steps of 0.1 ms, 6e-16 carried). The round-off is the State's
   // (q_round, qdot_round: a snapshot carries it; settle() zeroes it); a quaternion's, which
   // normalization rescales, is dropped.
-  if (s.q_round.size() == model_.nq && s.qdot_round.size() == model_.nv) comp_q_ = s.q_round, comp_v_ = s.qdot_round;
-  else comp_q_.setZero(), comp_v_.setZero(), s.q_round.setZero(model_.nq), s.qdot_round.setZero(model_.nv);
-  compensatedUpdate(h, T.b, T.stages, T.b_den, q0_, kq_, sum_q_, comp_q_, s.q_round, s.q);
-  compensatedUpdate(h, T.b, T.stages, T.b_den, v0_, kv_, sum_v_, comp_v_, s.qdot_round, s.qdot);
+  if (s.q_round.size() == model_.nq && s.qdot_round.size() == model_.nv) start_.q_round = s.q_round, start_.qdot_round = s.qdot_round;
+  else start_.q_round.setZero(), start_.qdot_round.setZero(), s.q_round.setZero(model_.nq), s.qdot_round.setZero(model_.nv);
+  compensatedUpdate(h, T.b, T.stages, T.b_den, stages_.q0, stages_.kq, stages_.sum_q, start_.q_round, s.q_round, s.q);
+  compensatedUpdate(h, T.b, T.stages, T.b_den, stages_.v0, stages_.kv, stages_.sum_v, start_.qdot_round, s.qdot_round, s.qdot);
   normalizeQuaternions(model_, s.q);
   for (const TreeLink& L : model_.links) {
     if (L.kind == TreeJointKind::kSpherical) s.q_round.segment<4>(L.iq).setZero();
     if (L.kind == TreeJointKind::kFree) s.q_round.segment<4>(L.iq + 3).setZero();
   }
   if (damping_.anyStiff()) damping_.implicit(sys, s, h);
-  clock0_ = s.clock();
+  start_.clock = s.clock();
   s.countStep(h);
-  limit_side0_ = s.limit_side;
+  start_.limit_side = s.limit_side;
   try {
     finish(sys, s, in);
   } catch (...) {  // the State as it was (the last accepted step)
     restoreStart(s);
-    fresh_ = false;
+    end_.fresh = false;
     throw;
   }
   stats_.solves += T.stages;
 }
 
 void JointStepper::restoreStart(State& s) const {
-  s.setClock(clock0_);
-  s.q = q0_, s.qdot = v0_;
-  s.limit_side = limit_side0_;
-  s.friction = friction0_;
-  s.sum_friction = sum_friction0_;
-  s.q_round = comp_q_, s.qdot_round = comp_v_;
-  if (!model_.cut_joints.empty()) s.qddot_ref = qddot_ref0_;
+  s.setClock(start_.clock);
+  s.q = stages_.q0, s.qdot = stages_.v0;
+  s.limit_side = start_.limit_side;
+  s.friction = start_.friction;
+  s.sum_friction = start_.sum_friction;
+  s.q_round = start_.q_round, s.qdot_round = start_.qdot_round;
+  if (!model_.cut_joints.empty()) s.qddot_ref = start_.qddot_ref;
 }
 
 bool JointStepper::clearFriction(const System& sys, State& s) const {
@@ -619,11 +619,11 @@ void JointStepper::frictionFor(const System& sys, State& s, double h) {
     for (int k = 0; k < L.nv; ++k) {
       if (!(f[k] > 0.0)) continue;
       rate[k] = s.qdot(L.iv + k) / h + s.qddot(L.iv + k);
-      fric_y_.setZero();
-      fric_y_(L.iv + k) = 1.0;
-      constrainedInverseMass(fric_y_, mass);
+      friction_.y.setZero();
+      friction_.y(L.iv + k) = 1.0;
+      constrainedInverseMass(friction_.y, mass);
       for (int l = 0; l < L.nv; ++l)
-        if (f[l] > 0.0) gPg[l][k] = fric_y_(L.iv + l);
+        if (f[l] > 0.0) gPg[l][k] = friction_.y(L.iv + l);
     }
     coulombFriction(f, L.ptr->planarTranslation(), rate, gPg, s.friction[L.joint]);
   }
@@ -633,14 +633,14 @@ void JointStepper::frictionFor(const System& sys, State& s, double h) {
     const SumFriction& F = sys.sum_friction[r];
     if (!(F.f > 0.0)) continue;
     double rate[3] = {0, 0, 0}, gPg[3][3] = {{0}};
-    fric_y_.setZero();
+    friction_.y.setZero();
     for (const LimitTerm& t : F.terms) {
       const int iv = model_.links[model_.joint_link[t.joint]].iv + t.k;
       rate[0] += t.c * (s.qdot(iv) / h + s.qddot(iv));
-      fric_y_(iv) += t.c;
+      friction_.y(iv) += t.c;
     }
-    constrainedInverseMass(fric_y_, mass);
-    for (const LimitTerm& t : F.terms) gPg[0][0] += t.c * fric_y_(model_.links[model_.joint_link[t.joint]].iv + t.k);
+    constrainedInverseMass(friction_.y, mass);
+    for (const LimitTerm& t : F.terms) gPg[0][0] += t.c * friction_.y(model_.links[model_.joint_link[t.joint]].iv + t.k);
     std::array<double, 3> out;
     coulombFriction({F.f, 0.0, 0.0}, false, rate, gPg, out);
     s.sum_friction[r] = out[0];
@@ -655,16 +655,16 @@ void JointStepper::constrainedInverseMass(Eigen::VectorXd& y, bool& mass) {
   if (ties) closures_.applyInverseMass(model_, ws_, y.data(), y.data());
   else closures_.inverseMass(y.data());
   if (closures_.m == 0) return;
-  closures_.timesG(y, fric_r_);
-  closures_.solve(fric_r_, fric_mu_);
+  closures_.timesG(y, friction_.r);
+  closures_.solve(friction_.r, friction_.mu);
   if (ties) {
     const int m = closures_.m;
-    fric_e_.noalias() = closures_.G.topRows(m).transpose() * fric_mu_.head(m);
-    closures_.applyInverseMass(model_, ws_, fric_e_.data(), fric_e_.data());
+    friction_.e.noalias() = closures_.G.topRows(m).transpose() * friction_.mu.head(m);
+    closures_.applyInverseMass(model_, ws_, friction_.e.data(), friction_.e.data());
   } else {
-    closures_.inverseMassGT(fric_mu_, fric_e_);
+    closures_.inverseMassGT(friction_.mu, friction_.e);
   }
-  y -= fric_e_;
+  y -= friction_.e;
 }
 
 int JointStepper::stateCoordinate(const State& s, int joint, bool rate) const {

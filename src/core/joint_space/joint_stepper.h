@@ -70,7 +70,7 @@ class JointStepper final : public FormulationStepper {
   // coordinates, so these are what a step can leave violated.
   bool stepViolation(const State& s, double& position, double& velocity) const override;
   // The inputs or the System changed: the accelerations a State holds are not reused.
-  void invalidate() override { fresh_ = false; }
+  void invalidate() override { end_.fresh = false; }
   // s.acc from s.q, s.qdot, s.qddot: a step leaves it pending (State::acc_pending), the
   // bodies' accelerations being read only by queries and by the step's error estimate;
   // settle() and resolve() write it.
@@ -108,7 +108,7 @@ class JointStepper final : public FormulationStepper {
   // start's).
   bool leapt(const System& sys, State& s, double h, double scale0);
   // s back where stepOnce's last step started (what a step changes of the State; the rest
-  // is computed again: fresh_ false).
+  // is computed again: end_.fresh false).
   void restoreStart(State& s) const;
   void finish(const System& sys, State& s, const Inputs& in);
   // Returns whether ws_ and closures_ are left at (s.q, s.qdot) (no velocity correction).
@@ -130,36 +130,50 @@ class JointStepper final : public FormulationStepper {
 
   TreeModel model_;
   TreeWorkspace ws_;
-  State start_;                 // the step's start, once it is taken as halves (start_valid_)
-  State::Clock clock0_;         // stepOnce's start (restoreStart)
-  Eigen::VectorXd qddot_ref0_;
-  bool judged_ = false, start_valid_ = false;  // the step is judged by its error; start_ holds it
-  std::vector<State> backup_;   // a substep's start, by depth (advance)
-  Eigen::VectorXd acc_k4_;      // the bodies' accelerations of RK4's k4 at the step's end (leapt)
   LoopClosures closures_;  // drives, limits and couplers: equations on the tree
   ClosureSolveMode closure_mode_;  // how the closures' solves take branch passages (loop_closure.h)
-  std::vector<signed char> limit_side0_;
-  std::vector<std::array<double, 3>> friction0_;  // s.friction at the step's start
-  std::vector<double> sum_friction0_;             // s.sum_friction at the step's start
-  Eigen::VectorXd fric_e_, fric_y_;               // e_k and P e_k (frictionFor)
+  JointDamping damping_;  // (after model_, ws_ and closures_, which it reads)
   const Tableau* tableau_ = &kRk4;
   SolverStats stats_;
   Eigen::VectorXd tau_in_;     // the inputs' joint efforts (setInputs)
   bool friction_acts_ = true;  // accelerations() adds s.friction (setInputs)
-  Eigen::VectorXd tau_, q0_, v0_, qs_, vs_, kq_[Tableau::kMaxStages], kv_[Tableau::kMaxStages], sum_q_, sum_v_;
-  Inputs loads_;  // the inputs plus the springs' body loads
-  JointDamping damping_;  // (after model_, ws_ and closures_, which it reads)
-  Eigen::VectorXd fric_r_, fric_mu_;  // G P e_k and its closure solve (frictionFor)
+  bool judged_ = false;        // the step is judged by its error estimate (advance)
+  // What a step changes of the State, as it was at the step's start: restoreStart puts it
+  // back when the step fails; the whole State once the step is taken as halves.
+  struct StepStart {
+    State whole;  // (valid: the step is taken as halves)
+    bool valid = false;
+    State::Clock clock;
+    Eigen::VectorXd qddot_ref;
+    std::vector<signed char> limit_side;
+    std::vector<std::array<double, 3>> friction;
+    std::vector<double> sum_friction;
+    Eigen::VectorXd q_round, qdot_round;  // the update's round-off carried in (compensated sums)
+    std::vector<State> backup;            // a substep's start, by depth (advance)
+  } start_;
+  // The stages' vectors (stepOnce): the efforts, the start, a stage's point, the stages'
+  // derivatives and their weighted sums; the bodies' accelerations of RK4's k4 at the
+  // step's end (leapt).
+  struct Stages {
+    Eigen::VectorXd tau, q0, v0, qs, vs, kq[Tableau::kMaxStages], kv[Tableau::kMaxStages], sum_q, sum_v, acc_k4;
+  } stages_;
+  // Coulomb friction's vectors (frictionFor): e_k, P e_k, G P e_k and its closure solve.
+  struct FrictionWork {
+    Eigen::VectorXd e, y, r, mu;
+  } friction_;
+  // The state the last step or settle() left: s.qddot is q_ddot at (q, v) under the current
+  // inputs (fresh: stage 1 of the next step); ws_ held its kinematics at ws_.generation
+  // `generation`; the closures' violations there (stepViolation()) and G q_dot.
+  struct End {
+    bool fresh = false;
+    Eigen::VectorXd q, v;
+    long generation = -1;
+    std::array<double, 2> violation{{0.0, 0.0}};
+    Eigen::VectorXd rate;
+  } end_;
+  TreeWorkspace query_ws_;  // completeState's kinematics where ws_ no longer holds s's
+  Inputs loads_;            // the inputs plus the springs' body loads
   std::vector<int> cut_constraints_;  // the cut joints' System constraints (their tracked angles)
-  // s.qddot is q_ddot at (q_end_, v_end_) under the current inputs: stage 1 of the next step
-  bool fresh_ = false;
-  Eigen::VectorXd q_end_, v_end_;
-  long end_generation_ = -1;  // ws_.generation when it held the kinematics of (q_end_, v_end_)
-  TreeWorkspace query_ws_;    // completeState's kinematics where ws_ no longer holds s's
-  std::array<double, 2> end_violation_{{0.0, 0.0}};  // stepViolation() at (q_end_, v_end_)
-  Eigen::VectorXd end_rate_;                         // G q_dot there
-  // State::q_round and qdot_round at the step's start (restored when the step fails)
-  Eigen::VectorXd comp_q_, comp_v_;
   Eigen::VectorXd a_ref_;  // q_ddot at the step's start: what a branch passage holds
   std::vector<BodyKin> kin_;
   Eigen::VectorXd spring_x_, spring_u_;
