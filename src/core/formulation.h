@@ -47,7 +47,7 @@ class FormulationStepper {
     (void)s, (void)position, (void)velocity;
     return false;
   }
-  // Writes what a step left pending in s (State::acc_pending) from s's own state; a
+  // Writes what a step left pending in s (State::bodies_pending) from s's own state; a
   // formulation that leaves nothing pending has nothing to do.
   virtual void completeState(State& s) { (void)s; }
   // The System's damping changed (its layout did not).

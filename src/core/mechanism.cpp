@@ -411,10 +411,11 @@ void Mechanism::restore(const Snapshot& s) {
 }
 
 void Mechanism::completeState() const {
-  if (state_.acc_pending && running_) running_->completeState(const_cast<State&>(state_));
+  if (state_.bodies_pending && running_) running_->completeState(const_cast<State&>(state_));
 }
 
 const Evaluation& Mechanism::evaluated() const {
+  completeState();
   if (described_) return *described_;
   if (stepper_ && stepper_->evaluation().stamp.describes(state_)) return *(described_ = &stepper_->evaluation());
   if (!query_eval_) query_eval_ = std::make_unique<Evaluation>(*sys_);
@@ -429,6 +430,7 @@ Vector3d Mechanism::position(int b) const { return kin(b).r; }
 Matrix3d Mechanism::rotation(int b) const { return kin(b).A_Oi; }
 Quaterniond Mechanism::orientation(int b) const {
   if (b == kGround) return Quaterniond::Identity();
+  completeState();
   const double* p = state_.x.data() + BodyCoordinates::x(b - 1) + 3;
   return Quaterniond(p[0], p[1], p[2], p[3]).normalized();
 }
@@ -593,7 +595,10 @@ std::vector<Reaction> Mechanism::jointReactions() const {
 }
 
 double Mechanism::positionViolation() const { return mechanism_sim::positionViolation(evaluated()); }
-double Mechanism::velocityViolation() const { return mechanism_sim::velocityViolation(*sys_, evaluated(), state_.u); }
+double Mechanism::velocityViolation() const {
+  const Evaluation& ev = evaluated();  // (completes state_)
+  return mechanism_sim::velocityViolation(*sys_, ev, state_.u);
+}
 double Mechanism::stepPositionViolation() const {
   double p = 0.0, v = 0.0;
   return running_ && running_->stepViolation(state_, p, v) ? p : positionViolation();
@@ -605,10 +610,12 @@ double Mechanism::stepVelocityViolation() const {
 double Mechanism::relativePositionViolation() const { return positionResidual(*sys_, evaluated()); }
 double Mechanism::relativeVelocityViolation() const {
   std::vector<std::array<double, 2>> scales(sys_->nb);
-  return velocityResidual(*sys_, evaluated(), state_.u, scales);
+  const Evaluation& ev = evaluated();  // (completes state_)
+  return velocityResidual(*sys_, ev, state_.u, scales);
 }
 
 double Mechanism::kineticEnergy() const {
+  completeState();
   double T = 0;
   for (int b = 1; b < numBodies(); ++b) {
     const Body& B = sys_->bodies[b];

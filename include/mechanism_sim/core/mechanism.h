@@ -256,7 +256,7 @@ class Mechanism {
     saturation_current_ = false;
     std::fill(rows_found_.begin(), rows_found_.end(), 0);
   }
-  // What the running formulation's last step left pending in state_ (State::acc_pending),
+  // What the running formulation's last step left pending in state_ (State::bodies_pending),
   // written from state_'s own state: before anything reads state_ whole or changes it.
   // (Logically const: state_ is the same state, only completed.)
   void completeState() const;

@@ -163,7 +163,7 @@ void Stepper::frictionFor(const System& sys, State& s, const Inputs& in, double 
 
 
 void Stepper::requireComplete(const State& s) {
-  if (s.acc_pending) throw std::logic_error("absolute formulation: a State with its accelerations pending");
+  if (s.bodies_pending) throw std::logic_error("absolute formulation: a State with its accelerations pending");
 }
 
 void Stepper::step(const System& sys, State& s, const Inputs& in, double h) {

@@ -72,7 +72,7 @@ class Stepper final : public FormulationStepper {
   void trackAngles(const System& sys, State& s, std::vector<Tracked>* rates = nullptr) const;
 
  private:
-  // s's accelerations written (State::acc_pending: the joint formulation completes them,
+  // s's accelerations written (State::bodies_pending: the joint formulation completes them,
   // Mechanism before it hands a State over); else std::logic_error.
   static void requireComplete(const State& s);
   bool frictionActs(const System& sys) const;

@@ -199,7 +199,7 @@ bool JointDamping::classify(const System& sys, State& s, double h, const Tableau
   const int nd = static_cast<int>(damped_.size());
   // (no coordinate can be stiff under this step and bound, wherever the tree is: the last
   // classification cleared every one by bounds that do not change with the configuration)
-  if (h == quiet_h_ && bound == quiet_bound_) return false;
+  if (!readsState(h, tableau)) return false;
   State::DampingHold& hold = s.damping_hold;
   // (whether the hold was found under this step, bound and limit sides, and how far the
   // bodies have moved since: both for holding it and for the pace below)

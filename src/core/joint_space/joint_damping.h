@@ -49,6 +49,12 @@ class JointDamping {
   // found is held in s.damping_hold for the next steps where no coordinate was near the
   // bound (kHold* in joint_damping.cpp). ws_ at s.q's articulated factors.
   bool classify(const System& sys, State& s, double h, const Tableau& tableau);
+  // Whether classify reads s's absolute state (x, u): not where no coordinate can be stiff
+  // under this step and bound, the last classification having cleared every one by bounds
+  // that do not change with the configuration.
+  bool readsState(double h, const Tableau& tableau) const {
+    return !(h == quiet_h_ && tableau.stiff_bound == quiet_bound_);
+  }
   // The stiff ones after the stages: implicit Euler in the metric M + h C (Lie splitting).
   void implicit(const System& sys, State& s, double h);
   struct Damped {

@@ -178,7 +178,6 @@ void JointStepper::accelerations(const System& sys, const State& s, const Inputs
 
 void JointStepper::writeAbsolute(const System& sys, State& s) {
   // (ws_ holds the kinematics of s.q, s.qdot: accelerations() ran there last)
-  absoluteState(model_, ws_, s.x, s.u);
   // the closures' multipliers (drives, limits, couplers) in their System rows; a free
   // limit's is 0. The tree joints' rows have none: a reactions query computes them
   // (Mechanism::multipliers(), treeJointMultipliers: tree_reactions.h).
@@ -190,7 +189,7 @@ void JointStepper::writeAbsolute(const System& sys, State& s) {
     for (size_t l = 0; l < sys.limits.size(); ++l)
       if (s.limit_side[l] == 0) s.lambda[sys.layout[sys.limits[l].constraint].row] = 0.0;
   }
-  s.acc_pending = true;  // (completeState)
+  s.bodies_pending = true;  // x, u, acc (completeState)
   // Tracked angles: a tree joint's are its coordinates themselves (so an angle may advance
   // by any amount in a step: a wheel at 4000 rad/s turns 4 rad a millisecond). A cut
   // joint's follow its two bodies (Constraint::track at the new kinematics, as the absolute
@@ -225,15 +224,16 @@ void JointStepper::writeAbsolute(const System& sys, State& s) {
 }
 
 void JointStepper::completeState(State& s) {
-  if (!s.acc_pending) return;
+  if (!s.bodies_pending) return;
   // (ws_ holds the kinematics of (end_.q, end_.v) until the next step or projection moves it)
   TreeWorkspace* ws = &ws_;
   if (!(ws_.generation == end_.generation && end_.q == s.q && end_.v == s.qdot)) {
     forwardKinematics(model_, s.q, s.qdot, query_ws_);
     ws = &query_ws_;
   }
+  absoluteState(model_, *ws, s.x, s.u);
   bodyAccelerations(model_, *ws, s.qddot, s.acc);
-  s.acc_pending = false;
+  s.bodies_pending = false;
 }
 
 bool JointStepper::stepViolation(const State& s, double& position, double& velocity) const {
@@ -313,6 +313,7 @@ bool JointStepper::project(const System& sys, State& s) {
 
 void JointStepper::settle(const System& sys, State& s, const Inputs& in) {
   closures_.rebind(sys);  // (a Mechanism's System is copied on write)
+  completeState(s);  // (its source is the absolute state)
   setInputs(in, true);
   // (a new state: no round-off of a step to carry)
   s.q_round.setZero(model_.nq), s.qdot_round.setZero(model_.nv);
@@ -459,6 +460,7 @@ void JointStepper::step(const System& sys, State& s, const Inputs& in, double h)
 // that change the active limits, mechanisms with joint damping, tableaus other than RK4.
 void JointStepper::advance(const System& sys, State& s, const Inputs& in, double h, int depth) {
   if (depth > 0) start_.backup[depth] = s;
+  if (judged_) completeState(s);
   const double scale0 = judged_ ? motionScale(sys, s.u) : 0.0;  // (the start's, for leapt)
   try {
     stepOnce(sys, s, in, h);
@@ -524,7 +526,10 @@ void JointStepper::stepOnce(const System& sys, State& s, const Inputs& in, doubl
   friction_acts_ = friction;  // (s.friction is zero over the step where no joint has friction)
   if (friction || !(end_.fresh && end_.q == s.q && end_.v == s.qdot)) accelerations(sys, s, in, s.t, stages_.q0, stages_.v0, s.qddot);
   // (ws_ holds q0's articulated factors now); stage 1 again if the stiff set changed
-  if (!damping_.damped().empty() && damping_.classify(sys, s, h, *tableau_)) accelerations(sys, s, in, s.t, stages_.q0, stages_.v0, s.qddot);
+  if (!damping_.damped().empty()) {
+    if (damping_.readsState(h, *tableau_)) completeState(s);  // (the bodies' poses)
+    if (damping_.classify(sys, s, h, *tableau_)) accelerations(sys, s, in, s.t, stages_.q0, stages_.v0, s.qddot);
+  }
   // Coulomb friction sized for this step from those (as the absolute formulation: after the
   // stiff set, so the stages' damping is in q_ddot), then stage 1 with it
   if (friction) {

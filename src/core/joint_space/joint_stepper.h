@@ -71,9 +71,9 @@ class JointStepper final : public FormulationStepper {
   bool stepViolation(const State& s, double& position, double& velocity) const override;
   // The inputs or the System changed: the accelerations a State holds are not reused.
   void invalidate() override { end_.fresh = false; }
-  // s.acc from s.q, s.qdot, s.qddot: a step leaves it pending (State::acc_pending), the
-  // bodies' accelerations being read only by queries and by the step's error estimate;
-  // settle() and resolve() write it.
+  // s.x, s.u and s.acc from s.q, s.qdot, s.qddot: a step leaves them pending
+  // (State::bodies_pending), the bodies' state being read only by queries, by the step's
+  // error estimate and by the damping classification; settle() and resolve() write them.
   void completeState(State& s) override;
   // The System's joint damping changed (Mechanism::setJointDamping): which coordinates are
   // damped, and by how much, again (the constructor read them).
@@ -124,8 +124,8 @@ class JointStepper final : public FormulationStepper {
   // The inputs' joint efforts for the accelerations from here on (tau_in_), and whether
   // they add s.friction (false only where no joint has Coulomb friction: it is zero).
   void setInputs(const Inputs& in, bool friction);
-  // s.x, s.u and the tracked angles from s.q, s.qdot (s.acc left pending), the closures'
-  // multipliers and violations.
+  // The tracked angles from s.q (s.x, s.u, s.acc left pending), the closures' multipliers
+  // and violations.
   void writeAbsolute(const System& sys, State& s);
 
   TreeModel model_;

@@ -149,11 +149,11 @@ TEST(JointFormulation, QueriesAtAStateAreTheAbsoluteOnes) {
   EXPECT_LT(react, 1e-6 * rscale);
 }
 
-// A step leaves the bodies' accelerations State::acc to be written when something reads
-// them (State::acc_pending). What a reader gets is the same bits whether the stepper still
-// holds the step's kinematics or another stepper writes them, and it is the absolute
-// formulation's solve at that state; Mechanism hands out only complete States.
-TEST(JointFormulation, TheBodiesAccelerationsAreWrittenWhenRead) {
+// A step leaves the bodies' state State::x, u and acc to be written when something reads
+// it (State::bodies_pending). What a reader gets is the same bits whether the stepper still
+// holds the step's kinematics or another stepper writes them, and the accelerations are
+// the absolute formulation's solve at that state; Mechanism hands out only complete States.
+TEST(JointFormulation, TheBodiesStateIsWrittenWhenRead) {
   Mechanism m;
   randomTree(m, 5, 6);
   // (damping: no step is judged by its error estimate, which reads the accelerations)
@@ -168,17 +168,20 @@ TEST(JointFormulation, TheBodiesAccelerationsAreWrittenWhenRead) {
   State s = m.snapshot();
   JointStepper js(sys);
   js.settle(sys, s, in);
-  EXPECT_FALSE(s.acc_pending);
+  EXPECT_FALSE(s.bodies_pending);
   for (int k = 0; k < 20; ++k) js.step(sys, s, in, 1e-3);
-  ASSERT_TRUE(s.acc_pending);
+  ASSERT_TRUE(s.bodies_pending);
   State elsewhere = s;
   js.completeState(s);  // (from the kinematics the step left)
-  EXPECT_FALSE(s.acc_pending);
+  EXPECT_FALSE(s.bodies_pending);
   JointStepper other(sys);
   other.completeState(elsewhere);  // (from the State alone)
-  EXPECT_FALSE(elsewhere.acc_pending);
-  ASSERT_EQ(s.acc.size(), elsewhere.acc.size());
-  for (Eigen::Index i = 0; i < s.acc.size(); ++i) EXPECT_EQ(s.acc[i], elsewhere.acc[i]) << i;
+  EXPECT_FALSE(elsewhere.bodies_pending);
+  for (const auto& [a, b] : {std::make_pair(&s.x, &elsewhere.x), std::make_pair(&s.u, &elsewhere.u),
+                              std::make_pair(&s.acc, &elsewhere.acc)}) {
+    ASSERT_EQ(a->size(), b->size());
+    for (Eigen::Index i = 0; i < a->size(); ++i) EXPECT_EQ((*a)[i], (*b)[i]) << i;
+  }
   // the absolute formulation's accelerations at the same positions and velocities
   State d = s;
   Stepper absolute(sys);
@@ -188,7 +191,7 @@ TEST(JointFormulation, TheBodiesAccelerationsAreWrittenWhenRead) {
   EXPECT_LT((d.acc - s.acc).cwiseAbs().maxCoeff(), 1e-9 * scale);
   // (an absolute stepper refuses a State whose accelerations are pending)
   State pending = elsewhere;
-  pending.acc_pending = true;
+  pending.bodies_pending = true;
   EXPECT_THROW(absolute.adopt(sys, pending, in), std::logic_error);
 
   Mechanism j;
@@ -197,8 +200,8 @@ TEST(JointFormulation, TheBodiesAccelerationsAreWrittenWhenRead) {
   j.build();
   j.assemble();
   for (int k = 0; k < 20; ++k) j.step(1e-3);
-  EXPECT_FALSE(j.snapshot().acc_pending);
-  EXPECT_FALSE(j.state().acc_pending);
+  EXPECT_FALSE(j.snapshot().bodies_pending);
+  EXPECT_FALSE(j.state().bodies_pending);
 }
 
 // A wheel spinning at 4000 rad/s, and a nut on a screw of 1 mm lead spun as fast, stepped

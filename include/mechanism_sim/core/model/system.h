@@ -195,11 +195,11 @@ struct State {
   std::vector<char> dropped;               // per row: a dependent equation, left out of solves
   Eigen::VectorXd lambda;                  // multipliers at this state (and warm start)
   Eigen::VectorXd acc;                     // accelerations at this state
-  // acc is not yet written: the joint formulation derives it from q, qdot, qddot when it is
-  // read (FormulationStepper::completeState), not at every step. Mechanism completes its
-  // State before any reader (Mechanism::state(), snapshot(), the queries); a complete State
-  // has it false.
-  bool acc_pending = false;
+  // x, u and acc are not yet written: the joint formulation derives them from q, qdot,
+  // qddot when they are read (FormulationStepper::completeState), not at every step.
+  // Mechanism completes its State before any reader (Mechanism::state(), snapshot(), the
+  // queries); a complete State has it false.
+  bool bodies_pending = false;
   std::vector<std::array<double, 3>> friction;  // friction effort of the step that led here
   std::vector<double> sum_friction;             // per System::sum_friction: its effort F, the same
   std::vector<DriveRamp> drive;            // per drive: a velocity drive's reference
