@@ -25,8 +25,9 @@ void retract(const TreeModel& model, Eigen::VectorXd& q, const Eigen::VectorXd& 
     // coordinates before it move by dv
     const int n = L.quaternion;
     for (int k = 0; k < n; ++k) q(L.iq + k) += dv(L.iv + k);
-    const Eigen::Vector4d p = L.quaternion_in_child ? quatProduct(q.segment<4>(L.iq + n), quatExp(dv.segment<3>(L.iv + n)))
-                                                    : quatProduct(quatExp(dv.segment<3>(L.iv + n)), q.segment<4>(L.iq + n));
+    const Eigen::Vector4d turn = quatExp(dv.segment<3>(L.iv + n));
+    const Eigen::Vector4d p = L.quaternion_in_child ? quatProduct(q.segment<4>(L.iq + n), turn)
+                                                    : quatProduct(turn, q.segment<4>(L.iq + n));
     q.segment<4>(L.iq + n) = p.normalized();
   }
 }

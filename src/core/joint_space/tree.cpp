@@ -240,7 +240,8 @@ TreeModel::TreeModel(const System& sys, bool embed_couplers) {
         L.ptr = &J;
         const TreeJointModel* jm = treeJointModel(J.type());
         if (!jm)
-          throw ModelError("joint '" + J.name() + "': the joint-space tree has no model of joint type '" + J.type() + "'");
+          throw ModelError("joint '" + J.name() + "': the joint-space tree has no model of joint type '" + J.type() +
+                           "'");
         if (jm->nv > 6 || jm->nq > 7 || jm->nv > jm->nq)
           throw ModelError("joint '" + J.name() + "': joint type '" + J.type() + "' has a tree model of " +
                            std::to_string(jm->nq) + "/" + std::to_string(jm->nv) +
