@@ -52,7 +52,7 @@ void setModel(TreeLink& L, const TreeJointModel& m) {
   L.kind = m.kind;
   L.axis = m.axis;
   L.nq = m.nq, L.nv = m.nv;
-  L.quaternion = m.quaternion;
+  L.quaternion = static_cast<signed char>(m.quaternion);
   L.quaternion_in_child = m.quaternion_in_child;
 }
 

@@ -83,20 +83,22 @@ struct TreeLink {
   int body = 0;          // the moving body (1..nb)
   int parent = 0;        // its parent (0: ground)
   int joint = -1;        // index in sys.joints; -1: a free body (no joint)
-  const Joint* ptr = nullptr;
   // The joint type's tree model (JointTypeInfo::tree; a free body's is the tree's own) and
   // what the passes read of it in place: its tag, its constant axis motion, the offset of
-  // a unit quaternion in its coordinates (-1: none) and the frame of its rates.
-  const TreeJointModel* jmodel = nullptr;
+  // a unit quaternion in its coordinates (-1: none) and the frame of its rates. (The
+  // members are ordered so that the link packs into as few bytes as without them: the
+  // passes index links by their size.)
   TreeJointKind kind = TreeJointKind::kFree;
+  const Joint* ptr = nullptr;
+  const TreeJointModel* jmodel = nullptr;
   AxisMotion axis = AxisMotion::kNone;
-  int quaternion = -1;
-  bool quaternion_in_child = false;
+  int nq = 0, nv = 0;    // coordinates of this link
+  int iq = 0, iv = 0;    // where they start in q and q_dot
   // The child is the joint's body i (the joint was written parent-last): frame j then sits
   // on the parent, and the child's frame is frame i.
   bool reversed = false;
-  int nq = 0, nv = 0;    // coordinates of this link
-  int iq = 0, iv = 0;    // where they start in q and q_dot
+  signed char quaternion = -1;
+  bool quaternion_in_child = false;
   JointParams params;    // screw: alpha, phi0
   // The joint frame on the parent (F_p) and on the child (F_c), body components relative to
   // that body's centre of mass; ground's in global components.

@@ -28,10 +28,6 @@ struct JointParams {
   double phi0 = 0.0;   // screw: relative angle at which B_i and B_j coincide
 };
 
-// The joint frames' axes and the gap d_ij in one evaluation; a joint computes only those
-// it uses (Joint::equationAxes), the others stay unset. kNoRates, with any of them: their
-// values and variations alone (the rates FixedVector::a_dot, a_cen and Gap::d_dot, d_cen
-// zero), all that Phi and its Jacobian read (an evaluation without rates, EvalContext).
 // ---- The joint's calculation in the joint-space tree ("jcalc", Featherstone, "Rigid Body
 // Dynamics Algorithms" (RBDA), 2008, ch. 4; Pinocchio's JointModel::calc). Each joint type
 // describes it once, beside its constraint rows (JointTypeInfo::tree); the joint-space
@@ -41,8 +37,8 @@ using Vector6d = Eigen::Matrix<double, 6, 1>;
 // A motion subspace: at most 6 columns (a free body), stored in place (no heap).
 using MotionSubspace = Eigen::Matrix<double, 6, Eigen::Dynamic, 0, 6, 6>;
 
-// The tag of a tree model, by which a caller singles out one of these types (kFree: a body
-// no joint reaches, the tree's own 6-dof link).
+// The tag of a tree model, by which a caller singles out a type (kFree: a body no joint
+// reaches, the tree's own 6-dof link). A new joint type adds its own.
 enum class TreeJointKind { kFixed, kRevolute, kPrismatic, kCylindrical, kScrew, kUniversal, kSpherical, kPlanar, kFree };
 
 // How a one-coordinate joint whose motion subspace is constant moves frame j along bz_i:
@@ -77,6 +73,12 @@ struct TreeJointModel {
   TreeJointCalc calc = nullptr;
 };
 
+// ---- The joint's equations
+
+// The joint frames' axes and the gap d_ij in one evaluation; a joint computes only those
+// it uses (Joint::equationAxes), the others stay unset. kNoRates, with any of them: their
+// values and variations alone (the rates FixedVector::a_dot, a_cen and Gap::d_dot, d_cen
+// zero), all that Phi and its Jacobian read (an evaluation without rates, EvalContext).
 enum GeometryPart : unsigned {
   kBxI = 1, kByI = 2, kBzI = 4, kBxJ = 8, kByJ = 16, kBzJ = 32, kGap = 64, kAllParts = 127, kNoRates = 128
 };
