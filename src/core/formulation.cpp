@@ -40,8 +40,7 @@ Formulation chooseFormulation(const System& sys, Formulation asked, std::string*
       for (int j = 0; j < sys.numJoints(); ++j)
         if (&*sys.joints[j] == &J) {
           const int link = tree.joint_link[j];
-          return link >= 0 && tree.links[link].kind != TreeJointKind::kSpherical &&
-                 tree.links[link].kind != TreeJointKind::kFree;
+          return link >= 0 && tree.links[link].quaternion < 0;
         }
       return false;
     };

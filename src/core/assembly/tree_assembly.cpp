@@ -48,12 +48,9 @@ class TreeAssembly {
     nr_ = r_limit_ + static_cast<int>(sys.limits.size());
     const double L = sys.length_scale;
     vunit_.setOnes(model.nv);
-    for (const TreeLink& Lk : model.links) {
-      if (Lk.kind == TreeJointKind::kPrismatic) vunit_[Lk.iv] = L;
-      if (Lk.kind == TreeJointKind::kCylindrical) vunit_[Lk.iv + 1] = L;
-      if (Lk.kind == TreeJointKind::kPlanar) vunit_[Lk.iv] = vunit_[Lk.iv + 1] = L;
-      if (Lk.kind == TreeJointKind::kFree) vunit_.segment<3>(Lk.iv).setConstant(L);
-    }
+    for (const TreeLink& Lk : model.links)
+      for (int k = 0; k < Lk.nv; ++k)
+        if (Lk.jmodel->lengths >> k & 1u) vunit_[Lk.iv + k] = L;  // (a translation)
     q_ = jointState();
     place(q_);
     // The rows' units at the start: L for a row with translational terms, else 1.
@@ -113,7 +110,8 @@ class TreeAssembly {
     for (int k = 0; k < static_cast<int>(limit_v_.size()); ++k)
       if (limit_v_[k] >= 0 && !targeted_[k]) limit_of[limit_v_[k]] = k;
     for (const TreeLink& Lk : model_.links)
-      if (Lk.kind == TreeJointKind::kRevolute && Lk.nq == 1 && limit_of[Lk.iv] < 0) turns[Lk.iv] = 1;
+      for (int k = 0; k < Lk.nv; ++k)
+        if ((Lk.jmodel->free_turns >> k & 1u) && limit_of[Lk.iv + k] < 0) turns[Lk.iv + k] = 1;
     for (const auto& t : targets_)
       if (model_.joint_link[t.joint] >= 0) turns[model_.links[model_.joint_link[t.joint]].iv] = 0;
     Eigen::VectorXd best_q = q_;
@@ -221,21 +219,13 @@ class TreeAssembly {
     st_.load(sys_, s_.x.data(), s_.u.data());
     const Evaluation& ev = st_.evaluation();
     Eigen::VectorXd q = model_.neutralPositions(sys_);
-    Row rows[kMaxJointDofs];
     for (const TreeLink& L : model_.links) {
       if (L.joint < 0) {
         q.segment<7>(L.iq) = s_.x.segment<7>(BodyCoordinates::x(L.body - 1));
         continue;
       }
       const Joint& J = *L.ptr;
-      if (L.kind == TreeJointKind::kSpherical) {
-        const Matrix3d Ri = ev.kin[J.bodyI()].A_Oi * J.frameI().Rp, Rj = ev.kin[J.bodyJ()].A_Oi * J.frameJ().Rp;
-        const Quaterniond p(Ri.transpose() * Rj);
-        q.segment<4>(L.iq) << p.w(), p.x(), p.y(), p.z();
-      } else {
-        J.coordinates(ev.kin[J.bodyI()], ev.kin[J.bodyJ()], s_.tracked[J.id()], rows);
-        for (int k = 0; k < J.dof(); ++k) q[L.iq + k] = rows[k].Phi;
-      }
+      J.treePositions(ev.kin[J.bodyI()], ev.kin[J.bodyJ()], s_.tracked[J.id()], q.data() + L.iq);
     }
     normalizeQuaternions(model_, q);
     return q;

@@ -17,21 +17,18 @@ double ClosureRows::correctionSize(const Eigen::VectorXd& dv) const {
 
 void retract(const TreeModel& model, Eigen::VectorXd& q, const Eigen::VectorXd& dv) {
   for (const TreeLink& L : model.links) {
-    switch (L.kind) {
-      case TreeJointKind::kSpherical: {
-        const Eigen::Vector4d p = quatProduct(quatExp(dv.segment<3>(L.iv)), q.segment<4>(L.iq));
-        q.segment<4>(L.iq) = p.normalized();
-        break;
-      }
-      case TreeJointKind::kFree: {
-        q.segment<3>(L.iq) += dv.segment<3>(L.iv);
-        const Eigen::Vector4d p = quatProduct(q.segment<4>(L.iq + 3), quatExp(dv.segment<3>(L.iv + 3)));
-        q.segment<4>(L.iq + 3) = p.normalized();
-        break;
-      }
-      default:
-        for (int k = 0; k < L.nv; ++k) q(L.iq + k) += dv(L.iv + k);
+    if (L.quaternion < 0) {
+      for (int k = 0; k < L.nv; ++k) q(L.iq + k) += dv(L.iv + k);
+      continue;
     }
+    // a quaternion turns by exp(dv) on the side its rates are in (TreeJointModel), the
+    // coordinates before it move by dv
+    const int n = L.quaternion;
+    for (int k = 0; k < n; ++k) q(L.iq + k) += dv(L.iv + k);
+    const Eigen::Vector4d turn = quatExp(dv.segment<3>(L.iv + n));
+    const Eigen::Vector4d p = L.quaternion_in_child ? quatProduct(q.segment<4>(L.iq + n), turn)
+                                                    : quatProduct(turn, q.segment<4>(L.iq + n));
+    q.segment<4>(L.iq + n) = p.normalized();
   }
 }
 

@@ -21,48 +21,45 @@
 namespace mechanism_sim {
 namespace {
 
-inline Matrix3d rotationOf(const double* p) {
-  return Quaterniond(p[0], p[1], p[2], p[3]).normalized().toRotationMatrix();
+// The free body's link (q = (r, p), q_dot = (v global, omega' body)): the body's spatial
+// velocity is (omega'; A^T v), so S = [0 1; A^T 0] and c = (0; d(A^T)/dt v) =
+// (0; -omega' x A^T v).
+void freeBodyCalc(const JointParams&, const double* q, const double* qd, Matrix3d& R, Vector3d& t, MotionSubspace& S,
+                  Vector6d& c) {
+  R = Quaterniond(q[3], q[4], q[5], q[6]).normalized().toRotationMatrix();
+  t = Vector3d(q[0], q[1], q[2]);
+  S.bottomLeftCorner<3, 3>() = R.transpose();
+  S.topRightCorner<3, 3>().setIdentity();
+  const Vector3d w(qd[3], qd[4], qd[5]);
+  c.tail<3>() = -w.cross(R.transpose() * Vector3d(qd[0], qd[1], qd[2]));
 }
 
-bool treeJointKnown(const Joint& j) {
-  const std::string t = j.type();
-  return t == "revolute" || t == "prismatic" || t == "cylindrical" || t == "screw" || t == "universal" ||
-         t == "spherical" || t == "planar" || t == "fixed";
+constexpr TreeJointModel freeBodyModel() {
+  TreeJointModel m;
+  m.kind = TreeJointKind::kFree;
+  m.nq = 7, m.nv = 6;
+  m.quaternion = 3;
+  m.quaternion_in_child = true;
+  m.lengths = 7;
+  m.calc = &freeBodyCalc;
+  return m;
 }
+constexpr TreeJointModel kFreeBody = freeBodyModel();
 
-TreeJointKind kindOf(const Joint& j) {
-  const std::string t = j.type();
-  if (t == "revolute") return TreeJointKind::kRevolute;
-  if (t == "prismatic") return TreeJointKind::kPrismatic;
-  if (t == "cylindrical") return TreeJointKind::kCylindrical;
-  if (t == "screw") return TreeJointKind::kScrew;
-  if (t == "universal") return TreeJointKind::kUniversal;
-  if (t == "spherical") return TreeJointKind::kSpherical;
-  if (t == "planar") return TreeJointKind::kPlanar;
-  if (t == "fixed") return TreeJointKind::kFixed;
-  throw ModelError("joint '" + j.name() + "': the joint-space tree has no model of joint type '" + t + "'");
-}
-
-void setSizes(TreeLink& L) {
-  switch (L.kind) {
-    case TreeJointKind::kFixed: L.nq = L.nv = 0; break;
-    case TreeJointKind::kRevolute:
-    case TreeJointKind::kPrismatic:
-    case TreeJointKind::kScrew: L.nq = L.nv = 1; break;
-    case TreeJointKind::kCylindrical:
-    case TreeJointKind::kUniversal: L.nq = L.nv = 2; break;
-    case TreeJointKind::kPlanar: L.nq = L.nv = 3; break;
-    case TreeJointKind::kSpherical: L.nq = 4, L.nv = 3; break;
-    case TreeJointKind::kFree: L.nq = 7, L.nv = 6; break;
-  }
+// The link's copy of its type's tree model.
+void setModel(TreeLink& L, const TreeJointModel& m) {
+  L.jmodel = &m;
+  L.kind = m.kind;
+  L.axis = m.axis;
+  L.nq = m.nq, L.nv = m.nv;
+  L.quaternion = static_cast<signed char>(m.quaternion);
+  L.quaternion_in_child = m.quaternion_in_child;
 }
 
 // S in the child's centre-of-mass coordinates (forwardKinematics' transform of
-// jointTransform's S, which for these kinds does not depend on q).
+// jointTransform's S, which for these does not depend on q).
 void setConstantSubspace(TreeLink& L) {
-  L.constant_S = L.nv == 1 && (L.kind == TreeJointKind::kRevolute || L.kind == TreeJointKind::kPrismatic ||
-                               L.kind == TreeJointKind::kScrew);
+  L.constant_S = L.nv == 1 && L.axis != AxisMotion::kNone;
   if (!L.constant_S) return;
   Matrix3d R;
   Vector3d t;
@@ -106,7 +103,7 @@ std::string jointSpaceUnsupported(const System& sys, bool loops_as_closures) {
              "): the caller does not take closures (couplers, couplings, drives and limits are closures, loop_closure.h)";
   }
   for (const Joint* J : sys.joints) {
-    if (!treeJointKnown(*J))
+    if (!treeJointModel(J->type()))
       return "joint '" + J->name() + "': the joint-space tree has no model of joint type '" + J->type() + "'";
     if (J->bodyI() == J->bodyJ()) return "joint '" + J->name() + "': joins a body to itself";
   }
@@ -168,17 +165,13 @@ void embedCouplers(const System& sys, TreeModel& model) {
     if (!cc || cc->coordinateA() != 0 || cc->coordinateB() != 0) continue;
     const int a = linkOf(cc->jointA()), b = linkOf(cc->jointB());
     if (a < 0 || b < 0 || a == b) continue;
-    auto one = [](const TreeLink& L) {
-      return L.nv == 1 && (L.kind == TreeJointKind::kRevolute || L.kind == TreeJointKind::kPrismatic ||
-                           L.kind == TreeJointKind::kScrew);
-    };
-    if (!one(model.links[a]) || !one(model.links[b])) continue;
+    if (!model.links[a].constant_S || !model.links[b].constant_S) continue;  // (one coordinate, a constant axis)
     as_slave[a].push_back(c);
   }
   // the first moving link above k that is neither welded nor tied to master m
   auto above = [&](int k, int m) {
     k = model.links[k].parent - 1;
-    while (k >= 0 && (model.links[k].kind == TreeJointKind::kFixed || model.links[k].tie == m))
+    while (k >= 0 && (model.links[k].welds() || model.links[k].tie == m))
       k = model.links[k].parent - 1;
     return k;
   };
@@ -261,13 +254,20 @@ TreeModel::TreeModel(const System& sys, bool embed_couplers) {
         L.parent = b;
         L.joint = j;
         L.ptr = &J;
-        L.kind = kindOf(J);
+        const TreeJointModel* jm = treeJointModel(J.type());
+        if (!jm)
+          throw ModelError("joint '" + J.name() + "': the joint-space tree has no model of joint type '" + J.type() +
+                           "'");
+        if (jm->nv > 6 || jm->nq > 7 || jm->nv > jm->nq)
+          throw ModelError("joint '" + J.name() + "': joint type '" + J.type() + "' has a tree model of " +
+                           std::to_string(jm->nq) + "/" + std::to_string(jm->nv) +
+                           " coordinates (at most 7 positions and 6 rates, no more rates than positions)");
+        setModel(L, *jm);
         L.reversed = child == J.bodyI();
         const JointFrame& fp = L.reversed ? J.frameJ() : J.frameI();
         const JointFrame& fc = L.reversed ? J.frameI() : J.frameJ();
         L.Rp = fp.Rp, L.sp = fp.sp_B, L.Rc = fc.Rp, L.sc = fc.sp_B;
         L.params = J.params();
-        setSizes(L);
         setConstantSubspace(L);
         joint_link[j] = child - 1;
         order.push_back(child);
@@ -282,8 +282,7 @@ TreeModel::TreeModel(const System& sys, bool embed_couplers) {
     TreeLink& L = links[b - 1];
     L.body = b;
     L.parent = 0;
-    L.kind = TreeJointKind::kFree;
-    setSizes(L);
+    setModel(L, kFreeBody);
     order.push_back(b);
     grow(b);
   }
@@ -297,7 +296,7 @@ TreeModel::TreeModel(const System& sys, bool embed_couplers) {
     nq += L.nq, nv += L.nv;
   }
   for (TreeLink& L : links)
-    if (L.kind == TreeJointKind::kFree) {
+    if (L.joint < 0) {  // a free body
       L.iq = nq, L.iv = nv;
       nq += L.nq, nv += L.nv;
     }
@@ -306,8 +305,8 @@ TreeModel::TreeModel(const System& sys, bool embed_couplers) {
   // along the fixed links above it, relative to its host.
   for (int b : order) {
     TreeLink& L = links[b - 1];
-    const bool parent_fixed = L.parent != 0 && links[L.parent - 1].kind == TreeJointKind::kFixed;
-    if (L.kind != TreeJointKind::kFixed) {
+    const bool parent_fixed = L.parent != 0 && links[L.parent - 1].welds();
+    if (!L.welds()) {
       L.host = b;
       L.parent_welded = parent_fixed;
       L.aparent = parent_fixed ? links[L.parent - 1].host : L.parent;
@@ -328,7 +327,7 @@ TreeModel::TreeModel(const System& sys, bool embed_couplers) {
     }
   }
   for (TreeLink& L : links) {
-    if (L.kind == TreeJointKind::kFixed) continue;
+    if (L.welds()) continue;
     const Body& B = sys.bodies[L.body];
     L.Ic0.setZero();
     L.Ic0.topLeftCorner<3, 3>() = B.Jp;
@@ -337,7 +336,7 @@ TreeModel::TreeModel(const System& sys, bool embed_couplers) {
   }
   for (int b : order) {
     const TreeLink& L = links[b - 1];
-    if (L.kind != TreeJointKind::kFixed || L.host == 0) continue;  // (a body welded to ground stays)
+    if (!L.welds() || L.host == 0) continue;  // (a body welded to ground stays)
     TreeLink& H = links[L.host - 1];
     const Body& B = sys.bodies[b];
     Matrix6d I = Matrix6d::Zero();
@@ -349,6 +348,8 @@ TreeModel::TreeModel(const System& sys, bool embed_couplers) {
     H.mass += B.m;
     H.mc += B.m * L.rhoh;
   }
+  for (const TreeLink& L : links)
+    if (L.quaternion >= 0) quaternions.push_back(L.iq + L.quaternion);
   if (embed_couplers) embedCouplers(sys, *this);
   armature = Eigen::VectorXd::Zero(nv);
   for (const RotorInertia& R : sys.rotors) {
@@ -380,8 +381,8 @@ void TreeModel::holdTies(Eigen::VectorXd& q, Eigen::VectorXd& qdot, Eigen::Vecto
 Eigen::VectorXd TreeModel::neutralPositions(const System& sys) const {
   Eigen::VectorXd q = Eigen::VectorXd::Zero(nq);
   for (const TreeLink& L : links) {
-    if (L.kind == TreeJointKind::kSpherical) q(L.iq) = 1.0;
-    if (L.kind == TreeJointKind::kFree) {
+    if (L.quaternion >= 0) q(L.iq + L.quaternion) = 1.0;
+    if (L.joint < 0) {  // a free body where the System's body starts
       const Body& B = sys.bodies[L.body];
       const Quaterniond p = B.p.normalized();
       q.segment<3>(L.iq) = B.r;
@@ -421,86 +422,23 @@ TreeWorkspace::TreeWorkspace(const TreeModel& model) {
   }
 }
 
-// ---- joint models (RBDA ch. 4, "jcalc": X_J, S, c_J; for the types of joint.h)
+// ---- the joint calculation (RBDA ch. 4, "jcalc": X_J, S, c_J; the joint type's
+// TreeJointModel::calc)
 //
 // For the pose T(q) = (R, t) of frame j in frame i (JointTypeInfo::relativePose), S is the
 // motion subspace of frame j relative to frame i in frame-j Plucker coordinates, v_J = S
 // q_dot, and c = S_ring q_dot the apparent derivative of S's coordinates (RBDA ch. 4:
 // c_J, the velocity-product part of the joint acceleration). Where S is constant, c = 0.
+// A link built by hand (the tests) carries its tag alone: its type's model is the tag's.
 void jointTransform(const TreeLink& L, const double* q, const double* qd, Matrix3d& R, Vector3d& t,
                     MotionSubspace& S, Vector6d& c) {
   S.setZero(6, L.nv);
   c.setZero();
   R.setIdentity();
   t.setZero();
-  switch (L.kind) {
-    case TreeJointKind::kFixed:
-      break;
-    case TreeJointKind::kRevolute:  // Rz(q0): S = (bz; 0)
-      R = rotZ(q[0]);
-      S(2, 0) = 1;
-      break;
-    case TreeJointKind::kPrismatic:  // along bz: S = (0; bz)
-      t.z() = q[0];
-      S(5, 0) = 1;
-      break;
-    case TreeJointKind::kCylindrical:  // Rz(q0), q1 along bz; R^T bz = bz
-      R = rotZ(q[0]);
-      t.z() = q[1];
-      S(2, 0) = 1;
-      S(5, 1) = 1;
-      break;
-    case TreeJointKind::kScrew:  // Rz(phi), alpha (phi - phi0) along bz (A8.8): S = (bz; alpha bz)
-      R = rotZ(q[0]);
-      t.z() = L.params.alpha * (q[0] - L.params.phi0);
-      S(2, 0) = 1;
-      S(5, 0) = L.params.alpha;
-      break;
-    case TreeJointKind::kUniversal: {
-      // R = Rx(q0) Ry(q1): omega in frame j = q0_dot Ry(q1)^T ex + q1_dot ey; the first
-      // column turns with q1: c = q0_dot q1_dot d(Ry^T ex)/dq1 = q0_dot q1_dot (-s1, 0, c1).
-      const double c1 = std::cos(q[1]), s1 = std::sin(q[1]);
-      R = Eigen::AngleAxisd(q[0], Vector3d::UnitX()).toRotationMatrix() *
-          Eigen::AngleAxisd(q[1], Vector3d::UnitY()).toRotationMatrix();
-      S(0, 0) = c1, S(2, 0) = s1;
-      S(1, 1) = 1;
-      c(0) = -qd[0] * qd[1] * s1;
-      c(2) = qd[0] * qd[1] * c1;
-      break;
-    }
-    case TreeJointKind::kSpherical: {
-      // q_dot is omega in frame i (spherical.cpp): in frame j R^T q_dot. With R_dot =
-      // R omega_j~, d(R^T)/dt q_dot = -omega_j x (R^T q_dot) = -omega_j x omega_j = 0: no bias.
-      R = rotationOf(q);
-      S.topLeftCorner<3, 3>() = R.transpose();
-      break;
-    }
-    case TreeJointKind::kPlanar: {
-      // Rz(q2), (q0, q1, 0): the origin's velocity in frame j is Rz^T (q0_dot, q1_dot, 0),
-      // turning with q2: c = -q2_dot bz x (Rz^T (q0_dot, q1_dot, 0)).
-      const double c2 = std::cos(q[2]), s2 = std::sin(q[2]);
-      R = rotZ(q[2]);
-      t << q[0], q[1], 0;
-      S(3, 0) = c2, S(4, 0) = -s2;
-      S(3, 1) = s2, S(4, 1) = c2;
-      S(2, 2) = 1;
-      const double vx = c2 * qd[0] + s2 * qd[1], vy = -s2 * qd[0] + c2 * qd[1];
-      c(3) = qd[2] * vy;
-      c(4) = -qd[2] * vx;
-      break;
-    }
-    case TreeJointKind::kFree: {
-      // q = (r, p), q_dot = (v global, omega' body): the body's spatial velocity is
-      // (omega'; A^T v), so S = [0 1; A^T 0] and c = (0; d(A^T)/dt v) = (0; -omega' x A^T v).
-      R = rotationOf(q + 3);
-      t = Vector3d(q[0], q[1], q[2]);
-      S.bottomLeftCorner<3, 3>() = R.transpose();
-      S.topRightCorner<3, 3>().setIdentity();
-      const Vector3d w(qd[3], qd[4], qd[5]);
-      c.tail<3>() = -w.cross(R.transpose() * Vector3d(qd[0], qd[1], qd[2]));
-      break;
-    }
-  }
+  const TreeJointModel& m =
+      L.jmodel ? *L.jmodel : (L.kind == TreeJointKind::kFree ? kFreeBody : treeJointModel(L.kind));
+  m.calc(L.params, q, qd, R, t, S, c);
   if (L.reversed) {
     // The child carries frame i: its motion relative to frame j is minus that of j
     // relative to i, in frame-i coordinates S' = -(i_X_j) S. The bias is c' = -(i_X_j) c:
@@ -535,19 +473,19 @@ void forwardKinematics(const TreeModel& model, const Eigen::VectorXd& q, const E
     // Child body axes in parent body axes (Rrel = Rp R Rc^T), and the child's centre
     // relative to the parent's (rho = sp + Rp t - Rrel sc).
     Matrix3d Rrel;
-    if (L.kind == TreeJointKind::kFixed) {  // the constant pose (TreeModel); no joint motion
+    if (L.welds()) {  // the constant pose (TreeModel); no joint motion
       Rrel = L.E0.transpose();
       ws.rho[k] = L.rho0;
       cJ.setZero();
       vJ.setZero();
     } else if (L.constant_S) {  // the common case: S constant in the child's frame (set once in ws), c_J = 0
-      // R = Rz(+-q) (revolute, screw) or 1 (prismatic), t along z (jointTransform; reversed,
+      // R = Rz(+-q) (turning, helix) or 1 (sliding), t along z (jointTransform; reversed,
       // the inverse pose):
       // Rp Rz mixes two columns of Rp, the product's first factor done in 12 products
       // (TreeLink::Kc, Ks, K0: the pose's constant parts)
       const double qk = q(L.iq);
       double tz = 0.0;
-      if (L.kind == TreeJointKind::kPrismatic) {
+      if (L.axis == AxisMotion::kSlide) {
         Rrel = L.Kc + L.K0;
         tz = L.reversed ? -qk : qk;  // (the inverse pose: -R^T t, and R^T z = z)
         ws.rho[k] = L.k0 - L.kc + tz * L.Rp.col(2);
@@ -555,7 +493,7 @@ void forwardKinematics(const TreeModel& model, const Eigen::VectorXd& q, const E
         const double angle = L.reversed ? -qk : qk, ca = std::cos(angle), sa = std::sin(angle);
         Rrel = ca * L.Kc + sa * L.Ks + L.K0;
         ws.rho[k] = L.k0 - ca * L.kc - sa * L.ks;
-        if (L.kind == TreeJointKind::kScrew) {
+        if (L.axis == AxisMotion::kHelix) {
           tz = L.params.alpha * (qk - L.params.phi0);
           ws.rho[k] += (L.reversed ? -tz : tz) * L.Rp.col(2);
         }

@@ -16,31 +16,25 @@
 //   bodyAccelerations  q_ddot -> absolute accelerations as State::acc has them
 //
 // Coordinates (per joint, in sys.joints order; a free body's after all joints'):
-//   the joint's own coordinates, q_k = Row::Phi and q_dot_k = Row::Phi_dot of
-//   Joint::coordinates(), with the pose of frame j in frame i from
-//   JointTypeInfo::relativePose:
-//     revolute     1/1  angle about bz_i             prismatic  1/1  travel along bz_i
-//     cylindrical  2/2  angle, travel                screw      1/1  angle phi (travel
-//                                                                     alpha (phi - phi0))
-//     universal    2/2  Rx(q0) Ry(q1)                planar     3/3  x, y, angle
-//     fixed        0/0
-//     spherical    4/3  q: unit quaternion (w x y z) of frame j in frame i (its rotation
-//                       vector is what Joint::coordinates() reports); q_dot: the relative
-//                       angular velocity in frame-i components (as spherical.cpp), so
-//                       dq/dt = 1/2 (0, q_dot) (x) q
+//   the joint type's tree model (TreeJointModel, joint.h, written beside its constraint
+//   rows in core/model/joints/<type>.cpp): its nq/nv position/velocity coordinates, as
+//   a rule q_k = Row::Phi and q_dot_k = Row::Phi_dot of Joint::coordinates() (a spherical
+//   joint's q is the unit quaternion of frame j in frame i, Joint::treePositions), and its
+//   calculation ("jcalc": pose, motion subspace, bias). A body no joint reaches floats
+//   freely, the tree's own link:
 //     free body    7/6  q: r (3, global), p (4, w x y z), as State::x; q_dot: v (3,
 //                       global), omega' (3, body), as State::u
-//   (nq/nv: position/velocity coordinates). A generalized effort tau_k is what the
-//   absolute solver takes as Inputs::effort (it acts as q_x,k^T tau_k); on a free body tau is
-//   (force global, torque in body components) at the centre of mass.
-// Fixed joints are merged: a body welded by fixed joints to a moving body (its host) adds
-// its constant spatial inertia to the host's (TreeLink::Ic0) and its external forces to the
+//   A generalized effort tau_k is what the absolute solver takes as Inputs::effort (it
+//   acts as q_x,k^T tau_k); on a free body tau is (force global, torque in body
+//   components) at the centre of mass.
+// Welds (joints without coordinates: fixed joints) are merged: a body welded to a moving
+// body (its host) adds its constant spatial inertia to the host's (TreeLink::Ic0) and its external forces to the
 // host's, and the articulated-body and composite-rigid-body passes skip it; its pose and
 // velocity are still computed (closures, tf and reactions read them) and the recursive
 // Newton-Euler pass still runs over every body, so the reaction at a fixed joint and the
 // merged dynamics check each other (RBDA 6.2/7.3 for one rigid composite body).
 // What the formulation runs is jointSpaceUnsupported()'s answer; the TreeModel itself only
-// refuses what the recursion cannot represent (an unknown joint type on the tree, a joint
+// refuses what the recursion cannot represent (a joint type without a tree model, a joint
 // from a body to itself). It leaves out everything that is not a tree joint: couplers,
 // drives, limits, springs, joint damping and friction are the caller's (a stepper applies
 // damping as tau -= c q_dot and springs as body loads), and joints the spanning tree does
@@ -58,7 +52,6 @@
 
 namespace mechanism_sim {
 
-using Vector6d = Eigen::Matrix<double, 6, 1>;
 using Matrix6d = Eigen::Matrix<double, 6, 6>;
 
 // The Plucker transform X = B_X_A of motion vectors from frame A to frame B, given by E (A
@@ -79,42 +72,48 @@ inline Vector6d transformForceBack(const Matrix3d& E, const Vector3d& rho, const
   return out;
 }
 
-// At most 6 columns (a free body), stored in place: no heap.
-using MotionSubspace = Eigen::Matrix<double, 6, Eigen::Dynamic, 0, 6, 6>;
+// At most 6 rows and columns (a free body), stored in place: no heap (MotionSubspace: joint.h).
 using SmallMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 6, 6>;
 using SmallVector = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 6, 1>;
 // Vectors of the 16-byte-aligned fixed-size types.
 template <class T>
 using AlignedVector = std::vector<T, Eigen::aligned_allocator<T>>;
 
-enum class TreeJointKind { kFixed, kRevolute, kPrismatic, kCylindrical, kScrew, kUniversal, kSpherical, kPlanar, kFree };
-
 // The link from a moving body to its parent.
 struct TreeLink {
   int body = 0;          // the moving body (1..nb)
   int parent = 0;        // its parent (0: ground)
   int joint = -1;        // index in sys.joints; -1: a free body (no joint)
-  const Joint* ptr = nullptr;
+  // The joint type's tree model (JointTypeInfo::tree; a free body's is the tree's own) and
+  // what the passes read of it in place: its tag, its constant axis motion, the offset of
+  // a unit quaternion in its coordinates (-1: none) and the frame of its rates. (The
+  // members are ordered so that the link packs into as few bytes as without them: the
+  // passes index links by their size.)
   TreeJointKind kind = TreeJointKind::kFree;
+  const Joint* ptr = nullptr;
+  const TreeJointModel* jmodel = nullptr;
+  AxisMotion axis = AxisMotion::kNone;
+  int nq = 0, nv = 0;    // coordinates of this link
+  int iq = 0, iv = 0;    // where they start in q and q_dot
   // The child is the joint's body i (the joint was written parent-last): frame j then sits
   // on the parent, and the child's frame is frame i.
   bool reversed = false;
-  int nq = 0, nv = 0;    // coordinates of this link
-  int iq = 0, iv = 0;    // where they start in q and q_dot
+  signed char quaternion = -1;
+  bool quaternion_in_child = false;
   JointParams params;    // screw: alpha, phi0
   // The joint frame on the parent (F_p) and on the child (F_c), body components relative to
   // that body's centre of mass; ground's in global components.
   Matrix3d Rp = Matrix3d::Identity(), Rc = Matrix3d::Identity();
   Vector3d sp = Vector3d::Zero(), sc = Vector3d::Zero();
   // One coordinate whose motion subspace is constant in the child's centre-of-mass
-  // coordinates (revolute, prismatic, screw; either direction): S0, and c_J = 0.
+  // coordinates (TreeJointModel::axis; either direction): S0, and c_J = 0.
   // forwardKinematics then computes only the pose (RBDA ch. 4: S constant for these).
   bool constant_S = false;
   Vector6d S0 = Vector6d::Zero();
   // For those, the pose as constant parts (forwardKinematics): with R = Rz(angle),
   // Rrel = Rp R Rc^T = cos K_c + sin K_s + K_0 and the child's centre
   // rho = sp + t_z Rp z - Rrel sc = k_0 + t_z Rp z - cos k_c - sin k_s (k_c = K_c sc,
-  // k_s = K_s sc, k_0 = sp - K_0 sc); a prismatic joint's Rrel is K_0 + K_c (angle 0).
+  // k_s = K_s sc, k_0 = sp - K_0 sc); a sliding joint's Rrel is K_0 + K_c (angle 0).
   Matrix3d Kc = Matrix3d::Zero(), Ks = Matrix3d::Zero(), K0 = Matrix3d::Zero();
   Vector3d kc = Vector3d::Zero(), ks = Vector3d::Zero(), k0 = Vector3d::Zero();
   // Fixed links: the constant pose of the child relative to the parent (E0: parent -> child
@@ -151,6 +150,8 @@ struct TreeLink {
   double tie_mult = 0.0, tie_offset = 0.0;
   bool tie_master = false;
   int pivot = -1, pivot_link = -1;
+  // A joint without coordinates welds its body to its parent (a fixed joint).
+  bool welds() const { return nv == 0; }
 };
 
 // Empty when the joint-space formulation can run the System; otherwise a sentence naming
@@ -197,6 +198,7 @@ struct TreeModel {
   std::vector<RotorCoupling> rotor_couplings;
   bool rotors_coupled = false;  // rotor_couplings not empty
   std::vector<int> ties;        // links tied to a master's coordinate (embed_couplers), parents first
+  std::vector<int> quaternions; // where each unit quaternion starts in q (TreeJointModel::quaternion)
   // q_s = r q_m + o and q_dot_s = r q_dot_m of every tie (their round-off in q_round and
   // qdot_round likewise, when given): what the integration holds up to round-off, exactly.
   void holdTies(Eigen::VectorXd& q, Eigen::VectorXd& qdot, Eigen::VectorXd* q_round = nullptr,

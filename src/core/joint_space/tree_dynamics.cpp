@@ -201,7 +201,7 @@ void forwardDynamicsAtKinematics(const TreeModel& model, const System& sys, cons
   for (int b : model.order) {
     const int k = b - 1;
     const TreeLink& L = model.links[k];
-    if (L.kind == TreeJointKind::kFixed) continue;
+    if (L.welds()) continue;
     if (L.tie >= 0 || L.tie_master || L.pivot >= 0) ws.W[k].setZero(), ws.dd[k] = 0.0, ws.beta[k] = 0.0;
     if (L.composite) {
       ws.IA[k] = L.Ic0;
@@ -220,7 +220,7 @@ void forwardDynamicsAtKinematics(const TreeModel& model, const System& sys, cons
   for (int n = model.nb - 1; n >= 0; --n) {
     const int k = model.order[n] - 1;
     const TreeLink& L = model.links[k];
-    if (L.kind == TreeJointKind::kFixed) continue;
+    if (L.welds()) continue;
     Matrix6d& IA = ws.IA[k];
     Vector6d pa = ws.pA[k];
     if (L.tie >= 0) {  // (out of line, so that the common loop stays short)
@@ -318,11 +318,11 @@ void jointSpaceInertia(const TreeModel& model, const TreeWorkspace& ws, AlignedV
   // still moves through their transforms on the way to an ancestor)
   Ic.resize(model.nb);
   for (int b : model.order)
-    if (model.links[b - 1].kind != TreeJointKind::kFixed) Ic[b - 1] = model.links[b - 1].Ic0;
+    if (!model.links[b - 1].welds()) Ic[b - 1] = model.links[b - 1].Ic0;
   for (int n = model.nb - 1; n >= 0; --n) {
     const int k = model.order[n] - 1;
     const TreeLink& L = model.links[k];
-    if (L.kind == TreeJointKind::kFixed || L.aparent == 0) continue;
+    if (L.welds() || L.aparent == 0) continue;
     Matrix3d E;
     Vector3d rho;
     articulatedTransform(model, ws, k, E, rho);
@@ -380,31 +380,23 @@ void positionRates(const TreeModel& model, const Eigen::VectorXd& q, const Eigen
   }
   qrate.resize(model.nq);
   for (const TreeLink& L : model.links) {
-    switch (L.kind) {
-      case TreeJointKind::kSpherical: {
-        // omega in frame i: d/dt q = 1/2 (0, omega) (x) q
-        Eigen::Vector4d w(0, qdot(L.iv), qdot(L.iv + 1), qdot(L.iv + 2));
-        qrate.segment<4>(L.iq) = 0.5 * quatProduct(w, q.segment<4>(L.iq));
-        break;
-      }
-      case TreeJointKind::kFree: {
-        // r_dot = v; omega' in body components: p_dot = 1/2 p (x) (0, omega')
-        qrate.segment<3>(L.iq) = qdot.segment<3>(L.iv);
-        Eigen::Vector4d w(0, qdot(L.iv + 3), qdot(L.iv + 4), qdot(L.iv + 5));
-        qrate.segment<4>(L.iq + 3) = 0.5 * quatProduct(q.segment<4>(L.iq + 3), w);
-        break;
-      }
-      default:
-        qrate.segment(L.iq, L.nq) = qdot.segment(L.iv, L.nv);
+    if (L.quaternion < 0) {
+      qrate.segment(L.iq, L.nq) = qdot.segment(L.iv, L.nv);
+      continue;
     }
+    // the coordinates before the quaternion are their own rates; the quaternion's rates are
+    // an angular velocity w: in frame i d/dt q = 1/2 (0, w) (x) q, in the child's
+    // d/dt q = 1/2 q (x) (0, w)
+    const int n = L.quaternion;
+    qrate.segment(L.iq, n) = qdot.segment(L.iv, n);
+    Eigen::Vector4d w(0, qdot(L.iv + n), qdot(L.iv + n + 1), qdot(L.iv + n + 2));
+    qrate.segment<4>(L.iq + n) = 0.5 * (L.quaternion_in_child ? quatProduct(q.segment<4>(L.iq + n), w)
+                                                               : quatProduct(w, q.segment<4>(L.iq + n)));
   }
 }
 
 void normalizeQuaternions(const TreeModel& model, Eigen::VectorXd& q) {
-  for (const TreeLink& L : model.links) {
-    if (L.kind == TreeJointKind::kSpherical) q.segment<4>(L.iq).normalize();
-    if (L.kind == TreeJointKind::kFree) q.segment<4>(L.iq + 3).normalize();
-  }
+  for (int iq : model.quaternions) q.segment<4>(iq).normalize();
 }
 
 }  // namespace mechanism_sim

@@ -52,6 +52,12 @@ void Joint::coordinateValues(const BodyKin& ki, const BodyKin& kj, const Tracked
   for (int k = 0; k < dof(); ++k) q[k] = rows[k].Phi;
 }
 
+void Joint::treePositions(const BodyKin& ki, const BodyKin& kj, const Tracked& t, double* q) const {
+  Row rows[kMaxJointDofs];
+  coordinates(ki, kj, t, rows);
+  for (int k = 0; k < dof(); ++k) q[k] = rows[k].Phi;
+}
+
 void Joint::trackedRates(const BodyKin* const* kin, const EvalContext& ctx, Tracked& rate) const {
   rate = Tracked{};
   Row rows[kMaxJointDofs];

@@ -1,5 +1,6 @@
 // The joint types by name: adding a joint type is one line here (registerJoint<ItsClass>()).
 #include <stdexcept>
+#include <string>
 #include <utility>
 
 #include "mechanism_sim/core/model/errors.h"
@@ -16,13 +17,14 @@ namespace mechanism_sim {
 namespace {
 
 // A joint type's entry, from what its class declares: kType, make, kDofNames ("" for a
-// one-dof joint), relativePose (the pose of frame j in frame i).
+// one-dof joint), relativePose (the pose of frame j in frame i), treeModel (its joint-space
+// tree calculation).
 template <class JointType>
 JointTypeInfo registerJoint() {
   static_assert(JointType::kDofNames.size() <= kMaxJointDofs, "more degrees of freedom than kMaxJointDofs");
   return {JointType::kType, &JointType::make,
           std::vector<std::string>(JointType::kDofNames.begin(), JointType::kDofNames.end()),
-          &JointType::relativePose};
+          &JointType::relativePose, JointType::treeModel()};
 }
 
 const JointTypeInfo kJointTypes[] = {
@@ -42,6 +44,18 @@ const JointTypeInfo& jointTypeInfo(const std::string& type) {
   for (const auto& entry : kJointTypes)
     if (type == entry.name) return entry;
   throw ModelError("unknown joint type '" + type + "'");
+}
+
+const TreeJointModel* treeJointModel(const std::string& type) {
+  for (const auto& entry : kJointTypes)
+    if (type == entry.name) return entry.tree.calc ? &entry.tree : nullptr;
+  return nullptr;
+}
+
+const TreeJointModel& treeJointModel(TreeJointKind kind) {
+  for (const auto& entry : kJointTypes)
+    if (entry.tree.calc && entry.tree.kind == kind) return entry.tree;
+  throw ModelError("no joint type has the tree model of tag " + std::to_string(static_cast<int>(kind)));
 }
 
 std::string Joint::dofName(int k) const { return jointTypeInfo(type()).dof_names.at(k); }

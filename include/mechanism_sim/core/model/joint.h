@@ -28,6 +28,53 @@ struct JointParams {
   double phi0 = 0.0;   // screw: relative angle at which B_i and B_j coincide
 };
 
+// ---- The joint's calculation in the joint-space tree ("jcalc", Featherstone, "Rigid Body
+// Dynamics Algorithms" (RBDA), 2008, ch. 4; Pinocchio's JointModel::calc). Each joint type
+// describes it once, beside its constraint rows (JointTypeInfo::tree); the joint-space
+// recursions read it and know no joint type by name.
+
+using Vector6d = Eigen::Matrix<double, 6, 1>;
+// A motion subspace: at most 6 columns (a free body), stored in place (no heap).
+using MotionSubspace = Eigen::Matrix<double, 6, Eigen::Dynamic, 0, 6, 6>;
+
+// The tag of a tree model, by which a caller singles out a type (kFree: a body no joint
+// reaches, the tree's own 6-dof link). A new joint type adds its own.
+enum class TreeJointKind { kFixed, kRevolute, kPrismatic, kCylindrical, kScrew, kUniversal, kSpherical, kPlanar, kFree };
+
+// How a one-coordinate joint whose motion subspace is constant moves frame j along bz_i:
+// turning about it (by q), sliding along it (by q) or both (turning by q, sliding by
+// alpha (q - phi0)). The tree precomputes such a joint's pose as constant parts.
+enum class AxisMotion { kNone, kTurn, kSlide, kHelix };
+
+// For the pose (R, t) of frame j in frame i at q (JointTypeInfo::relativePose's, with the
+// tree's own coordinates), the motion subspace S of frame j relative to frame i in frame-j
+// Plucker coordinates (omega; v of its origin), v_J = S q_dot, and c = S_ring q_dot, the
+// apparent derivative of S's coordinates along the motion (RBDA ch. 4: c_J). The caller
+// passes R = 1, t = 0, S = 0 (6 x nv) and c = 0: a calculation writes what differs.
+using TreeJointCalc = void (*)(const JointParams& params, const double* q, const double* q_dot, Matrix3d& R,
+                               Vector3d& t, MotionSubspace& S, Vector6d& c);
+
+// A joint type's tree model: its coordinates and its calculation.
+struct TreeJointModel {
+  TreeJointKind kind = TreeJointKind::kFixed;
+  // position and velocity coordinates; a joint with none welds its bodies in the pose of
+  // coincident frames (R = 1, t = 0)
+  int nq = 0, nv = 0;
+  // Where a unit quaternion (w x y z) starts in q (-1: none); its three rates are the
+  // velocity coordinates at the same offset, and every other coordinate integrates as
+  // itself (q_dot its time derivative). Rates in frame-i components (the relative angular
+  // velocity, dq/dt = 1/2 (0, q_dot) (x) q) or, with quaternion_in_child, in the child's
+  // (dq/dt = 1/2 q (x) (0, q_dot)).
+  int quaternion = -1;
+  bool quaternion_in_child = false;
+  AxisMotion axis = AxisMotion::kNone;  // a constant motion subspace along bz_i (one coordinate)
+  unsigned lengths = 0;     // bit k: velocity coordinate k is a translation (its unit a length)
+  unsigned free_turns = 0;  // bit k: coordinate k is an angle assembly may draw anywhere in a turn
+  TreeJointCalc calc = nullptr;
+};
+
+// ---- The joint's equations
+
 // The joint frames' axes and the gap d_ij in one evaluation; a joint computes only those
 // it uses (Joint::equationAxes), the others stay unset. kNoRates, with any of them: their
 // values and variations alone (the rates FixedVector::a_dot, a_cen and Gap::d_dot, d_cen
@@ -70,6 +117,10 @@ class Joint : public Constraint {
   // Whether coordinates 0 and 1 are two translations in one plane (a planar joint): their
   // Coulomb friction is then a disc (an ellipse for unequal values), not a box.
   virtual bool planarTranslation() const { return false; }
+  // The joint's coordinates in the joint-space tree (TreeJointModel: nq values) for the
+  // bodies' poses: by default the values of coordinates() (Phi); a joint whose tree
+  // coordinates are not those (a spherical joint's quaternion) says how.
+  virtual void treePositions(const BodyKin& ki, const BodyKin& kj, const Tracked& t, double* q) const;
   // The type's parameters beyond its frames (a screw's alpha and phi0; the defaults else).
   virtual JointParams params() const { return {}; }
   // Joint coordinates: out[k] (k < dof) holds q_k (Phi), its rate (Phi_dot), the row q_x,k
@@ -159,14 +210,16 @@ using JointFactory = std::unique_ptr<Joint> (*)(const std::string& name, int bod
 
 // What a joint type is, described once (joint_registry.cpp): its name, its factory, its
 // degrees of freedom and their names ("" for a one-dof joint), and the map from its
-// coordinates q (dof values) to the pose of joint frame j in joint frame i. The loader,
-// the XML reader and the tests ask this instead of building joints to learn it.
+// coordinates q (dof values) to the pose of joint frame j in joint frame i, and its tree
+// model (TreeJointModel; calc null: the joint-space tree has none). The loader, the XML
+// reader, the tree and the tests ask this instead of building joints to learn it.
 using RelativePose = Eigen::Isometry3d (*)(const double* q, const JointParams& params);
 struct JointTypeInfo {
   std::string name;
   JointFactory make = nullptr;
   std::vector<std::string> dof_names;
   RelativePose relative_pose = nullptr;
+  TreeJointModel tree;
   int dof() const { return static_cast<int>(dof_names.size()); }
   Eigen::Isometry3d relativePose(const double* q, const JointParams& params) const {
     return relative_pose(q, params);
@@ -174,6 +227,10 @@ struct JointTypeInfo {
 };
 // Throws ModelError naming the type when it is unknown.
 const JointTypeInfo& jointTypeInfo(const std::string& type);
+// The tree model of a joint type (null: an unknown type, or one without a tree model), and
+// the first registered type's of a tag (ModelError for none; not kFree, the tree's own).
+const TreeJointModel* treeJointModel(const std::string& type);
+const TreeJointModel& treeJointModel(TreeJointKind kind);
 
 // Joint types by name ("revolute", "screw", ...); throws ModelError on an
 // unknown type or parameters the type cannot take.

@@ -26,5 +26,24 @@ void CylindricalJoint::coordinates(const BodyKin& ki, const BodyKin& kj, const T
   out[1] = Cn2(g.bz_i, g.d);
 }
 
+// Tree model: Rz(q0), q1 along bz; S = [(bz; 0) (0; bz)], constant (R^T bz = bz).
+namespace {
+void cylindricalCalc(const JointParams&, const double* q, const double*, Matrix3d& R, Vector3d& t, MotionSubspace& S,
+                     Vector6d&) {
+  R = rotZ(q[0]);
+  t.z() = q[1];
+  S(2, 0) = 1;
+  S(5, 1) = 1;
+}
+}  // namespace
+
+TreeJointModel CylindricalJoint::treeModel() {
+  TreeJointModel m;
+  m.kind = TreeJointKind::kCylindrical;
+  m.nq = m.nv = 2;
+  m.lengths = 2;
+  m.calc = &cylindricalCalc;
+  return m;
+}
 
 }  // namespace mechanism_sim

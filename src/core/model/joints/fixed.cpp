@@ -19,4 +19,16 @@ void FixedJoint::equations(const JointGeometry& g, const BodyKin&, const BodyKin
   out.put(Cn1(g.by_i, g.bx_j));  // C(n1)(by_i, bx_j) = 0, as (A8.5)  (1)
 }
 
+// Tree model: no coordinate; the tree welds the two bodies (frames coincident).
+namespace {
+void fixedCalc(const JointParams&, const double*, const double*, Matrix3d&, Vector3d&, MotionSubspace&, Vector6d&) {}
+}  // namespace
+
+TreeJointModel FixedJoint::treeModel() {
+  TreeJointModel m;
+  m.kind = TreeJointKind::kFixed;
+  m.calc = &fixedCalc;
+  return m;
+}
+
 }  // namespace mechanism_sim

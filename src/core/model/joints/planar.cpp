@@ -1,5 +1,7 @@
 #include "mechanism_sim/core/model/joints/planar.h"
 
+#include <cmath>
+
 namespace mechanism_sim {
 
 // Pose of frame j in frame i: translation (x, y) in the plane, then Rz(rotation).
@@ -25,5 +27,30 @@ void PlanarJoint::coordinates(const BodyKin& ki, const BodyKin& kj, const Tracke
   out[2] = relativeAngle(g.bx_i, g.by_i, g.bx_j, t[0]);
 }
 
+// Tree model: Rz(q2), t = (q0, q1, 0). The origin's velocity in frame j is
+// Rz^T (q0_dot, q1_dot, 0), turning with q2: c = -q2_dot bz x (Rz^T (q0_dot, q1_dot, 0)).
+namespace {
+void planarCalc(const JointParams&, const double* q, const double* qd, Matrix3d& R, Vector3d& t, MotionSubspace& S,
+                Vector6d& c) {
+  const double c2 = std::cos(q[2]), s2 = std::sin(q[2]);
+  R = rotZ(q[2]);
+  t << q[0], q[1], 0;
+  S(3, 0) = c2, S(4, 0) = -s2;
+  S(3, 1) = s2, S(4, 1) = c2;
+  S(2, 2) = 1;
+  const double vx = c2 * qd[0] + s2 * qd[1], vy = -s2 * qd[0] + c2 * qd[1];
+  c(3) = qd[2] * vy;
+  c(4) = -qd[2] * vx;
+}
+}  // namespace
+
+TreeJointModel PlanarJoint::treeModel() {
+  TreeJointModel m;
+  m.kind = TreeJointKind::kPlanar;
+  m.nq = m.nv = 3;
+  m.lengths = 3;
+  m.calc = &planarCalc;
+  return m;
+}
 
 }  // namespace mechanism_sim

@@ -29,4 +29,23 @@ void PrismaticJoint::coordinates(const BodyKin& ki, const BodyKin& kj, const Tra
   out[0] = Cn2(g.bz_i, g.d);
 }
 
+// Tree model: q0 along bz; S = (0; bz), constant.
+namespace {
+void prismaticCalc(const JointParams&, const double* q, const double*, Matrix3d&, Vector3d& t, MotionSubspace& S,
+                   Vector6d&) {
+  t.z() = q[0];
+  S(5, 0) = 1;
+}
+}  // namespace
+
+TreeJointModel PrismaticJoint::treeModel() {
+  TreeJointModel m;
+  m.kind = TreeJointKind::kPrismatic;
+  m.nq = m.nv = 1;
+  m.axis = AxisMotion::kSlide;
+  m.lengths = 1;
+  m.calc = &prismaticCalc;
+  return m;
+}
+
 }  // namespace mechanism_sim

@@ -23,5 +23,23 @@ void RevoluteJoint::coordinates(const BodyKin& ki, const BodyKin& kj, const Trac
   out[0] = relativeAngle(g.bx_i, g.by_i, g.bx_j, t[0]);
 }
 
+// Tree model: Rz(q0); S = (bz; 0), constant.
+namespace {
+void revoluteCalc(const JointParams&, const double* q, const double*, Matrix3d& R, Vector3d&, MotionSubspace& S,
+                  Vector6d&) {
+  R = rotZ(q[0]);
+  S(2, 0) = 1;
+}
+}  // namespace
+
+TreeJointModel RevoluteJoint::treeModel() {
+  TreeJointModel m;
+  m.kind = TreeJointKind::kRevolute;
+  m.nq = m.nv = 1;
+  m.axis = AxisMotion::kTurn;
+  m.free_turns = 1;
+  m.calc = &revoluteCalc;
+  return m;
+}
 
 }  // namespace mechanism_sim

@@ -35,5 +35,24 @@ void ScrewJoint::coordinates(const BodyKin& ki, const BodyKin& kj, const Tracked
   out[0] = relativeAngle(g.bx_i, g.by_i, g.bx_j, t[0]);
 }
 
+// Tree model: Rz(phi), alpha (phi - phi0) along bz (A8.8); S = (bz; alpha bz), constant.
+namespace {
+void screwCalc(const JointParams& params, const double* q, const double*, Matrix3d& R, Vector3d& t,
+               MotionSubspace& S, Vector6d&) {
+  R = rotZ(q[0]);
+  t.z() = params.alpha * (q[0] - params.phi0);
+  S(2, 0) = 1;
+  S(5, 0) = params.alpha;
+}
+}  // namespace
+
+TreeJointModel ScrewJoint::treeModel() {
+  TreeJointModel m;
+  m.kind = TreeJointKind::kScrew;
+  m.nq = m.nv = 1;
+  m.axis = AxisMotion::kHelix;
+  m.calc = &screwCalc;
+  return m;
+}
 
 }  // namespace mechanism_sim

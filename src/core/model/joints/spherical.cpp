@@ -43,4 +43,32 @@ void SphericalJoint::coordinates(const BodyKin& ki, const BodyKin& kj, const Tra
   }
 }
 
+// Tree model: q the unit quaternion (w x y z) of frame j in frame i, q_dot the relative
+// angular velocity in frame-i components (as coordinates()' rates), in frame j R^T q_dot:
+// S = [R^T; 0]. With R_dot = R omega_j~, d(R^T)/dt q_dot = -omega_j x (R^T q_dot) =
+// -omega_j x omega_j = 0: no bias.
+namespace {
+void sphericalCalc(const JointParams&, const double* q, const double*, Matrix3d& R, Vector3d&, MotionSubspace& S,
+                   Vector6d&) {
+  R = Quaterniond(q[0], q[1], q[2], q[3]).normalized().toRotationMatrix();
+  S.topLeftCorner<3, 3>() = R.transpose();
+}
+}  // namespace
+
+TreeJointModel SphericalJoint::treeModel() {
+  TreeJointModel m;
+  m.kind = TreeJointKind::kSpherical;
+  m.nq = 4, m.nv = 3;
+  m.quaternion = 0;
+  m.calc = &sphericalCalc;
+  return m;
+}
+
+// The quaternion of F_i^T F_j (frame j in frame i).
+void SphericalJoint::treePositions(const BodyKin& ki, const BodyKin& kj, const Tracked&, double* q) const {
+  const Matrix3d Ri = ki.A_Oi * frameI().Rp, Rj = kj.A_Oi * frameJ().Rp;
+  const Quaterniond p(Ri.transpose() * Rj);
+  q[0] = p.w(), q[1] = p.x(), q[2] = p.y(), q[3] = p.z();
+}
+
 }  // namespace mechanism_sim

@@ -1,5 +1,7 @@
 #include "mechanism_sim/core/model/joints/universal.h"
 
+#include <cmath>
+
 namespace mechanism_sim {
 
 // Pose of frame j in frame i: Rx(axis1) Ry(axis2).
@@ -29,5 +31,28 @@ void UniversalJoint::coordinates(const BodyKin& ki, const BodyKin& kj, const Tra
   out[1] = angleOf(Cn1(g.bx_i, g.bx_j), Cn1(g.bx_i, g.bz_j), t[1]);
 }
 
+// Tree model: R = Rx(q0) Ry(q1). The angular velocity in frame j is q0_dot Ry(q1)^T ex +
+// q1_dot ey; the first column turns with q1: c = q0_dot q1_dot d(Ry^T ex)/dq1 =
+// q0_dot q1_dot (-s1, 0, c1).
+namespace {
+void universalCalc(const JointParams&, const double* q, const double* qd, Matrix3d& R, Vector3d&, MotionSubspace& S,
+                   Vector6d& c) {
+  const double c1 = std::cos(q[1]), s1 = std::sin(q[1]);
+  R = Eigen::AngleAxisd(q[0], Vector3d::UnitX()).toRotationMatrix() *
+      Eigen::AngleAxisd(q[1], Vector3d::UnitY()).toRotationMatrix();
+  S(0, 0) = c1, S(2, 0) = s1;
+  S(1, 1) = 1;
+  c(0) = -qd[0] * qd[1] * s1;
+  c(2) = qd[0] * qd[1] * c1;
+}
+}  // namespace
+
+TreeJointModel UniversalJoint::treeModel() {
+  TreeJointModel m;
+  m.kind = TreeJointKind::kUniversal;
+  m.nq = m.nv = 2;
+  m.calc = &universalCalc;
+  return m;
+}
 
 }  // namespace mechanism_sim

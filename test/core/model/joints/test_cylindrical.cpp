@@ -1,4 +1,5 @@
 // The cylindrical joint: spin and slide decouple for a body symmetric about the axis; with
+// Its tree calculation matches its constraint rows.
 // the slide held it moves as a revolute joint.
 #include <gtest/gtest.h>
 
@@ -7,6 +8,7 @@
 
 #include "bodies.h"
 #include "joint_motion.h"
+#include "tree_calculation.h"
 #include "mechanism_sim/core/mechanism.h"
 #include "mechanism_sim/core/models.h"
 
@@ -67,6 +69,12 @@ TEST(Dynamics, CylindricalWithItsSlideHeldMovesAsRevolute) {
   }
 }
 
+
+// The tree calculation (Rz(q0), q1 along bz) against the joint's equations and coordinates
+// (tree_calculation.h).
+TEST(TreeCalculation, CylindricalMatchesItsConstraintRows) {
+  test_util::checkTreeCalculation("cylindrical", JointParams{});
+}
 
 }  // namespace
 }  // namespace mechanism_sim

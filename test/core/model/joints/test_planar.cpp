@@ -1,4 +1,5 @@
 // The planar joint: a body on a vertical plane flies a parabola and keeps its spin.
+// Its tree calculation matches its constraint rows.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -6,6 +7,7 @@
 
 #include "bodies.h"
 #include "joint_motion.h"
+#include "tree_calculation.h"
 #include "mechanism_sim/core/mechanism.h"
 #include "mechanism_sim/core/models.h"
 
@@ -48,6 +50,12 @@ TEST(Dynamics, BodyOnAVerticalPlaneFliesAParabolaAndKeepsItsSpin) {
     EXPECT_LE((m.position(b) - expected).norm(), 1e-9);
     EXPECT_NEAR(m.jointVelocity(0, 2), (N.transpose() * w).z(), 1e-9);
   }
+}
+
+// The tree calculation (Rz(q2), (q0, q1, 0), and the bias of the turning translation axes)
+// against the joint's equations and coordinates (tree_calculation.h).
+TEST(TreeCalculation, PlanarMatchesItsConstraintRows) {
+  test_util::checkTreeCalculation("planar", JointParams{});
 }
 
 }  // namespace

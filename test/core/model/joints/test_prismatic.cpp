@@ -1,4 +1,5 @@
 // The prismatic joint: a body slides down a frictionless incline at g sin(beta).
+// Its tree calculation matches its constraint rows.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -6,6 +7,7 @@
 
 #include "bodies.h"
 #include "joint_motion.h"
+#include "tree_calculation.h"
 #include "mechanism_sim/core/mechanism.h"
 #include "mechanism_sim/core/models.h"
 
@@ -43,6 +45,12 @@ TEST(Dynamics, BodySlidesOnInclinedPrismaticJoint) {
     EXPECT_NEAR(m.jointPosition(0, 0), 0.5 * g0 * std::sin(beta) * 4.0, 1e-10);
     EXPECT_NEAR(m.jointVelocity(0, 0), g0 * std::sin(beta) * 2.0, 1e-10);
   }
+}
+
+// The tree calculation (q along bz and S = (0; bz)) against the joint's equations and
+// coordinates (tree_calculation.h).
+TEST(TreeCalculation, PrismaticMatchesItsConstraintRows) {
+  test_util::checkTreeCalculation("prismatic", JointParams{});
 }
 
 }  // namespace

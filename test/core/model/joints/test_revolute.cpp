@@ -1,4 +1,5 @@
 // The revolute joint: a pendulum released from the horizontal has the exact period.
+// Its tree calculation matches its constraint rows.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -6,6 +7,7 @@
 
 #include "bodies.h"
 #include "joint_motion.h"
+#include "tree_calculation.h"
 #include "mechanism_sim/core/mechanism.h"
 #include "mechanism_sim/core/models.h"
 
@@ -55,6 +57,12 @@ TEST(Dynamics, PendulumReleasedHorizontallyHasTheExactPeriod) {
     EXPECT_NEAR(turns[0], 2.36784194757624 / 2, 1e-7);
     EXPECT_NEAR(turns[2] - turns[0], 2.36784194757624, 1e-7);
   }
+}
+
+// The tree calculation (Rz(q) and S = (bz; 0)) against the joint's equations and coordinates
+// (tree_calculation.h).
+TEST(TreeCalculation, RevoluteMatchesItsConstraintRows) {
+  test_util::checkTreeCalculation("revolute", JointParams{});
 }
 
 }  // namespace

@@ -1,4 +1,5 @@
 // The screw joint: a nut falls on a vertical screw at the analytic acceleration; a screw of
+// Its tree calculation matches its constraint rows.
 // zero lead moves as a revolute joint.
 #include <gtest/gtest.h>
 
@@ -7,6 +8,7 @@
 
 #include "bodies.h"
 #include "joint_motion.h"
+#include "tree_calculation.h"
 #include "mechanism_sim/core/mechanism.h"
 #include "mechanism_sim/core/models.h"
 
@@ -70,6 +72,12 @@ TEST(Dynamics, ScrewOfZeroPitchMovesAsRevolute) {
   EXPECT_LT((screw->position(1) - revolute->position(1)).norm(), 1e-8);
   EXPECT_GT(std::fabs(revolute->jointPosition(0, 0)), 0.1);  // it did swing
   }
+}
+
+// The tree calculation (Rz(phi), alpha (phi - phi0) along bz, S = (bz; alpha bz)) against the
+// joint's equations and coordinates (tree_calculation.h).
+TEST(TreeCalculation, ScrewMatchesItsConstraintRows) {
+  test_util::checkTreeCalculation("screw", JointParams{0.07, 0.3});
 }
 
 }  // namespace

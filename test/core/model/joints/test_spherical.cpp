@@ -1,4 +1,5 @@
 // The spherical joint: a conical pendulum turns steadily at its analytic rate.
+// Its tree calculation matches its constraint rows.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -6,6 +7,7 @@
 
 #include "bodies.h"
 #include "joint_motion.h"
+#include "tree_calculation.h"
 #include "mechanism_sim/core/mechanism.h"
 #include "mechanism_sim/core/models.h"
 
@@ -40,6 +42,12 @@ TEST(Dynamics, ConicalPendulumTurnsSteadilyAtItsRate) {
     EXPECT_LE((m.position(bob) - Vector3d(L * std::sin(theta) * std::cos(phi), L * std::sin(theta) * std::sin(phi), r.z())).norm(), 1e-8);
     EXPECT_NEAR(m.jointVelocity(0, 2), Omega, 1e-8);
   }
+}
+
+// The tree calculation (the quaternion of frame j in frame i, rates in frame i) against the
+// joint's equations and coordinates (tree_calculation.h).
+TEST(TreeCalculation, SphericalMatchesItsConstraintRows) {
+  test_util::checkTreeCalculation("spherical", JointParams{});
 }
 
 }  // namespace

@@ -12,6 +12,7 @@ class PlanarJoint : public Joint {
   static std::unique_ptr<Joint> make(const std::string& name, int bi, const JointFrame& fi,
                                      int bj, const JointFrame& fj, const JointParams& params);
   static Eigen::Isometry3d relativePose(const double* q, const JointParams& params);
+  static TreeJointModel treeModel();  // its joint-space tree calculation
   static constexpr const char* kType = "planar";
   static constexpr std::array<const char*, 3> kDofNames{{"x", "y", "rotation"}};
   std::string type() const override { return kType; }

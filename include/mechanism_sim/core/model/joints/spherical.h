@@ -12,6 +12,7 @@ class SphericalJoint : public Joint {
   static std::unique_ptr<Joint> make(const std::string& name, int bi, const JointFrame& fi,
                                      int bj, const JointFrame& fj, const JointParams& params);
   static Eigen::Isometry3d relativePose(const double* q, const JointParams& params);
+  static TreeJointModel treeModel();  // its joint-space tree calculation
   static constexpr const char* kType = "spherical";
   static constexpr std::array<const char*, 3> kDofNames{{"x", "y", "z"}};
   std::string type() const override { return kType; }
@@ -20,6 +21,7 @@ class SphericalJoint : public Joint {
   int dof() const override { return static_cast<int>(kDofNames.size()); }
   bool holonomicCoordinates() const override { return false; }
   void coordinates(const BodyKin& ki, const BodyKin& kj, const Tracked& t, Row* out) const override;
+  void treePositions(const BodyKin& ki, const BodyKin& kj, const Tracked& t, double* q) const override;
 
  protected:
   void equations(const JointGeometry& g, const BodyKin& ki, const BodyKin& kj,
