@@ -117,6 +117,7 @@ LoopRun runBoth(unsigned seed, double L) {
       absolute.step(sys, sa, in, kStep);
       joint.step(sys, sj, in, kStep);
       if (k % kCompareEvery && k != steps) continue;
+      joint.completeState(sj);  // (the bodies' poses, which a step leaves pending)
       const std::vector<double> ca = jointCoordinates(sys, ev, sa, L), cj = jointCoordinates(sys, ev, sj, L);
       out.difference = std::max(out.difference, largestDifference(ca, cj));
       out.motion = std::max(out.motion, largestDifference(ca, c0));

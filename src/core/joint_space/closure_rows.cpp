@@ -50,8 +50,7 @@ ClosureRows::ClosureRows(const TreeModel& model, const System& sys) {
   for (const TreeLink& L : model.links) {
     for (int k = 0; k < L.nv; ++k) {
       bool angle = false;
-      if (L.kind == TreeJointKind::kFree) angle = k >= 3;
-      else if (L.kind == TreeJointKind::kSpherical) angle = true;
+      if (L.quaternion >= 0) angle = k >= L.quaternion && k < L.quaternion + 3;  // (its rates)
       else if (L.ptr) angle = L.ptr->trackedSlot(k) >= 0;
       if (angle) unit_(L.iv + k) = sys.length_scale;
       angle_[L.iv + k] = angle;
@@ -65,7 +64,7 @@ ClosureRows::ClosureRows(const TreeModel& model, const System& sys) {
       if (&*sys.joints[j] == &J) link = model.joint_link[j];
     if (link < 0) return false;
     const TreeLink& L = model.links[link];
-    if (L.kind == TreeJointKind::kSpherical || L.kind == TreeJointKind::kFree || L.ptr != &J) return false;
+    if (L.quaternion >= 0 || L.ptr != &J) return false;
     d.col[slot] = L.iv + k;
     d.qcol[slot] = L.iq + k;
     d.angle[slot] = J.trackedSlot(k) >= 0;

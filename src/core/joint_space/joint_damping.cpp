@@ -21,7 +21,7 @@ void JointDamping::set(const System& sys) {
   for (const TreeLink& L : model_.links) {
     if (L.joint < 0) continue;
     for (int k = 0; k < L.nv; ++k)
-      if (sys.damping[L.joint][k] > 0.0) damped_.push_back({L.joint, k, L.iv + k, sys.damping[L.joint][k], L.kind == TreeJointKind::kRevolute});
+      if (sys.damping[L.joint][k] > 0.0) damped_.push_back({L.joint, k, L.iv + k, sys.damping[L.joint][k], L.axis == AxisMotion::kTurn});
   }
   for (int j : model_.cut_joints)
     for (int k = 0; k < sys.joints[j]->dof(); ++k)

@@ -32,8 +32,7 @@ std::string jointFormulationUnsupported(const System& sys) {
   for (const SumFriction& F : sys.sum_friction)
     for (const LimitTerm& t : F.terms) {
       const int link = tree.joint_link[t.joint];
-      if (link < 0 || tree.links[link].kind == TreeJointKind::kSpherical || tree.links[link].kind == TreeJointKind::kFree ||
-          tree.links[link].tie >= 0 || tree.links[link].tie_master)
+      if (link < 0 || tree.links[link].quaternion >= 0 || tree.links[link].tie >= 0 || tree.links[link].tie_master)
         return "friction '" + F.name + "' on joint '" + sys.joints[t.joint]->name() +
                "', which closes a loop, is coupled or is not a tree coordinate: the joint formulation has no friction "
                "on it";
@@ -196,7 +195,7 @@ void JointStepper::writeAbsolute(const System& sys, State& s) {
   // formulation tracks every joint), below. The other constraints (couplers, drives,
   // limits) keep none of their own: they read their joints'.
   for (const TreeLink& L : model_.links) {
-    if (L.joint < 0 || L.kind == TreeJointKind::kSpherical) continue;
+    if (L.joint < 0 || L.quaternion >= 0) continue;  // (a quaternion's joint tracks no angle)
     for (int k = 0; k < L.ptr->dof(); ++k) {
       const int slot = L.ptr->trackedSlot(k);
       if (slot >= 0) s.tracked[L.ptr->id()][slot] = s.q[L.iq + k];
@@ -343,13 +342,7 @@ void JointStepper::settle(const System& sys, State& s, const Inputs& in) {
     const Joint& J = *L.ptr;
     J.coordinates(kin_[J.bodyI()], kin_[J.bodyJ()], s.tracked[J.id()], rows);
     for (int k = 0; k < J.dof(); ++k) s.qdot[L.iv + k] = rows[k].Phi_dot;
-    if (L.kind == TreeJointKind::kSpherical) {
-      const Matrix3d Ri = kin_[J.bodyI()].A_Oi * J.frameI().Rp, Rj = kin_[J.bodyJ()].A_Oi * J.frameJ().Rp;
-      const Quaterniond p(Ri.transpose() * Rj);
-      s.q.segment<4>(L.iq) << p.w(), p.x(), p.y(), p.z();
-    } else {
-      for (int k = 0; k < J.dof(); ++k) s.q[L.iq + k] = rows[k].Phi;
-    }
+    J.treePositions(kin_[J.bodyI()], kin_[J.bodyJ()], s.tracked[J.id()], s.q.data() + L.iq);
   }
   normalizeQuaternions(model_, s.q);
   try {
@@ -565,10 +558,7 @@ void JointStepper::stepOnce(const System& sys, State& s, const Inputs& in, doubl
   compensatedUpdate(h, T.b, T.stages, T.b_den, stages_.q0, stages_.kq, stages_.sum_q, start_.q_round, s.q_round, s.q);
   compensatedUpdate(h, T.b, T.stages, T.b_den, stages_.v0, stages_.kv, stages_.sum_v, start_.qdot_round, s.qdot_round, s.qdot);
   normalizeQuaternions(model_, s.q);
-  for (const TreeLink& L : model_.links) {
-    if (L.kind == TreeJointKind::kSpherical) s.q_round.segment<4>(L.iq).setZero();
-    if (L.kind == TreeJointKind::kFree) s.q_round.segment<4>(L.iq + 3).setZero();
-  }
+  for (int i : model_.quaternions) s.q_round.segment<4>(i).setZero();
   if (damping_.anyStiff()) damping_.implicit(sys, s, h);
   start_.clock = s.clock();
   s.countStep(h);
@@ -677,7 +667,7 @@ int JointStepper::stateCoordinate(const State& s, int joint, bool rate) const {
   const int link = model_.joint_link[joint];
   if (link < 0) return -1;
   const TreeLink& L = model_.links[link];
-  if (L.kind == TreeJointKind::kSpherical || L.kind == TreeJointKind::kFree) return -1;
+  if (L.quaternion >= 0) return -1;
   return rate ? L.iv : L.iq;
 }
 

@@ -374,6 +374,8 @@ void jointSpaceInertia(const TreeModel& model, const TreeWorkspace& ws, AlignedV
 // Inputs::effort as a vector tau over q_dot (a free body's entries zero).
 void jointEfforts(const TreeModel& model, const Inputs& in, Eigen::VectorXd& tau);
 
+// The bodies' spatial accelerations ws.a from q_ddot at ws's kinematics (the outward pass).
+void spatialAccelerations(const TreeModel& model, TreeWorkspace& ws, const Eigen::VectorXd& qddot);
 // Absolute accelerations for q_ddot at the kinematics in ws (forwardKinematics or
 // forwardDynamics at the same q, q_dot), as State::acc: per body a (3, global, of the centre
 // of mass) and omega'_dot (3, body components).

@@ -151,13 +151,7 @@ inline void articulatedTransform(const TreeModel& model, const TreeWorkspace& ws
   ws.rotor_lu.compute(ws.rotor_K);
   ws.rotor_z = ws.rotor_lu.solve(ws.rotor_r);
   qddot.noalias() -= ws.rotor_Y * ws.rotor_z;
-  for (int b : model.order) {
-    const int k = b - 1;
-    const TreeLink& L = model.links[k];
-    Vector6d a = ws.c[k] + ws.S[k] * qddot.segment(L.iv, L.nv);
-    if (L.parent != 0) a += transformMotion(ws.E[k], ws.rho[k], ws.a[L.parent - 1]);
-    ws.a[k] = a;
-  }
+  spatialAccelerations(model, ws, qddot);
 }
 
 // forwardDynamics with rotors that couple coordinates: the motors' coupled damping as the
@@ -358,15 +352,22 @@ void jointEfforts(const TreeModel& model, const Inputs& in, Eigen::VectorXd& tau
 // (omega_dot = A_Oi omega'_dot, the omega' x omega' term vanishing); the centre of mass
 // accelerates by v_O_dot + omega x v_O in body components (the spatial acceleration is
 // not the classical one: RBDA ch. 2, spatial acceleration), rotated to global.
-void bodyAccelerations(const TreeModel& model, TreeWorkspace& ws, const Eigen::VectorXd& qddot,
-                       Eigen::VectorXd& acc) {
-  acc.resize(6 * model.nb);
-  for (int b : model.order) {
+void spatialAccelerations(const TreeModel& model, TreeWorkspace& ws, const Eigen::VectorXd& qddot) {
+  for (int b : model.order) {  // a_i = X a_parent + c_i + S_i q_ddot_i (RBDA table 7.1)
     const int k = b - 1;
     const TreeLink& L = model.links[k];
     Vector6d a = ws.c[k] + ws.S[k] * qddot.segment(L.iv, L.nv);
     if (L.parent != 0) a += transformMotion(ws.E[k], ws.rho[k], ws.a[L.parent - 1]);
     ws.a[k] = a;
+  }
+}
+
+void bodyAccelerations(const TreeModel& model, TreeWorkspace& ws, const Eigen::VectorXd& qddot,
+                       Eigen::VectorXd& acc) {
+  acc.resize(6 * model.nb);
+  spatialAccelerations(model, ws, qddot);
+  for (int k = 0; k < model.nb; ++k) {
+    const Vector6d& a = ws.a[k];
     acc.segment<3>(6 * k) = ws.A[k] * (a.tail<3>() + ws.v[k].head<3>().cross(ws.v[k].tail<3>()));
     acc.segment<3>(6 * k + 3) = a.head<3>();
   }
