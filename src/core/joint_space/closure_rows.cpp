@@ -97,6 +97,8 @@ ClosureRows::ClosureRows(const TreeModel& model, const System& sys) {
   }
   only_limits_ = true;
   for (int c : constraints) only_limits_ = only_limits_ && sys.constraints[c]->limit() >= 0;
+  if (only_limits_)
+    for (int c : constraints) limits_.push_back(sys.constraints[c]->limit());
   limit_direct_.assign(sys.limits.size(), -1);
   for (size_t i = 0; i < constraints.size(); ++i) {
     const int l = sys.constraints[constraints[i]]->limit();

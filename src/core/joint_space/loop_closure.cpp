@@ -306,9 +306,11 @@ void LoopClosures::loadKin(const TreeWorkspace& ws) {
 // q_ddot = 0 (the velocity-product terms J_dot q_dot).
 bool LoopClosures::allFreeLimits() const {
   if (!only_limits_) return false;
-  const EvalContext ctx = context();
-  for (int c : constraints)
-    if (!inactiveLimit(*sys_->constraints[c], ctx)) return false;
+  if (limits_.empty()) return true;
+  const signed char* side = context().limit_side;
+  if (!side) return false;  // (no sides given: inactiveLimit counts no limit free)
+  for (int l : limits_)
+    if (side[l] != 0) return false;
   return true;
 }
 

@@ -210,6 +210,7 @@ class ClosureRows {
   std::vector<char> angle_;        // per velocity coordinate: an angle
   Eigen::VectorXd unit_;           // per velocity coordinate: length scale (an angle) or 1
   bool only_limits_ = false;       // every closure is a limit
+  std::vector<int> limits_;        // where only_limits_: each closure's System limit index
   // max_k |dv_k| unit_k: a correction's size as a length (positions) or speed (rates)
   double correctionSize(const Eigen::VectorXd& dv) const;
   // per closure: the coordinates its rows can touch (the sparse solve's blocks,
