@@ -45,8 +45,9 @@ class RvizDrawsTheMechanism(unittest.TestCase):
                 rospy.get_param("~min_magenta", 40))
         best = (0, 0, 0)
         # rviz takes a while to start under software GL: on a loaded 2-core machine the
-        # xacro arm's window was still blank after 60 s once (alone it shows in 5 s)
-        deadline = time.time() + 100
+        # xacro arm's window was still blank after 60 s once, and the demo's after 100 s
+        # once (alone either shows in 5 s)
+        deadline = time.time() + 200
         while time.time() < deadline:
             time.sleep(3.0)
             subprocess.run(["import", "-window", "root", shot], check=True, timeout=30)
