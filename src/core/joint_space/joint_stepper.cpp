@@ -208,9 +208,8 @@ void JointStepper::writeAbsolute(const System& sys, State& s) {
   // the closures' violations at this state (stepViolation()): |Phi| and |G q_dot - nu|
   // of their rows, evaluated at (s.q, s.qdot) by the accelerations above
   end_.violation = {0.0, 0.0};
-  bool free_limits = closures_.onlyLimits();  // (free limits only: zero rows, nothing violated)
-  for (size_t l = 0; l < s.limit_side.size() && free_limits; ++l) free_limits = s.limit_side[l] == 0;
-  if (closures_.m > 0 && !free_limits) {
+  // (free limits only: zero rows, nothing violated; the context is s's, as accelerations() set it)
+  if (closures_.m > 0 && !closures_.allFreeLimits()) {
     end_.violation[0] = closures_.Phi.head(closures_.m).cwiseAbs().maxCoeff();
     if (end_.rate.size() != closures_.G.rows()) end_.rate.setZero(closures_.G.rows());
     closures_.timesG(s.qdot, end_.rate);
