@@ -90,9 +90,9 @@ JointStepper::JointStepper(const System& sys, bool embed_couplers)
   if (!unsupported.empty()) throw ModelError("the joint formulation cannot run this mechanism: " + unsupported);
   tableau_ = &tableau(parseMethod(sys.options.method));
   auto zeros = [](Eigen::VectorXd& v, int n) { v = Eigen::VectorXd::Zero(n); };
-  zeros(stages_.tau, model_.nv), zeros(stages_.q0, model_.nq), zeros(stages_.v0, model_.nv), zeros(stages_.qs, model_.nq), zeros(stages_.vs, model_.nv);
-  for (int k = 0; k < Tableau::kMaxStages; ++k) zeros(stages_.kq[k], model_.nq), zeros(stages_.kv[k], model_.nv);
-  zeros(stages_.sum_q, model_.nq), zeros(stages_.sum_v, model_.nv);
+  zeros(stages_.tau, model_.nv), zeros(stages_.q0, model_.nq), zeros(stages_.v0, model_.nv), zeros(stages_.qs, model_.nq);
+  for (int k = 0; k < Tableau::kMaxStages; ++k)
+    zeros(stages_.kq[k], model_.nq), zeros(stages_.kv[k], model_.nv), zeros(stages_.vs[k], model_.nv);
   zeros(start_.q_round, model_.nq), zeros(start_.qdot_round, model_.nv);
   zeros(stages_.acc_k4, 6 * sys.nb);
   start_.backup.assign(numerics::kMaxHalvings + 1, State());
@@ -364,54 +364,71 @@ namespace {
 // The stages' terms w_j k_j of a combination (j < n, w_j != 0), and their sum at entry i:
 // combineStages' operations (tableau.h) on that entry in its order, so the same bits,
 // formed in one pass over the coordinates instead of one vector operation per stage.
+// sum<M>: M terms, known when compiled (1 to 4, RK4's rows), or 0: m, read at run time.
 struct StageTerms {
   const double* k[Tableau::kMaxStages];
   double w[Tableau::kMaxStages];
   int m = 0;
-  StageTerms(const double* weights, int n, const Eigen::VectorXd* stages) {
+  StageTerms(const double* weights, int n, const double* const* stages) {
     for (int j = 0; j < n; ++j)
-      if (weights[j] != 0.0) k[m] = stages[j].data(), w[m++] = weights[j];
+      if (weights[j] != 0.0) k[m] = stages[j], w[m++] = weights[j];
   }
+  template <int M>
   double sum(Eigen::Index i) const {
     double s = w[0] * k[0][i];
-    for (int j = 1; j < m; ++j) s += w[j] * k[j][i];
+    for (int j = 1; j < (M > 0 ? M : m); ++j) s += w[j] * k[j][i];
     return s;
+  }
+  // f(std::integral_constant<int, M>()) with M as sum<M> takes it (m > 0)
+  template <class F>
+  void dispatch(F&& f) const {
+    switch (m) {
+      case 1: f(std::integral_constant<int, 1>()); break;
+      case 2: f(std::integral_constant<int, 2>()); break;
+      case 3: f(std::integral_constant<int, 3>()); break;
+      case 4: f(std::integral_constant<int, 4>()); break;
+      default: f(std::integral_constant<int, 0>());
+    }
   }
 };
 
-// combineStages(h, w, n, den, y0, k, sum, y) in one pass.
-void combine(double h, const double* w, int n, double den, const Eigen::VectorXd& y0, const Eigen::VectorXd* k,
-             Eigen::VectorXd& sum, Eigen::VectorXd& y) {
+// A stage's point y = y0 + (h / den) sum_j w_j k_j, as combineStages forms it (no terms:
+// y0 itself).
+void combine(double h, const double* w, int n, double den, const Eigen::VectorXd& y0, const double* const* k,
+             Eigen::VectorXd& y) {
   const StageTerms terms(w, n, k);
-  if (terms.m == 0 || sum.size() != y0.size() || y.size() != y0.size()) {
-    combineStages(h, w, n, den, y0, k, sum, y);
+  y.resize(y0.size());
+  if (terms.m == 0) {
+    y = y0;
     return;
   }
   const double c = h / den;
-  for (Eigen::Index i = 0; i < y0.size(); ++i) {
-    const double s = terms.sum(i);
-    sum(i) = s;
-    y(i) = y0(i) + c * s;
-  }
+  terms.dispatch([&](auto M) {
+    for (Eigen::Index i = 0; i < y0.size(); ++i) y(i) = y0(i) + c * terms.sum<decltype(M)::value>(i);
+  });
 }
 
 // The step's update y = y0 + ((h / den) sum_j w_j k_j + c0), split into y (rounded) and its
 // round-off c, carried to the next step (Knuth's TwoSum: exact in binary floating point
 // without a test of magnitudes); the sum as combine() forms it.
 void compensatedUpdate(double h, const double* w, int n, double den, const Eigen::VectorXd& y0,
-                       const Eigen::VectorXd* k, Eigen::VectorXd& sum, const Eigen::VectorXd& c0, Eigen::VectorXd& c,
-                       Eigen::VectorXd& y) {
+                       const double* const* k, const Eigen::VectorXd& c0, Eigen::VectorXd& c, Eigen::VectorXd& y) {
   const StageTerms terms(w, n, k);
-  if (terms.m == 0 || sum.size() != y0.size() || y.size() != y0.size()) combineStages(h, w, n, den, y0, k, sum, y);
   const double wh = h / den;
-  for (Eigen::Index i = 0; i < y.size(); ++i) {
-    if (terms.m > 0) sum(i) = terms.sum(i);
-    const double d = wh * sum(i) + c0(i);
+  auto update = [&](Eigen::Index i, double sum) {
+    const double d = wh * sum + c0(i);
     const double t = y0(i) + d;
     const double dd = t - y0(i);
     c(i) = (y0(i) - (t - dd)) + (d - dd);
     y(i) = t;
+  };
+  if (terms.m == 0) {
+    for (Eigen::Index i = 0; i < y.size(); ++i) update(i, 0.0);
+    return;
   }
+  terms.dispatch([&](auto M) {
+    for (Eigen::Index i = 0; i < y.size(); ++i) update(i, terms.sum<decltype(M)::value>(i));
+  });
 }
 
 }  // namespace
@@ -531,16 +548,25 @@ void JointStepper::stepOnce(const System& sys, State& s, const Inputs& in, doubl
   // branch passages of loops (branch_passage.cpp): what the stages hold across a branch is
   // the acceleration at the step's start
   if (!model_.cut_joints.empty()) a_ref_ = s.qddot;
-  positionRates(model_, stages_.q0, stages_.v0, stages_.kq[0]);
+  // the stages' position rates: q_dot itself where q has no quaternion (nq = nv), so the
+  // velocities of the stages are read in place
+  const bool rates_are_velocities = model_.nq == model_.nv;
+  const double* kq[Tableau::kMaxStages];
+  const double* kv[Tableau::kMaxStages];
+  for (int k = 0; k < T.stages; ++k) {
+    kq[k] = rates_are_velocities ? (k == 0 ? stages_.v0 : stages_.vs[k]).data() : stages_.kq[k].data();
+    kv[k] = stages_.kv[k].data();
+  }
+  if (!rates_are_velocities) positionRates(model_, stages_.q0, stages_.v0, stages_.kq[0]);
   stages_.kv[0] = s.qddot;
   // (the later stages need no ordinary closure factorization where a passage's is taken:
   // only friction and damping at the step's start read it)
   closure_mode_.regular_factor = false;
   for (int k = 1; k < T.stages; ++k) {
-    combine(h, T.a[k], k, T.a_den[k], stages_.q0, stages_.kq, stages_.sum_q, stages_.qs);
-    combine(h, T.a[k], k, T.a_den[k], stages_.v0, stages_.kv, stages_.sum_v, stages_.vs);
-    accelerations(sys, s, in, s.t + T.c[k] * h, stages_.qs, stages_.vs, stages_.kv[k]);
-    positionRates(model_, stages_.qs, stages_.vs, stages_.kq[k]);
+    combine(h, T.a[k], k, T.a_den[k], stages_.q0, kq, stages_.qs);
+    combine(h, T.a[k], k, T.a_den[k], stages_.v0, kv, stages_.vs[k]);
+    accelerations(sys, s, in, s.t + T.c[k] * h, stages_.qs, stages_.vs[k], stages_.kv[k]);
+    if (!rates_are_velocities) positionRates(model_, stages_.qs, stages_.vs[k], stages_.kq[k]);
   }
   closure_mode_.regular_factor = true;
   // The new state, its increments' round-off carried to the next step (compensated
@@ -554,8 +580,8 @@ void JointStepper::stepOnce(const System& sys, State& s, const Inputs& in, doubl
   // normalization rescales, is dropped.
   if (s.q_round.size() == model_.nq && s.qdot_round.size() == model_.nv) start_.q_round = s.q_round, start_.qdot_round = s.qdot_round;
   else start_.q_round.setZero(), start_.qdot_round.setZero(), s.q_round.setZero(model_.nq), s.qdot_round.setZero(model_.nv);
-  compensatedUpdate(h, T.b, T.stages, T.b_den, stages_.q0, stages_.kq, stages_.sum_q, start_.q_round, s.q_round, s.q);
-  compensatedUpdate(h, T.b, T.stages, T.b_den, stages_.v0, stages_.kv, stages_.sum_v, start_.qdot_round, s.qdot_round, s.qdot);
+  compensatedUpdate(h, T.b, T.stages, T.b_den, stages_.q0, kq, start_.q_round, s.q_round, s.q);
+  compensatedUpdate(h, T.b, T.stages, T.b_den, stages_.v0, kv, start_.qdot_round, s.qdot_round, s.qdot);
   normalizeQuaternions(model_, s.q);
   for (int i : model_.quaternions) s.q_round.segment<4>(i).setZero();
   if (damping_.anyStiff()) damping_.implicit(sys, s, h);

@@ -151,11 +151,12 @@ class JointStepper final : public FormulationStepper {
     Eigen::VectorXd q_round, qdot_round;  // the update's round-off carried in (compensated sums)
     std::vector<State> backup;            // a substep's start, by depth (advance)
   } start_;
-  // The stages' vectors (stepOnce): the efforts, the start, a stage's point, the stages'
-  // derivatives and their weighted sums; the bodies' accelerations of RK4's k4 at the
-  // step's end (leapt).
+  // The stages' vectors (stepOnce): the efforts, the start, a stage's position, each
+  // stage's velocity, the stages' derivatives (kq only where q has quaternions: else the
+  // velocities are the position rates); the bodies' accelerations of RK4's k4 at the step's
+  // end (leapt).
   struct Stages {
-    Eigen::VectorXd tau, q0, v0, qs, vs, kq[Tableau::kMaxStages], kv[Tableau::kMaxStages], sum_q, sum_v, acc_k4;
+    Eigen::VectorXd tau, q0, v0, qs, vs[Tableau::kMaxStages], kq[Tableau::kMaxStages], kv[Tableau::kMaxStages], acc_k4;
   } stages_;
   // Coulomb friction's vectors (frictionFor): e_k, P e_k, G P e_k and its closure solve.
   struct FrictionWork {

@@ -79,62 +79,29 @@ using SmallVector = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 6, 1>;
 template <class T>
 using AlignedVector = std::vector<T, Eigen::aligned_allocator<T>>;
 
-// The link from a moving body to its parent.
+// The link from a moving body to its parent. (Its members are ordered by use: what every
+// pass reads of every link first, in the link's first cache line; the kinematics' constant
+// parts next; what only welds, composites and ties read last.)
 struct TreeLink {
   int body = 0;          // the moving body (1..nb)
   int parent = 0;        // its parent (0: ground)
   int joint = -1;        // index in sys.joints; -1: a free body (no joint)
-  // The joint type's tree model (JointTypeInfo::tree; a free body's is the tree's own) and
-  // what the passes read of it in place: its tag, its constant axis motion, the offset of
-  // a unit quaternion in its coordinates (-1: none) and the frame of its rates. (The
-  // members are ordered so that the link packs into as few bytes as without them: the
-  // passes index links by their size.)
-  TreeJointKind kind = TreeJointKind::kFree;
-  const Joint* ptr = nullptr;
-  const TreeJointModel* jmodel = nullptr;
-  AxisMotion axis = AxisMotion::kNone;
   int nq = 0, nv = 0;    // coordinates of this link
   int iq = 0, iv = 0;    // where they start in q and q_dot
-  // The child is the joint's body i (the joint was written parent-last): frame j then sits
-  // on the parent, and the child's frame is frame i.
-  bool reversed = false;
-  signed char quaternion = -1;
-  bool quaternion_in_child = false;
-  JointParams params;    // screw: alpha, phi0
-  // The joint frame on the parent (F_p) and on the child (F_c), body components relative to
-  // that body's centre of mass; ground's in global components.
-  Matrix3d Rp = Matrix3d::Identity(), Rc = Matrix3d::Identity();
-  Vector3d sp = Vector3d::Zero(), sc = Vector3d::Zero();
-  // One coordinate whose motion subspace is constant in the child's centre-of-mass
-  // coordinates (TreeJointModel::axis; either direction): S0, and c_J = 0.
-  // forwardKinematics then computes only the pose (RBDA ch. 4: S constant for these).
-  bool constant_S = false;
-  Vector6d S0 = Vector6d::Zero();
-  // For those, the pose as constant parts (forwardKinematics): with R = Rz(angle),
-  // Rrel = Rp R Rc^T = cos K_c + sin K_s + K_0 and the child's centre
-  // rho = sp + t_z Rp z - Rrel sc = k_0 + t_z Rp z - cos k_c - sin k_s (k_c = K_c sc,
-  // k_s = K_s sc, k_0 = sp - K_0 sc); a sliding joint's Rrel is K_0 + K_c (angle 0).
-  Matrix3d Kc = Matrix3d::Zero(), Ks = Matrix3d::Zero(), K0 = Matrix3d::Zero();
-  Vector3d kc = Vector3d::Zero(), ks = Vector3d::Zero(), k0 = Vector3d::Zero();
-  // Fixed links: the constant pose of the child relative to the parent (E0: parent -> child
-  // components, rho0: the child's centre relative to the parent's, parent components), and
-  // relative to the host (Eh, rhoh), the moving body (0: ground) the welded group moves with.
-  Matrix3d E0 = Matrix3d::Identity(), Eh = Matrix3d::Identity();
-  Vector3d rho0 = Vector3d::Zero(), rhoh = Vector3d::Zero();
-  int host = 0;  // a fixed link's host; any other link's own body
   // Moving links: the articulated parent (the parent's host: 0 for ground or a body welded
   // to ground), and whether the parent is a welded body (the transform to the articulated
   // parent is then X_k X_parent,h, composed at each pass).
   int aparent = 0;
   bool parent_welded = false;
-  // Moving links with welded bodies: the composite spatial inertia at this body's centre in
-  // its axes (its own and theirs, X^T I X), the bodies welded to it, their total mass with
-  // its own and sum m_i rhoh_i (gravity on the group is (mc x g'; m g'), g' in its axes).
+  // Moving links with welded bodies (composite: Ic0 below holds theirs too).
   bool composite = false;
-  Matrix6d Ic0 = Matrix6d::Zero();
-  std::vector<int> welded;
-  double mass = 0.0;
-  Vector3d mc = Vector3d::Zero();
+  // One coordinate whose motion subspace is constant in the child's centre-of-mass
+  // coordinates (TreeJointModel::axis; either direction): S0 below, and c_J = 0.
+  // forwardKinematics then computes only the pose (RBDA ch. 4: S constant for these).
+  bool constant_S = false;
+  // The child is the joint's body i (the joint was written parent-last): frame j then sits
+  // on the parent, and the child's frame is frame i.
+  bool reversed = false;
   // An embedded coupler (TreeModel's embed_couplers; Jain, "Robot and Multibody Dynamics"
   // ch. 11, constraint embedding, for a linear coupling): this link's one coordinate is
   // tie_mult q_master + tie_offset, its master the link `tie`, tie_coupler the coupler's
@@ -146,10 +113,45 @@ struct TreeLink {
   //   ancestor T, whose `pivot` is the master's coordinate (its index in q_dot; pivot_link
   //   the master's link); the master's link is then tied to itself (tie its own index,
   //   tie_mult 1, tie_coupler -1) and eliminates nothing.
-  int tie = -1, tie_coupler = -1;
-  double tie_mult = 0.0, tie_offset = 0.0;
   bool tie_master = false;
+  int tie = -1, tie_coupler = -1;
   int pivot = -1, pivot_link = -1;
+  double tie_mult = 0.0, tie_offset = 0.0;
+  // The joint type's tree model (JointTypeInfo::tree; a free body's is the tree's own) and
+  // what the passes read of it in place: its tag, its constant axis motion, the offset of
+  // a unit quaternion in its coordinates (-1: none) and the frame of its rates.
+  TreeJointKind kind = TreeJointKind::kFree;
+  AxisMotion axis = AxisMotion::kNone;
+  signed char quaternion = -1;
+  bool quaternion_in_child = false;
+  const Joint* ptr = nullptr;
+  const TreeJointModel* jmodel = nullptr;
+  JointParams params;    // screw: alpha, phi0
+  // For constant_S links, the motion subspace S0 and the pose as constant parts
+  // (forwardKinematics): with R = Rz(angle), Rrel = Rp R Rc^T = cos K_c + sin K_s + K_0 and
+  // the child's centre rho = sp + t_z Rp z - Rrel sc = k_0 + t_z Rp z - cos k_c - sin k_s
+  // (k_c = K_c sc, k_s = K_s sc, k_0 = sp - K_0 sc); a sliding joint's Rrel is K_0 + K_c
+  // (angle 0).
+  Vector6d S0 = Vector6d::Zero();
+  Matrix3d Kc = Matrix3d::Zero(), Ks = Matrix3d::Zero(), K0 = Matrix3d::Zero();
+  Vector3d kc = Vector3d::Zero(), ks = Vector3d::Zero(), k0 = Vector3d::Zero();
+  // The joint frame on the parent (F_p) and on the child (F_c), body components relative to
+  // that body's centre of mass; ground's in global components.
+  Matrix3d Rp = Matrix3d::Identity(), Rc = Matrix3d::Identity();
+  Vector3d sp = Vector3d::Zero(), sc = Vector3d::Zero();
+  // Fixed links: the constant pose of the child relative to the parent (E0: parent -> child
+  // components, rho0: the child's centre relative to the parent's, parent components), and
+  // relative to the host (Eh, rhoh), the moving body (0: ground) the welded group moves with.
+  Matrix3d E0 = Matrix3d::Identity(), Eh = Matrix3d::Identity();
+  Vector3d rho0 = Vector3d::Zero(), rhoh = Vector3d::Zero();
+  int host = 0;  // a fixed link's host; any other link's own body
+  // Moving links: the spatial inertia at this body's centre in its axes, its own and, on a
+  // composite link, its welded bodies' (X^T I X); the bodies welded to it, their total mass
+  // with its own and sum m_i rhoh_i (gravity on the group is (mc x g'; m g'), g' in its axes).
+  Matrix6d Ic0 = Matrix6d::Zero();
+  std::vector<int> welded;
+  double mass = 0.0;
+  Vector3d mc = Vector3d::Zero();
   // A joint without coordinates welds its body to its parent (a fixed joint).
   bool welds() const { return nv == 0; }
 };
