@@ -96,9 +96,10 @@ ClosureRows::ClosureRows(const TreeModel& model, const System& sys) {
     direct_[i] = d;
   }
   only_limits_ = true;
-  for (int c : constraints) only_limits_ = only_limits_ && sys.constraints[c]->limit() >= 0;
-  if (only_limits_)
-    for (int c : constraints) limits_.push_back(sys.constraints[c]->limit());
+  for (int c : constraints) {
+    limits_.push_back(sys.constraints[c]->limit());
+    only_limits_ = only_limits_ && limits_.back() >= 0;
+  }
   limit_direct_.assign(sys.limits.size(), -1);
   for (size_t i = 0; i < constraints.size(); ++i) {
     const int l = sys.constraints[constraints[i]]->limit();

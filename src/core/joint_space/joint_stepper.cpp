@@ -102,6 +102,13 @@ JointStepper::JointStepper(const System& sys, bool embed_couplers)
   friction_.e.setZero(model_.nv), friction_.y.setZero(model_.nv);
   friction_.r.setZero(closures_.m), friction_.mu.setZero(closures_.m);
   for (int j : model_.cut_joints) cut_constraints_.push_back(sys.joint_constraint[j]);
+  for (const TreeLink& L : model_.links) {
+    if (L.joint < 0 || L.quaternion >= 0) continue;  // (a quaternion's joint tracks no angle)
+    for (int k = 0; k < L.ptr->dof(); ++k) {
+      const int slot = L.ptr->trackedSlot(k);
+      if (slot >= 0) tracked_coordinates_.push_back({L.ptr->id(), slot, L.iq + k});
+    }
+  }
   closure_mode_.form_Y = false;  // (only JointDamping::implicit reads M^-1 G^T whole)
 }
 
@@ -194,13 +201,7 @@ void JointStepper::writeAbsolute(const System& sys, State& s) {
   // joint's follow its two bodies (Constraint::track at the new kinematics, as the absolute
   // formulation tracks every joint), below. The other constraints (couplers, drives,
   // limits) keep none of their own: they read their joints'.
-  for (const TreeLink& L : model_.links) {
-    if (L.joint < 0 || L.quaternion >= 0) continue;  // (a quaternion's joint tracks no angle)
-    for (int k = 0; k < L.ptr->dof(); ++k) {
-      const int slot = L.ptr->trackedSlot(k);
-      if (slot >= 0) s.tracked[L.ptr->id()][slot] = s.q[L.iq + k];
-    }
-  }
+  for (const TrackedCoordinate& c : tracked_coordinates_) s.tracked[c.constraint][c.slot] = s.q[c.iq];
   if (!cut_constraints_.empty()) {
     closures_.setContext(s.context());
     closures_.track(ws_, cut_constraints_, s.tracked);
@@ -261,7 +262,7 @@ void JointStepper::finish(const System& sys, State& s, const Inputs& in) {
     evaluated = active && project(sys, s);
   }
   accelerations(sys, s, in, s.t, s.q, s.qdot, s.qddot, evaluated);
-  for (size_t pass = 0; pass < sys.limits.size() && closures_.releasePullingLimits(sys, s.limit_side.data()) > 0;
+  for (size_t pass = 0; pass < sys.limits.size() && closures_.releasePullingLimits(s.limit_side.data()) > 0;
        ++pass)
     accelerations(sys, s, in, s.t, s.q, s.qdot, s.qddot);
   if (!model_.cut_joints.empty()) s.qddot_ref = a_ref_;

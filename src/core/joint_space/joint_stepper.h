@@ -175,6 +175,12 @@ class JointStepper final : public FormulationStepper {
   TreeWorkspace query_ws_;  // completeState's kinematics where ws_ no longer holds s's
   Inputs loads_;            // the inputs plus the springs' body loads
   std::vector<int> cut_constraints_;  // the cut joints' System constraints (their tracked angles)
+  // The tree coordinates that are tracked angles of their joints (Joint::trackedSlot): where
+  // writeAbsolute puts each in State::tracked.
+  struct TrackedCoordinate {
+    int constraint = 0, slot = 0, iq = 0;
+  };
+  std::vector<TrackedCoordinate> tracked_coordinates_;
   Eigen::VectorXd a_ref_;  // q_ddot at the step's start: what a branch passage holds
   std::vector<BodyKin> kin_;
   Eigen::VectorXd spring_x_, spring_u_;

@@ -274,10 +274,10 @@ int LoopClosures::activateReachedLimits(const System& sys, const TreeModel& mode
   return changed;
 }
 
-int LoopClosures::releasePullingLimits(const System& sys, signed char* limit_side) const {
+int LoopClosures::releasePullingLimits(signed char* limit_side) const {
   int changed = 0;
   for (size_t i = 0; i < constraints.size(); ++i) {
-    const int l = sys.constraints[constraints[i]]->limit();
+    const int l = limits_[i];
     if (l < 0 || !limit_side[l]) continue;
     const double lam = lambda(row[i]);
     if ((limit_side[l] < 0 && lam > 0) || (limit_side[l] > 0 && lam < 0)) {
@@ -307,7 +307,7 @@ void LoopClosures::loadKin(const TreeWorkspace& ws) {
 bool LoopClosures::allFreeLimits() const {
   if (!only_limits_) return false;
   if (limits_.empty()) return true;
-  const signed char* side = context().limit_side;
+  const signed char* side = has_external_ ? external_.limit_side : limit_side.data();
   if (!side) return false;  // (no sides given: inactiveLimit counts no limit free)
   for (int l : limits_)
     if (side[l] != 0) return false;

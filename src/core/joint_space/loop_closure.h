@@ -210,7 +210,7 @@ class ClosureRows {
   std::vector<char> angle_;        // per velocity coordinate: an angle
   Eigen::VectorXd unit_;           // per velocity coordinate: length scale (an angle) or 1
   bool only_limits_ = false;       // every closure is a limit
-  std::vector<int> limits_;        // where only_limits_: each closure's System limit index
+  std::vector<int> limits_;        // per closure: its System limit index (-1: not a limit)
   // max_k |dv_k| unit_k: a correction's size as a length (positions) or speed (rates)
   double correctionSize(const Eigen::VectorXd& dv) const;
   // per closure: the coordinates its rows can touch (the sparse solve's blocks,
@@ -338,7 +338,7 @@ class LoopClosures : public ClosureRows {
   // Both return how many sides they changed; the caller then evaluates and solves again.
   int activateReachedLimits(const System& sys, const TreeModel& model, const Eigen::VectorXd& q,
                             const Eigen::VectorXd& qdot, TreeWorkspace& ws, signed char* limit_side);
-  int releasePullingLimits(const System& sys, signed char* limit_side) const;
+  int releasePullingLimits(signed char* limit_side) const;
   // ---- branch passages (branch_passage.cpp; ClosureSolveMode says when the solves take them)
   // After evaluate(): each closure's rows (those that are not round-off) decomposed on their
   // own. true where some closure is near a loss of rank (a singular value below

@@ -159,7 +159,7 @@ Comparison compare(Builder& b, const State& base0, unsigned seed, bool cut_effor
   stepper.analyzeDependencies(sys, s);
   const std::vector<signed char> sides = s.limit_side;
   std::vector<signed char> mine = sides;  // the closures' release rule on their first solve
-  cl.releasePullingLimits(sys, mine.data());
+  cl.releasePullingLimits(mine.data());
   stepper.settle(sys, s, in);
   EXPECT_EQ(mine, s.limit_side) << label << ": the limits released";
   int released = 0;
