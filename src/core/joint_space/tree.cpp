@@ -1,5 +1,6 @@
 // The joint-space tree (joint_space/tree.h): its model (links, joint kinds, welded groups,
-// embedded couplers), its workspace and its kinematics (RBDA 7.3, table 7.1's first loop).
+// embedded couplers), its workspace and the joints' transforms (jcalc); the recursions over
+// it are in tree_dynamics.cpp.
 //
 // Spatial algebra after Featherstone, "Rigid Body Dynamics Algorithms" (RBDA), Springer
 // 2008, chapter 2: motion vectors m = (omega; v_O), force vectors f = (n_O; f), both in
@@ -454,84 +455,11 @@ void jointTransform(const TreeLink& L, const double* q, const double* qd, Matrix
   }
 }
 
-// ---- kinematics (RBDA 7.3, table 7.1 first loop, without the dynamics)
+// ---- the workspace's generations
 
 long nextWorkspaceGeneration() {
   static std::atomic<long> last{0};
   return ++last;
-}
-
-void forwardKinematics(const TreeModel& model, const Eigen::VectorXd& q, const Eigen::VectorXd& qdot,
-                       TreeWorkspace& ws) {
-  ws.generation = nextWorkspaceGeneration();
-  Matrix3d R;
-  Vector3d t;
-  for (int b : model.order) {
-    const int k = b - 1;
-    const TreeLink& L = model.links[k];
-    Vector6d vJ, cJ;
-    // Child body axes in parent body axes (Rrel = Rp R Rc^T), and the child's centre
-    // relative to the parent's (rho = sp + Rp t - Rrel sc).
-    Matrix3d Rrel;
-    if (L.welds()) {  // the constant pose (TreeModel); no joint motion
-      Rrel = L.E0.transpose();
-      ws.rho[k] = L.rho0;
-      cJ.setZero();
-      vJ.setZero();
-    } else if (L.constant_S) {  // the common case: S constant in the child's frame (set once in ws), c_J = 0
-      // R = Rz(+-q) (turning, helix) or 1 (sliding), t along z (jointTransform; reversed,
-      // the inverse pose):
-      // Rp Rz mixes two columns of Rp, the product's first factor done in 12 products
-      // (TreeLink::Kc, Ks, K0: the pose's constant parts)
-      const double qk = q(L.iq);
-      double tz = 0.0;
-      if (L.axis == AxisMotion::kSlide) {
-        Rrel = L.Kc + L.K0;
-        tz = L.reversed ? -qk : qk;  // (the inverse pose: -R^T t, and R^T z = z)
-        ws.rho[k] = L.k0 - L.kc + tz * L.Rp.col(2);
-      } else {
-        const double angle = L.reversed ? -qk : qk, ca = std::cos(angle), sa = std::sin(angle);
-        Rrel = ca * L.Kc + sa * L.Ks + L.K0;
-        ws.rho[k] = L.k0 - ca * L.kc - sa * L.ks;
-        if (L.axis == AxisMotion::kHelix) {
-          tz = L.params.alpha * (qk - L.params.phi0);
-          ws.rho[k] += (L.reversed ? -tz : tz) * L.Rp.col(2);
-        }
-      }
-      cJ.setZero();
-      vJ = L.S0 * qdot(L.iv);
-    } else {
-      MotionSubspace& S = ws.S[k];
-      jointTransform(L, q.data() + L.iq, qdot.data() + L.iv, R, t, S, cJ);
-      // From the child's joint frame to its centre of mass: E = Rc, rho = -Rc^T sc, i.e.
-      // (omega; v) -> (Rc omega; Rc v + sc x Rc omega).
-      for (int col = 0; col < L.nv; ++col) {
-        const Vector3d w = L.Rc * S.col(col).head<3>();
-        S.col(col).tail<3>() = L.Rc * S.col(col).tail<3>() + L.sc.cross(w);
-        S.col(col).head<3>() = w;
-      }
-      const Vector3d w = L.Rc * cJ.head<3>();
-      cJ.tail<3>() = L.Rc * cJ.tail<3>() + L.sc.cross(w);
-      cJ.head<3>() = w;
-      vJ = S * qdot.segment(L.iv, L.nv);
-      Rrel.noalias() = L.Rp * R * L.Rc.transpose();
-      ws.rho[k] = L.sp + L.Rp * t - Rrel * L.sc;
-    }
-    ws.cJ[k] = cJ;
-    ws.E[k] = Rrel.transpose();
-    if (L.parent == 0) {
-      ws.A[k] = Rrel;
-      ws.r[k] = ws.rho[k];
-      ws.v[k] = vJ;
-    } else {
-      const int p = L.parent - 1;
-      ws.A[k].noalias() = ws.A[p] * Rrel;
-      ws.r[k].noalias() = ws.r[p] + ws.A[p] * ws.rho[k];
-      ws.v[k] = transformMotion(ws.E[k], ws.rho[k], ws.v[p]) + vJ;
-    }
-    // c_i = c_J + v_i x v_J (RBDA table 7.1)
-    ws.c[k] = cJ + crossMotion(ws.v[k], vJ);
-  }
 }
 
 void absoluteState(const TreeModel& model, const TreeWorkspace& ws, Eigen::VectorXd& x, Eigen::VectorXd& u) {

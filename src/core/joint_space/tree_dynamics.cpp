@@ -1,6 +1,7 @@
-// Dynamics of the joint-space tree (joint_space/tree.h): the articulated-body algorithm
-// (forward dynamics), the recursive Newton-Euler pass (inverse dynamics), the composite
-// rigid-body inertia and the body accelerations of given joint accelerations.
+// The recursions over the joint-space tree (joint_space/tree.h): its kinematics, the
+// articulated-body algorithm (forward dynamics; its first pass and the kinematics visit each
+// link once), the recursive Newton-Euler pass (inverse dynamics), the composite rigid-body
+// inertia and the body accelerations of given joint accelerations.
 //
 // Spatial algebra after Featherstone, "Rigid Body Dynamics Algorithms" (RBDA), Springer
 // 2008, chapter 2 (joint_space/spatial.h).
@@ -59,18 +60,29 @@ inline Vector6d groupExternalForce(const System& sys, const TreeLink& L, const T
 }
 
 // The Plucker transform X_{k, aparent} from a moving link's articulated parent (its parent,
-// or the host its parent is welded to) to the link: X_k X_{parent,h} when welded.
-inline void articulatedTransform(const TreeModel& model, const TreeWorkspace& ws, int k, Matrix3d& E,
-                                 Vector3d& rho) {
-  const TreeLink& L = model.links[k];
-  if (!L.parent_welded) {
-    E = ws.E[k], rho = ws.rho[k];
-    return;
+// or the host its parent is welded to) to the link: ws's own (E_k, rho_k), read in place,
+// or X_k X_{parent,h} composed here when the parent is welded.
+struct ArticulatedTransform {
+  ArticulatedTransform(const TreeModel& model, const TreeWorkspace& ws, int k) {
+    const TreeLink& L = model.links[k];
+    if (!L.parent_welded) {
+      E = &ws.E[k], rho = &ws.rho[k];
+      return;
+    }
+    const TreeLink& P = model.links[L.parent - 1];
+    E_composed.noalias() = ws.E[k] * P.Eh;
+    rho_composed.noalias() = P.rhoh + P.Eh.transpose() * ws.rho[k];
+    E = &E_composed, rho = &rho_composed;
   }
-  const TreeLink& P = model.links[L.parent - 1];
-  E.noalias() = ws.E[k] * P.Eh;
-  rho.noalias() = P.rhoh + P.Eh.transpose() * ws.rho[k];
-}
+  ArticulatedTransform(const ArticulatedTransform&) = delete;
+  ArticulatedTransform& operator=(const ArticulatedTransform&) = delete;
+  const Matrix3d* E;
+  const Vector3d* rho;
+
+ private:
+  Matrix3d E_composed;
+  Vector3d rho_composed;
+};
 
 // A joint's articulated inertia S^T I^A S that is not positive definite: a subtree without
 // inertia along the joint, or a state that is no longer finite (an explicit step taken
@@ -98,15 +110,13 @@ inline void articulatedTransform(const TreeModel& model, const TreeWorkspace& ws
   ws.Dinv[k](0, 0) = 0.0;
   ws.U[k].col(0) = Us;
   const int p = L.aparent - 1;
-  Matrix3d E;
-  Vector3d rho;
-  articulatedTransform(model, ws, k, E, rho);
-  ws.W[p] += transformForceBack(E, rho, Us);
+  const ArticulatedTransform X(model, ws, k);
+  ws.W[p] += transformForceBack(*X.E, *X.rho, Us);
   ws.dd[p] += s.dot(Us) + s.dot(ws.W[k]) + ws.dd[k];
   ws.beta[p] += Us.dot(ws.c[k]) + s.dot(pa) + ws.beta[k] - L.tie_mult * tau_s;
   pa += IA * ws.c[k];
-  addTransformedInertia(E, rho, IA, ws.IA[p]);
-  ws.pA[p] += transformForceBack(E, rho, pa);
+  addTransformedInertia(*X.E, *X.rho, IA, ws.IA[p]);
+  ws.pA[p] += transformForceBack(*X.E, *X.rho, pa);
 }
 
 // Pass 2 at the common ancestor of a master's link and its sibling slaves (TreeLink::pivot),
@@ -170,44 +180,102 @@ inline void articulatedTransform(const TreeModel& model, const TreeWorkspace& ws
   coupleRotors(model, ws, qddot);
 }
 
-}  // namespace
-
-// Articulated-body algorithm, RBDA 7.3, table 7.1, in body coordinates: gravity enters as
-// a force on each body (not as the base acceleration -a_g of the table), so the spatial
-// accelerations a_i left in ws are the bodies' true ones.
-void forwardDynamics(const TreeModel& model, const System& sys, const Eigen::VectorXd& q,
-                     const Eigen::VectorXd& qdot, const Eigen::VectorXd& tau, TreeWorkspace& ws,
-                     Eigen::VectorXd& qddot, const Inputs* loads) {
-  if (model.rotors_coupled) {  // (out of line: the common path stays as short)
-    coupledForwardDynamics(model, sys, q, qdot, tau, ws, qddot, loads);
-    return;
+// Pass 1 of the articulated-body algorithm at link k, its kinematics (RBDA 7.3, table 7.1's
+// first loop): the pose of the child relative to its parent (E, rho) and in the world (A,
+// r), its velocity v and the bias c (its parent's done first).
+inline void linkKinematics(const TreeModel& model, const Eigen::VectorXd& q, const Eigen::VectorXd& qdot,
+                           TreeWorkspace& ws, int k) {
+  const TreeLink& L = model.links[k];
+  Vector6d vJ, cJ;
+  // Child body axes in parent body axes (Rrel = Rp R Rc^T), and the child's centre
+  // relative to the parent's (rho = sp + Rp t - Rrel sc).
+  Matrix3d Rrel;
+  if (L.welds()) {  // the constant pose (TreeModel); no joint motion
+    Rrel = L.E0.transpose();
+    ws.rho[k] = L.rho0;
+    cJ.setZero();
+    vJ.setZero();
+  } else if (L.constant_S) {  // the common case: S constant in the child's frame (set once in ws), c_J = 0
+    // R = Rz(+-q) (turning, helix) or 1 (sliding), t along z (jointTransform; reversed,
+    // the inverse pose):
+    // Rp Rz mixes two columns of Rp, the product's first factor done in 12 products
+    // (TreeLink::Kc, Ks, K0: the pose's constant parts)
+    const double qk = q(L.iq);
+    double tz = 0.0;
+    if (L.axis == AxisMotion::kSlide) {
+      Rrel = L.Kc + L.K0;
+      tz = L.reversed ? -qk : qk;  // (the inverse pose: -R^T t, and R^T z = z)
+      ws.rho[k] = L.k0 - L.kc + tz * L.Rp.col(2);
+    } else {
+      const double angle = L.reversed ? -qk : qk, ca = std::cos(angle), sa = std::sin(angle);
+      Rrel = ca * L.Kc + sa * L.Ks + L.K0;
+      ws.rho[k] = L.k0 - ca * L.kc - sa * L.ks;
+      if (L.axis == AxisMotion::kHelix) {
+        tz = L.params.alpha * (qk - L.params.phi0);
+        ws.rho[k] += (L.reversed ? -tz : tz) * L.Rp.col(2);
+      }
+    }
+    cJ.setZero();
+    vJ = L.S0 * qdot(L.iv);
+  } else {
+    MotionSubspace& S = ws.S[k];
+    Matrix3d R;
+    Vector3d t;
+    jointTransform(L, q.data() + L.iq, qdot.data() + L.iv, R, t, S, cJ);
+    // From the child's joint frame to its centre of mass: E = Rc, rho = -Rc^T sc, i.e.
+    // (omega; v) -> (Rc omega; Rc v + sc x Rc omega).
+    for (int col = 0; col < L.nv; ++col) {
+      const Vector3d w = L.Rc * S.col(col).head<3>();
+      S.col(col).tail<3>() = L.Rc * S.col(col).tail<3>() + L.sc.cross(w);
+      S.col(col).head<3>() = w;
+    }
+    const Vector3d w = L.Rc * cJ.head<3>();
+    cJ.tail<3>() = L.Rc * cJ.tail<3>() + L.sc.cross(w);
+    cJ.head<3>() = w;
+    vJ = S * qdot.segment(L.iv, L.nv);
+    Rrel.noalias() = L.Rp * R * L.Rc.transpose();
+    ws.rho[k] = L.sp + L.Rp * t - Rrel * L.sc;
   }
-  // Pass 1 (outward): velocities and the bias c_i (forwardKinematics), then the rest
-  forwardKinematics(model, q, qdot, ws);
-  forwardDynamicsAtKinematics(model, sys, tau, ws, qddot, loads);
+  ws.cJ[k] = cJ;
+  ws.E[k] = Rrel.transpose();
+  if (L.parent == 0) {
+    ws.A[k] = Rrel;
+    ws.r[k] = ws.rho[k];
+    ws.v[k] = vJ;
+  } else {
+    const int p = L.parent - 1;
+    ws.A[k].noalias() = ws.A[p] * Rrel;
+    ws.r[k].noalias() = ws.r[p] + ws.A[p] * ws.rho[k];
+    ws.v[k] = transformMotion(ws.E[k], ws.rho[k], ws.v[p]) + vJ;
+  }
+  // c_i = c_J + v_i x v_J (RBDA table 7.1)
+  ws.c[k] = cJ + crossMotion(ws.v[k], vJ);
 }
 
-void forwardDynamicsAtKinematics(const TreeModel& model, const System& sys, const Eigen::VectorXd& tau,
-                                 TreeWorkspace& ws, Eigen::VectorXd& qddot, const Inputs* loads) {
-  ws.generation = nextWorkspaceGeneration();
-  // Pass 1 (continued): I^A_i = I_i, p^A_i = v_i x* I_i v_i - f^x_i (as table 7.1 starts
-  // them). Welded bodies are in their hosts' I_i and f^x_i (joint_space/tree.h): the passes skip them.
-  for (int b : model.order) {
-    const int k = b - 1;
-    const TreeLink& L = model.links[k];
-    if (L.welds()) continue;
-    if (L.tie >= 0 || L.tie_master || L.pivot >= 0) ws.W[k].setZero(), ws.dd[k] = 0.0, ws.beta[k] = 0.0;
-    if (L.composite) {
-      ws.IA[k] = L.Ic0;
-      ws.pA[k] = crossForce(ws.v[k], L.Ic0 * ws.v[k]) - groupExternalForce(sys, L, ws, model, loads);
-      continue;
-    }
-    const Body& B = sys.bodies[b];
-    ws.IA[k].setZero();
-    ws.IA[k].topLeftCorner<3, 3>() = B.Jp;
-    ws.IA[k].bottomRightCorner<3, 3>().diagonal().setConstant(B.m);
-    ws.pA[k] = crossForce(ws.v[k], inertiaTimes(B, ws.v[k])) - externalForce(sys, ws, b, loads);
+// Pass 1 of the articulated-body algorithm at link k, continued (after its kinematics):
+// I^A_k = I_k, p^A_k = v_k x* I_k v_k - f^x_k (as table 7.1 starts them). Welded bodies are
+// in their hosts' I_k and f^x_k (joint_space/tree.h): the passes skip them.
+inline void articulatedStart(const TreeModel& model, const System& sys, TreeWorkspace& ws, int k,
+                             const Inputs* loads) {
+  const TreeLink& L = model.links[k];
+  if (L.welds()) return;
+  if (L.tie >= 0 || L.tie_master || L.pivot >= 0) ws.W[k].setZero(), ws.dd[k] = 0.0, ws.beta[k] = 0.0;
+  if (L.composite) {
+    ws.IA[k] = L.Ic0;
+    ws.pA[k] = crossForce(ws.v[k], L.Ic0 * ws.v[k]) - groupExternalForce(sys, L, ws, model, loads);
+    return;
   }
+  const Body& B = sys.bodies[L.body];
+  ws.IA[k].setZero();
+  ws.IA[k].topLeftCorner<3, 3>() = B.Jp;
+  ws.IA[k].bottomRightCorner<3, 3>().diagonal().setConstant(B.m);
+  ws.pA[k] = crossForce(ws.v[k], inertiaTimes(B, ws.v[k])) - externalForce(sys, ws, L.body, loads);
+}
+
+// Passes 2 and 3 of the articulated-body algorithm, after pass 1 (linkKinematics,
+// articulatedStart) at every link.
+void articulatedPasses(const TreeModel& model, const System& sys, const Eigen::VectorXd& tau, TreeWorkspace& ws,
+                       Eigen::VectorXd& qddot) {
   // Pass 2 (inward): U_i = I^A_i S_i, D_i = S_i^T U_i, u_i = tau_i - S_i^T p^A_i, and the
   // articulated inertia and bias the parent sees through the joint (RBDA 7.2-7.3, table
   // 7.1): I^a = I^A - U D^-1 U^T, p^a = p^A + I^a c + U D^-1 u.
@@ -264,11 +332,9 @@ void forwardDynamicsAtKinematics(const TreeModel& model, const System& sys, cons
     }
     // The parent accumulates X^T I^a X and X^T p^a (table 7.1, with X = i_X_lambda(i)).
     const int p = L.aparent - 1;
-    Matrix3d E;
-    Vector3d rho;
-    articulatedTransform(model, ws, k, E, rho);
-    addTransformedInertia(E, rho, IA, ws.IA[p]);
-    ws.pA[p] += transformForceBack(E, rho, pa);
+    const ArticulatedTransform X(model, ws, k);
+    addTransformedInertia(*X.E, *X.rho, IA, ws.IA[p]);
+    ws.pA[p] += transformForceBack(*X.E, *X.rho, pa);
   }
   // Pass 3 (outward): a'_i = X a_parent + c_i, q_ddot_i = D^-1 (u_i - U_i^T a'_i),
   // a_i = a'_i + S_i q_ddot_i (ground does not accelerate: gravity is a force here).
@@ -276,6 +342,40 @@ void forwardDynamicsAtKinematics(const TreeModel& model, const System& sys, cons
   articulatedOutward<true>(
       model, ws, [&](int k) -> const SmallVector& { return ws.u[k]; }, [&](int k) { return ws.tie_u[k]; },
       qddot.data(), ws.a);
+}
+
+}  // namespace
+
+// Articulated-body algorithm, RBDA 7.3, table 7.1, in body coordinates: gravity enters as
+// a force on each body (not as the base acceleration -a_g of the table), so the spatial
+// accelerations a_i left in ws are the bodies' true ones.
+void forwardDynamics(const TreeModel& model, const System& sys, const Eigen::VectorXd& q,
+                     const Eigen::VectorXd& qdot, const Eigen::VectorXd& tau, TreeWorkspace& ws,
+                     Eigen::VectorXd& qddot, const Inputs* loads) {
+  if (model.rotors_coupled) {  // (out of line: the common path stays as short)
+    coupledForwardDynamics(model, sys, q, qdot, tau, ws, qddot, loads);
+    return;
+  }
+  // Pass 1 (outward), each link's kinematics and its start in one visit, then the rest
+  ws.generation = nextWorkspaceGeneration();
+  for (int b : model.order) {
+    linkKinematics(model, q, qdot, ws, b - 1);
+    articulatedStart(model, sys, ws, b - 1, loads);
+  }
+  articulatedPasses(model, sys, tau, ws, qddot);
+}
+
+void forwardKinematics(const TreeModel& model, const Eigen::VectorXd& q, const Eigen::VectorXd& qdot,
+                       TreeWorkspace& ws) {
+  ws.generation = nextWorkspaceGeneration();
+  for (int b : model.order) linkKinematics(model, q, qdot, ws, b - 1);
+}
+
+void forwardDynamicsAtKinematics(const TreeModel& model, const System& sys, const Eigen::VectorXd& tau,
+                                 TreeWorkspace& ws, Eigen::VectorXd& qddot, const Inputs* loads) {
+  ws.generation = nextWorkspaceGeneration();
+  for (int b : model.order) articulatedStart(model, sys, ws, b - 1, loads);
+  articulatedPasses(model, sys, tau, ws, qddot);
 }
 
 // Recursive Newton-Euler, RBDA 5.3, table 5.1 (gravity as a body force as above):
@@ -317,10 +417,8 @@ void jointSpaceInertia(const TreeModel& model, const TreeWorkspace& ws, AlignedV
     const int k = model.order[n] - 1;
     const TreeLink& L = model.links[k];
     if (L.welds() || L.aparent == 0) continue;
-    Matrix3d E;
-    Vector3d rho;
-    articulatedTransform(model, ws, k, E, rho);
-    addTransformedInertia(E, rho, Ic[k], Ic[L.aparent - 1]);
+    const ArticulatedTransform X(model, ws, k);
+    addTransformedInertia(*X.E, *X.rho, Ic[k], Ic[L.aparent - 1]);
   }
   for (int n = 0; n < model.nb; ++n) {
     const int k = model.order[n] - 1;
