@@ -400,7 +400,7 @@ TreeWorkspace::TreeWorkspace(const TreeModel& model) {
   E.assign(n, Matrix3d::Identity());
   rho.assign(n, Vector3d::Zero());
   v.assign(n, Vector6d::Zero());
-  c = cJ = a = pA = f = v;
+  c = a = pA = f = v;
   IA.assign(n, Matrix6d::Zero());
   W.assign(n, Vector6d::Zero());
   dd.assign(n, 0.0), beta.assign(n, 0.0);

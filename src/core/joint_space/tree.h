@@ -127,14 +127,14 @@ struct TreeLink {
   const Joint* ptr = nullptr;
   const TreeJointModel* jmodel = nullptr;
   JointParams params;    // screw: alpha, phi0
-  // For constant_S links, the motion subspace S0 and the pose as constant parts
-  // (forwardKinematics): with R = Rz(angle), Rrel = Rp R Rc^T = cos K_c + sin K_s + K_0 and
-  // the child's centre rho = sp + t_z Rp z - Rrel sc = k_0 + t_z Rp z - cos k_c - sin k_s
-  // (k_c = K_c sc, k_s = K_s sc, k_0 = sp - K_0 sc); a sliding joint's Rrel is K_0 + K_c
-  // (angle 0).
-  Vector6d S0 = Vector6d::Zero();
+  // For constant_S links, the pose as constant parts (forwardKinematics): with
+  // R = Rz(angle), Rrel = Rp R Rc^T = cos K_c + sin K_s + K_0 and the child's centre
+  // rho = sp + t_z Rp z - Rrel sc = k_0 + t_z Rp z - cos k_c - sin k_s (k_c = K_c sc,
+  // k_s = K_s sc, k_0 = sp - K_0 sc); a sliding joint's Rrel is K_0 + K_c (angle 0); and the
+  // motion subspace S0 (TreeWorkspace::S holds it from its construction).
   Matrix3d Kc = Matrix3d::Zero(), Ks = Matrix3d::Zero(), K0 = Matrix3d::Zero();
   Vector3d kc = Vector3d::Zero(), ks = Vector3d::Zero(), k0 = Vector3d::Zero();
+  Vector6d S0 = Vector6d::Zero();
   // The joint frame on the parent (F_p) and on the child (F_c), body components relative to
   // that body's centre of mass; ground's in global components.
   Matrix3d Rp = Matrix3d::Identity(), Rc = Matrix3d::Identity();
@@ -222,7 +222,7 @@ struct TreeWorkspace {
   AlignedVector<Matrix3d> E;        // X_{b <- parent}: rotation parent -> body components
   AlignedVector<Vector3d> rho;      // X_{b <- parent}: b's centre relative to the parent's, parent components
   AlignedVector<MotionSubspace> S;  // motion subspace in body coordinates
-  AlignedVector<Vector6d> v, c, cJ; // velocity, velocity-product acceleration, joint bias S_dot q_dot
+  AlignedVector<Vector6d> v, c;     // velocity, velocity-product acceleration c_J + v x v_J
   AlignedVector<Vector6d> a;        // spatial acceleration
   AlignedVector<Matrix6d> IA;       // articulated inertia
   AlignedVector<Vector6d> pA;       // articulated bias force

@@ -216,7 +216,7 @@ inline void linkKinematics(const TreeModel& model, const Eigen::VectorXd& q, con
       }
     }
     cJ.setZero();
-    vJ = L.S0 * qdot(L.iv);
+    vJ = ws.S[k].col(0) * qdot(L.iv);  // (S0, the workspace's since its construction)
   } else {
     MotionSubspace& S = ws.S[k];
     Matrix3d R;
@@ -236,7 +236,6 @@ inline void linkKinematics(const TreeModel& model, const Eigen::VectorXd& q, con
     Rrel.noalias() = L.Rp * R * L.Rc.transpose();
     ws.rho[k] = L.sp + L.Rp * t - Rrel * L.sc;
   }
-  ws.cJ[k] = cJ;
   ws.E[k] = Rrel.transpose();
   if (L.parent == 0) {
     ws.A[k] = Rrel;
