@@ -102,6 +102,7 @@ JointStepper::JointStepper(const System& sys, bool embed_couplers)
   friction_.e.setZero(model_.nv), friction_.y.setZero(model_.nv);
   friction_.r.setZero(closures_.m), friction_.mu.setZero(closures_.m);
   for (int j : model_.cut_joints) cut_constraints_.push_back(sys.joint_constraint[j]);
+  for (const LimitSpec& L : sys.limits) limit_rows_.push_back(sys.layout[L.constraint].row);
   for (const TreeLink& L : model_.links) {
     if (L.joint < 0 || L.quaternion >= 0) continue;  // (a quaternion's joint tracks no angle)
     for (int k = 0; k < L.ptr->dof(); ++k) {
@@ -192,8 +193,8 @@ void JointStepper::writeAbsolute(const System& sys, State& s) {
   for (int k : model_.ties) s.lambda[sys.layout[model_.links[k].tie_coupler].row] = 0.0;
   if (closures_.m > 0) {
     closures_.systemMultipliers(s.lambda);
-    for (size_t l = 0; l < sys.limits.size(); ++l)
-      if (s.limit_side[l] == 0) s.lambda[sys.layout[sys.limits[l].constraint].row] = 0.0;
+    for (size_t l = 0; l < limit_rows_.size(); ++l)
+      if (s.limit_side[l] == 0) s.lambda[limit_rows_[l]] = 0.0;
   }
   s.bodies_pending = true;  // x, u, acc (completeState)
   // Tracked angles: a tree joint's are its coordinates themselves (so an angle may advance

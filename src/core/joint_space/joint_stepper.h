@@ -181,6 +181,7 @@ class JointStepper final : public FormulationStepper {
     int constraint = 0, slot = 0, iq = 0;
   };
   std::vector<TrackedCoordinate> tracked_coordinates_;
+  std::vector<int> limit_rows_;  // per System limit: its row (its multiplier in State::lambda)
   Eigen::VectorXd a_ref_;  // q_ddot at the step's start: what a branch passage holds
   std::vector<BodyKin> kin_;
   Eigen::VectorXd spring_x_, spring_u_;
