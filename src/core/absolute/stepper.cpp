@@ -26,7 +26,6 @@ Stepper::Stepper(const System& sys) : ev_(sys), solver_(makeSolver(sys, stats_))
   zeros(x0_, nx), zeros(u0_, sys.n), zeros(xs_, nx), zeros(us_, sys.n);
   tableau_ = &tableau(parseMethod(sys.options.method));
   for (int s = 0; s < Tableau::kMaxStages; ++s) zeros(kx_[s], nx), zeros(ku_[s], sys.n);
-  zeros(sum_x_, nx), zeros(sum_u_, sys.n);
   // everything a step writes is sized here: a step allocates nothing
   backup_.assign(kMaxHalvings + 1, initialState(sys));
   start_ = backup_[0];
@@ -303,17 +302,20 @@ void Stepper::stepOnce(const System& sys, State& s, const Inputs& in, double h) 
   };
   const double t0 = s.t;
   const Tableau& T = *tableau_;
+  const double* kx[Tableau::kMaxStages];
+  const double* ku[Tableau::kMaxStages];
+  for (int k = 0; k < T.stages; ++k) kx[k] = kx_[k].data(), ku[k] = ku_[k].data();
   for (int k = 1; k < T.stages; ++k) {
-    combineStages(h, T.a[k], k, T.a_den[k], x0_, kx_, sum_x_, xs_);
-    combineStages(h, T.a[k], k, T.a_den[k], u0_, ku_, sum_u_, us_);
+    combineStages(h, T.a[k], k, T.a_den[k], x0_, kx, xs_);
+    combineStages(h, T.a[k], k, T.a_den[k], u0_, ku, us_);
     const double dt = T.c[k] * h;
     predictTracked(dt);
     s.t = t0 + dt;  // rheonomic equations (drives) are evaluated at the stage's time
     // the row weights only precondition: computed at the first stage, kept for the step
     rates(sys, s, in, s.friction, xs_.data(), us_.data(), kx_[k].data(), ku_[k].data(), k == 1);
   }
-  combineStages(h, T.b, T.stages, T.b_den, x0_, kx_, sum_x_, s.x);
-  combineStages(h, T.b, T.stages, T.b_den, u0_, ku_, sum_u_, s.u);
+  combineStages(h, T.b, T.stages, T.b_den, x0_, kx, s.x);
+  combineStages(h, T.b, T.stages, T.b_den, u0_, ku, s.u);
   for (int b = 0; b < sys.nb; ++b) s.x.segment<4>(BodyCoordinates::x(b) + 3).normalize();
   predictTracked(h);  // references near the new angles; finishStep tracks them exactly
   s.t = t0;

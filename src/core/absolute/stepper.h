@@ -111,7 +111,7 @@ class Stepper final : public FormulationStepper {
   Eigen::VectorXd a_, lam_, r1_, r2_;
   const Tableau* tableau_ = &kRk4;  // the integrator (tableau.h)
   // The step's start, a stage's start, the stages' rates and a weighted sum of them.
-  Eigen::VectorXd x0_, u0_, xs_, us_, kx_[Tableau::kMaxStages], ku_[Tableau::kMaxStages], sum_x_, sum_u_;
+  Eigen::VectorXd x0_, u0_, xs_, us_, kx_[Tableau::kMaxStages], ku_[Tableau::kMaxStages];
   std::vector<State> backup_;  // per halving depth
   State start_;                // the state a step started from (restored when it fails)
   std::vector<Tracked> tracked0_, tracked_rate_;  // at the step's start

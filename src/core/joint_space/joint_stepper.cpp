@@ -361,80 +361,6 @@ void JointStepper::settle(const System& sys, State& s, const Inputs& in) {
   for (State& b : start_.backup) b = s;
 }
 
-namespace {
-
-// The stages' terms w_j k_j of a combination (j < n, w_j != 0), and their sum at entry i:
-// combineStages' operations (tableau.h) on that entry in its order, so the same bits,
-// formed in one pass over the coordinates instead of one vector operation per stage.
-// sum<M>: M terms, known when compiled (1 to 4, RK4's rows), or 0: m, read at run time.
-struct StageTerms {
-  const double* k[Tableau::kMaxStages];
-  double w[Tableau::kMaxStages];
-  int m = 0;
-  StageTerms(const double* weights, int n, const double* const* stages) {
-    for (int j = 0; j < n; ++j)
-      if (weights[j] != 0.0) k[m] = stages[j], w[m++] = weights[j];
-  }
-  template <int M>
-  double sum(Eigen::Index i) const {
-    double s = w[0] * k[0][i];
-    for (int j = 1; j < (M > 0 ? M : m); ++j) s += w[j] * k[j][i];
-    return s;
-  }
-  // f(std::integral_constant<int, M>()) with M as sum<M> takes it (m > 0)
-  template <class F>
-  void dispatch(F&& f) const {
-    switch (m) {
-      case 1: f(std::integral_constant<int, 1>()); break;
-      case 2: f(std::integral_constant<int, 2>()); break;
-      case 3: f(std::integral_constant<int, 3>()); break;
-      case 4: f(std::integral_constant<int, 4>()); break;
-      default: f(std::integral_constant<int, 0>());
-    }
-  }
-};
-
-// A stage's point y = y0 + (h / den) sum_j w_j k_j, as combineStages forms it (no terms:
-// y0 itself).
-void combine(double h, const double* w, int n, double den, const Eigen::VectorXd& y0, const double* const* k,
-             Eigen::VectorXd& y) {
-  const StageTerms terms(w, n, k);
-  y.resize(y0.size());
-  if (terms.m == 0) {
-    y = y0;
-    return;
-  }
-  const double c = h / den;
-  terms.dispatch([&](auto M) {
-    for (Eigen::Index i = 0; i < y0.size(); ++i) y(i) = y0(i) + c * terms.sum<decltype(M)::value>(i);
-  });
-}
-
-// The step's update y = y0 + ((h / den) sum_j w_j k_j + c0), split into y (rounded) and its
-// round-off c, carried to the next step (Knuth's TwoSum: exact in binary floating point
-// without a test of magnitudes); the sum as combine() forms it.
-void compensatedUpdate(double h, const double* w, int n, double den, const Eigen::VectorXd& y0,
-                       const double* const* k, const Eigen::VectorXd& c0, Eigen::VectorXd& c, Eigen::VectorXd& y) {
-  const StageTerms terms(w, n, k);
-  const double wh = h / den;
-  auto update = [&](Eigen::Index i, double sum) {
-    const double d = wh * sum + c0(i);
-    const double t = y0(i) + d;
-    const double dd = t - y0(i);
-    c(i) = (y0(i) - (t - dd)) + (d - dd);
-    y(i) = t;
-  };
-  if (terms.m == 0) {
-    for (Eigen::Index i = 0; i < y.size(); ++i) update(i, 0.0);
-    return;
-  }
-  terms.dispatch([&](auto M) {
-    for (Eigen::Index i = 0; i < y.size(); ++i) update(i, terms.sum<decltype(M)::value>(i));
-  });
-}
-
-}  // namespace
-
 void JointStepper::step(const System& sys, State& s, const Inputs& in, double h) {
   closures_.rebind(sys);  // (a Mechanism's System is copied on write)
   if (!(h > 0) || !std::isfinite(h)) throw UsageError("step must be positive and finite");
@@ -565,8 +491,8 @@ void JointStepper::stepOnce(const System& sys, State& s, const Inputs& in, doubl
   // only friction and damping at the step's start read it)
   closure_mode_.regular_factor = false;
   for (int k = 1; k < T.stages; ++k) {
-    combine(h, T.a[k], k, T.a_den[k], stages_.q0, kq, stages_.qs);
-    combine(h, T.a[k], k, T.a_den[k], stages_.v0, kv, stages_.vs[k]);
+    combineStages(h, T.a[k], k, T.a_den[k], stages_.q0, kq, stages_.qs);
+    combineStages(h, T.a[k], k, T.a_den[k], stages_.v0, kv, stages_.vs[k]);
     accelerations(sys, s, in, s.t + T.c[k] * h, stages_.qs, stages_.vs[k], stages_.kv[k]);
     if (!rates_are_velocities) positionRates(model_, stages_.qs, stages_.vs[k], stages_.kq[k]);
   }

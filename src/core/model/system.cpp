@@ -45,12 +45,6 @@ void validateBody(const Body& b, double extent) {
 
 }  // namespace
 
-Method parseMethod(const std::string& name) {
-  for (Method m : {Method::kRk4, Method::kRk3, Method::kRk2})
-    if (name == tableau(m).name) return m;
-  throw ModelError("unknown integrator '" + name + "' (known: rk4, rk3, rk2)");
-}
-
 Formulation parseFormulation(const std::string& name) {
   for (Formulation f : {Formulation::kAuto, Formulation::kJoint, Formulation::kAbsolute})
     if (name == formulationName(f)) return f;

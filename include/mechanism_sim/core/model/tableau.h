@@ -48,18 +48,16 @@ constexpr const Tableau& tableau(Method m) {
 // The method IntegratorOptions::method names; throws ModelError for an unknown name.
 Method parseMethod(const std::string& name);
 
-// y = y0 + (h / den) (sum_j w_j k_j) over the first n rates k: the sum in order of j,
-// zero weights skipped, into sum (preallocated: no allocation). Both steppers' stage loop.
-inline void combineStages(double h, const double* w, int n, double den, const Eigen::VectorXd& y0,
-                          const Eigen::VectorXd* k, Eigen::VectorXd& sum, Eigen::VectorXd& y) {
-  bool first = true;
-  for (int j = 0; j < n; ++j) {
-    if (w[j] == 0.0) continue;
-    if (first) sum = w[j] * k[j];
-    else sum += w[j] * k[j];
-    first = false;
-  }
-  y = y0 + (h / den) * sum;
-}
+// The stage loop's sums (tableau.cpp), both steppers', over the first n rates k[j] (each
+// of y0's size), per entry in one pass: the sum in order of j, zero weights skipped.
+//   combineStages:     y = y0 + (h / den) sum_j w_j k_j (no weight: y = y0);
+//   compensatedUpdate: the same with the round-off c0 carried in, y = y0 + ((h / den)
+//                      sum_j w_j k_j + c0) split into y (rounded) and its round-off c
+//                      (compensated summation, Knuth's TwoSum: exact in binary floating
+//                      point without a test of magnitudes). y and c are sized by the caller.
+void combineStages(double h, const double* w, int n, double den, const Eigen::VectorXd& y0, const double* const* k,
+                   Eigen::VectorXd& y);
+void compensatedUpdate(double h, const double* w, int n, double den, const Eigen::VectorXd& y0,
+                       const double* const* k, const Eigen::VectorXd& c0, Eigen::VectorXd& c, Eigen::VectorXd& y);
 
 }  // namespace mechanism_sim
