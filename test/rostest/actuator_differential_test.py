@@ -13,7 +13,7 @@ import rospy
 import rostest
 from sensor_msgs.msg import JointState
 
-from mechanism_sim.srv import StepSimulation
+from node_client import advance_service, connected_publisher
 
 PKG = "mechanism_sim"
 E = ((20.0, 40.0), (30.0, -60.0))
@@ -46,12 +46,8 @@ class ActuatorDifferential(unittest.TestCase):
     @classmethod
     def setUpClass(cls):
         rospy.init_node("actuator_differential_test")
-        cls.pub = rospy.Publisher("/mechanism_sim/actuator_effort_command", JointState, queue_size=10)
-        deadline = time.time() + 10
-        while cls.pub.get_num_connections() == 0 and time.time() < deadline:
-            time.sleep(0.05)
-        rospy.wait_for_service("/mechanism_sim/advance", 10.0)
-        cls.advance = rospy.ServiceProxy("/mechanism_sim/advance", StepSimulation)
+        cls.pub = connected_publisher("/mechanism_sim/actuator_effort_command", JointState)
+        cls.advance = advance_service()
 
     def command(self, names, efforts):
         self.pub.publish(JointState(name=names, effort=efforts))

@@ -13,7 +13,7 @@ import rospy
 import rostest
 from sensor_msgs.msg import JointState
 
-from mechanism_sim.srv import StepSimulation
+from node_client import advance_service
 
 PKG = "mechanism_sim"
 N, LOAD = 20.0, 10 * 9.81 * 0.05
@@ -23,8 +23,7 @@ SETTLED = 400 / N * (1 - LOAD / N / 0.5)
 class ActuatorLimits(unittest.TestCase):
     def test_the_drum_settles_where_the_line_meets_the_load(self):
         rospy.init_node("actuator_limits_test")
-        rospy.wait_for_service("/mechanism_sim/advance", 10.0)
-        advance = rospy.ServiceProxy("/mechanism_sim/advance", StepSimulation)
+        advance = advance_service()
         advance(3000)  # 3 s of 1 ms
         time.sleep(0.5)  # (the state published after the steps)
         js = rospy.wait_for_message("/joint_states", JointState, 10.0)

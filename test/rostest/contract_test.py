@@ -1,7 +1,6 @@
 #!/usr/bin/env python3
 """The node as its users meet it: joint_states, tf, /clock, services, effort commands,
 several instances, and a bad model exiting with its error."""
-import math
 import os
 import signal
 import subprocess

@@ -14,7 +14,7 @@ import rospy
 import rostest
 from sensor_msgs.msg import JointState
 
-from mechanism_sim.srv import StepSimulation
+from node_client import advance_service
 
 PKG = "mechanism_sim"
 MODEL = os.path.join(roslib.packages.get_pkg_dir(PKG), "urdf/planetary_gear.urdf")
@@ -38,8 +38,7 @@ class Coupling(unittest.TestCase):
     @classmethod
     def setUpClass(cls):
         rospy.init_node("coupling_test")
-        rospy.wait_for_service("/mechanism_sim/advance", 10.0)
-        cls.advance = rospy.ServiceProxy("/mechanism_sim/advance", StepSimulation)
+        cls.advance = advance_service()
 
     def test_the_willis_reaction_is_simulates(self):
         self.advance(400)  # 0.4 s of 1 ms steps

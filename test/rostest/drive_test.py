@@ -12,6 +12,7 @@ from sensor_msgs.msg import JointState
 from visualization_msgs.msg import MarkerArray
 
 from mechanism_sim.msg import JointReactions
+from node_client import connected_publisher
 
 PKG = "mechanism_sim"
 ACC = 20.0  # ~drive_acceleration in drive.test
@@ -30,10 +31,7 @@ class Drive(unittest.TestCase):
     @classmethod
     def setUpClass(cls):
         rospy.init_node("drive_test")
-        cls.pub = rospy.Publisher("/mechanism_sim/drive_command", JointState, queue_size=10)
-        deadline = time.time() + 10
-        while cls.pub.get_num_connections() == 0 and time.time() < deadline:
-            time.sleep(0.05)
+        cls.pub = connected_publisher("/mechanism_sim/drive_command", JointState)
 
     def command(self, names, velocities):
         self.pub.publish(JointState(name=names, velocity=velocities))

@@ -10,6 +10,8 @@ import rospy
 import rostest
 from sensor_msgs.msg import JointState
 
+from node_client import connected_publisher
+
 PKG = "mechanism_sim"
 A, B, C, D = 0.4, 0.1, math.sqrt(0.2), 0.3  # ground, crank, coupler, rocker
 
@@ -29,10 +31,7 @@ class Kinematic(unittest.TestCase):
     @classmethod
     def setUpClass(cls):
         rospy.init_node("kinematic_test")
-        cls.pub = rospy.Publisher("/mechanism_sim/drive_command", JointState, queue_size=10)
-        deadline = time.time() + 10
-        while cls.pub.get_num_connections() == 0 and time.time() < deadline:
-            time.sleep(0.05)
+        cls.pub = connected_publisher("/mechanism_sim/drive_command", JointState)
 
     def test_1_held_at_rest_with_every_joint(self):
         js = state()

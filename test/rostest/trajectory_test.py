@@ -16,6 +16,8 @@ from rosgraph_msgs.msg import Log
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
+from node_client import connected_publisher
+
 PKG = "mechanism_sim"
 I, MGL = 0.52, 2 * 9.81 * 0.5
 A, T = 0.8, 2.0  # q(t) = A (1 - cos(w t))^2 / 4, w = 2 pi / T: from rest back to rest
@@ -70,10 +72,7 @@ class Trajectory(unittest.TestCase):
         cls.samples, cls.errors = [], []
         rospy.Subscriber("/joint_states", JointState, cls.on_state, queue_size=1000)
         rospy.Subscriber("/rosout", Log, cls.on_log, queue_size=100)
-        cls.pub = rospy.Publisher("/mechanism_sim/joint_trajectory", JointTrajectory, queue_size=10)
-        deadline = time.time() + 10
-        while cls.pub.get_num_connections() == 0 and time.time() < deadline:
-            time.sleep(0.05)
+        cls.pub = connected_publisher("/mechanism_sim/joint_trajectory", JointTrajectory)
         rospy.wait_for_message("/joint_states", JointState, 10.0)
 
     @classmethod
