@@ -19,7 +19,6 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <ctime>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
@@ -29,6 +28,7 @@
 #include <string>
 #include <vector>
 
+#include "cpu_time.h"
 #include "harness_models.h"
 
 using mechanism_sim::MechanismModel;
@@ -69,18 +69,8 @@ struct Monitor {
 
 double seconds(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
-// CPU time of this thread [s]: on a loaded machine it tells the step's own cost apart from
-// the time other processes took the core away.
-double cpuSeconds() {
-  timespec ts;
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-  return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
-}
-
-double median(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  return v[v.size() / 2];
-}
+using bench::cpuSeconds;
+using bench::median;
 
 std::vector<int> parseInts(const std::string& s) {
   std::vector<int> out;

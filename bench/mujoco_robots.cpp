@@ -19,7 +19,6 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
-#include <ctime>
 #include <unistd.h>
 #include <fstream>
 #include <regex>
@@ -27,21 +26,14 @@
 #include <string>
 #include <vector>
 
+#include "cpu_time.h"
 #include "mechanism_sim/core/mechanism.h"
 #include "mechanism_sim/urdf/model.h"
 
 namespace {
 
-double cpuSeconds() {
-  timespec t;
-  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
-  return static_cast<double>(t.tv_sec) + 1e-9 * static_cast<double>(t.tv_nsec);
-}
-
-double median(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  return v[v.size() / 2];
-}
+using bench::cpuSeconds;
+using bench::median;
 
 std::string mujocoText(const std::string& urdf) {
   std::string x = std::regex_replace(urdf, std::regex("<(visual|collision)\\b(?:(?!</\\1>)[^])*</\\1>"), "");

@@ -24,7 +24,6 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
-#include <ctime>
 #include <fstream>
 #include <map>
 #include <memory>
@@ -42,21 +41,14 @@
 #include <urdf_parser/urdf_parser.h>
 
 #include "core/joint_space/tree.h"
+#include "cpu_time.h"
 #include "mechanism_sim/core/mechanism.h"
 #include "mechanism_sim/urdf/model.h"
 
 namespace {
 
-double cpuSeconds() {
-  timespec t;
-  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
-  return static_cast<double>(t.tv_sec) + 1e-9 * static_cast<double>(t.tv_nsec);
-}
-
-double median(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  return v[v.size() / 2];
-}
+using bench::cpuSeconds;
+using bench::median;
 
 constexpr double kStep = 1e-3;
 
