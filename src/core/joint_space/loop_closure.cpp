@@ -307,7 +307,7 @@ void LoopClosures::loadKin(const TreeWorkspace& ws) {
 bool LoopClosures::allFreeLimits() const {
   if (!only_limits_) return false;
   if (limits_.empty()) return true;
-  const signed char* side = has_external_ ? external_.limit_side : limit_side.data();
+  const signed char* side = context().limit_side;
   if (!side) return false;  // (no sides given: inactiveLimit counts no limit free)
   for (int l : limits_)
     if (side[l] != 0) return false;
